@@ -1,0 +1,145 @@
+//! Lane–Emden equation of index k, SPEC §2.1: `q'' + (2/t) q' + q^k = 0` as
+//! `H = p²/2 + q^{k+1}/(k+1) + (2/t) s`, from t0 = 0 with q = 1, p = 0.
+//! The outermost `D½` of S2 means `f = 2/t` is first read at t = τ/2.
+
+#[allow(unused_imports)]
+use super::prelude::*;
+
+use super::spec::{ModelSpec, ParamDef, PieceOps, TimeDependence};
+use super::Method;
+
+/// Largest index `powi_small` handles.
+pub const MAX_INDEX: f64 = 15.0;
+
+crate::shared_fns! {
+    /// Model functions used by the ops (not ops themselves).
+    trait LaneEmdenMechFlows, wgsl LANE_EMDEN_MECH_WGSL;
+
+    /// `V'(q)`, `V(q)` and `f(t)` for the comparison integrators.
+    fn lane_emden_mech(q: R, t: R, index: R, dv: &mut R, v: &mut R, f: &mut R) {
+        let qk: R = R::powi_small(q, index);
+        *dv = qk;
+        *v = qk * q / (index + 1.0);
+        R::lane_emden_time(t, f);
+    }
+}
+
+crate::shared_fns! {
+    /// Helpers of the Lane–Emden model.
+    trait LaneEmdenFlows, wgsl LANE_EMDEN_FLOWS_WGSL;
+
+    /// x^n for an integer 0 ≤ n ≤ 15 given as a float, branch-free (binary powering).
+    fn powi_small(x: R, n: R) -> R {
+        let k: i32 = R::to_i32(n + 0.5);
+        let mut acc: R = 1.0;
+        let mut b: R = x;
+        acc = R::select(acc, acc * b, (k & 1) == 1);
+        b = b * b;
+        acc = R::select(acc, acc * b, (k & 2) == 2);
+        b = b * b;
+        acc = R::select(acc, acc * b, (k & 4) == 4);
+        b = b * b;
+        acc = R::select(acc, acc * b, (k & 8) == 8);
+        return acc;
+    }
+    /// A damping term f·x = (2/t)·x at t = 0 by its limit on the regular
+    /// solution: x/t → x'(0) = −g/3 where x' = −g − (2/t)x (g = V' for x = p,
+    /// g = V for x = s), so the vector field is finite at t = 0.
+    fn lane_emden_regular(fp: R, dv: R, t: R) -> R {
+        return R::select(fp, -0.6666666666666666 * dv, t == 0.0);
+    }
+}
+
+crate::shared_fns! {
+    /// Pieces and time terms of the Lane–Emden model.
+    ops trait LaneEmdenOps, wgsl LANE_EMDEN_WGSL, lanes lane_emden_lanes;
+
+    /// Time term: the damping `f(t) = 2/t`.
+    fn lane_emden_time(t: R, damping: &mut R) {
+        *damping = 2.0 / t;
+    }
+    /// Piece B (V = q^{k+1}/(k+1)) on p.
+    fn lane_emden_b_p(q: R, p: &mut R, tau: R, index: R) {
+        *p = R::mech_kick(*p, tau, R::powi_small(q, index));
+    }
+    /// Piece B (V = q^{k+1}/(k+1)) on s.
+    fn lane_emden_b_s(q: R, s: &mut R, tau: R, index: R) {
+        *s = R::mech_kick(*s, tau, R::powi_small(q, index) * q / (index + 1.0));
+    }
+}
+
+crate::mechanical_1d_methods! {
+    ops trait LaneEmdenMethods, wgsl LANE_EMDEN_METHODS_WGSL, lanes lane_emden_method_lanes;
+    mech lane_emden_mech, field lane_emden_field, rk4 lane_emden_rk4,
+    leapfrog lane_emden_leapfrog, variational1 lane_emden_variational1,
+    variational2 lane_emden_variational2, regular_at_zero lane_emden_regular;
+    params [index]
+}
+
+/// Exact solutions (SPEC §2.1) for k = 0, 1, 5 from q(0) = 1, q'(0) = 0:
+/// returns (q, q') at t, or `None` for other indices.
+pub fn exact(index: u32, t: f64) -> Option<(f64, f64)> {
+    match index {
+        0 => Some((1.0 - t * t / 6.0, -t / 3.0)),
+        1 => {
+            if t.abs() < 1e-4 {
+                Some((
+                    1.0 - t * t / 6.0 + t.powi(4) / 120.0,
+                    -t / 3.0 + t.powi(3) / 30.0,
+                ))
+            } else {
+                Some((t.sin() / t, (t * t.cos() - t.sin()) / (t * t)))
+            }
+        }
+        5 => {
+            let u = 1.0 + t * t / 3.0;
+            Some((u.powf(-0.5), -(t / 3.0) * u.powf(-1.5)))
+        }
+        _ => None,
+    }
+}
+
+pub const SPEC: ModelSpec = ModelSpec {
+    name: "lane_emden",
+    summary: "q'' + (2/t) q' + q^index = 0, from t0 = 0, q = 1, p = 0",
+    vars: &["q", "p", "s"],
+    optional_var: Some("s"),
+    params: &[ParamDef::required(
+        "index",
+        "polytropic index k, an integer 0..15",
+    )],
+    pieces: "ABC",
+    default_order: "CBABC",
+    time: TimeDependence::Always,
+    time_ops: &["lane_emden_time"],
+    piece_ops: &[
+        PieceOps {
+            piece: 'A',
+            ops: &[("mech1_a_p", false), ("mech1_a_s", true)],
+            identity_when_zero: &[],
+        },
+        PieceOps {
+            piece: 'B',
+            ops: &[("lane_emden_b_p", false), ("lane_emden_b_s", true)],
+            identity_when_zero: &[],
+        },
+        PieceOps {
+            piece: 'C',
+            ops: &[("mech1_c_q", false), ("mech1_c_s", true)],
+            identity_when_zero: &[],
+        },
+    ],
+    field_ops: &[("lane_emden_field", false)],
+    methods: &[
+        (Method::Rk4, "lane_emden_rk4"),
+        (Method::Leapfrog, "lane_emden_leapfrog"),
+        (Method::Variational1, "lane_emden_variational1"),
+        (Method::Variational2, "lane_emden_variational2"),
+    ],
+    wgsl: &[
+        LANE_EMDEN_FLOWS_WGSL,
+        LANE_EMDEN_MECH_WGSL,
+        LANE_EMDEN_WGSL,
+        LANE_EMDEN_METHODS_WGSL,
+    ],
+};

@@ -1,0 +1,93 @@
+//! A block of trajectories in structure-of-arrays form.
+//!
+//! Every name an op's shared function can take as an argument is a field of
+//! [`Lanes`]: state variables, their derivatives, time, step, time terms and
+//! model parameters. An op's lane loop binds its arguments to these fields by
+//! name, so the CPU backend needs no hand-written wiring per model, and the GPU
+//! kernel declares locals with the same names.
+
+use crate::real::Real;
+
+/// Trajectories per block. Large enough to amortise the per-op dispatch,
+/// small enough that the arrays a step touches stay in L1.
+pub const LANES: usize = 64;
+
+/// The lane loop of one op.
+pub type LaneFn<R> = fn(&mut Lanes<R>);
+
+/// Binds a lane element to a shared function's argument: by value for `R`,
+/// by reference for `&mut R`. The argument's type chooses the impl.
+pub trait Bind<'a, R> {
+    fn bind(x: &'a mut R) -> Self;
+}
+
+impl<'a, R: Copy> Bind<'a, R> for R {
+    #[inline(always)]
+    fn bind(x: &'a mut R) -> R {
+        *x
+    }
+}
+
+impl<'a, R> Bind<'a, R> for &'a mut R {
+    #[inline(always)]
+    fn bind(x: &'a mut R) -> &'a mut R {
+        x
+    }
+}
+
+macro_rules! define_lanes {
+    ($( $(#[$m:meta])* $f:ident ),* $(,)?) => {
+        /// One block of [`LANES`] trajectories; see the module documentation.
+        pub struct Lanes<R> {
+            $( $(#[$m])* pub $f: [R; LANES], )*
+        }
+
+        /// Every name an op may bind, in declaration order.
+        pub const NAMES: &[&str] = &[$(stringify!($f)),*];
+
+        impl<R: Real> Lanes<R> {
+            pub fn boxed() -> Box<Self> {
+                Box::new(Self { $( $f: [R::default(); LANES], )* })
+            }
+            /// The lane array called `name`.
+            pub fn field(&self, name: &str) -> Option<&[R; LANES]> {
+                match name {
+                    $( stringify!($f) => Some(&self.$f), )*
+                    _ => None,
+                }
+            }
+            /// The lane array called `name`, mutable.
+            pub fn field_mut(&mut self, name: &str) -> Option<&mut [R; LANES]> {
+                match name {
+                    $( stringify!($f) => Some(&mut self.$f), )*
+                    _ => None,
+                }
+            }
+        }
+    };
+}
+
+define_lanes! {
+    // State variables.
+    q, p, s, q1, q2, p1, p2,
+    // Their time derivatives (outputs of the models' vector fields).
+    dq, dp, ds, dq1, dq2, dp1, dp2,
+    /// Time at which the current stage evaluates time-dependent terms.
+    t,
+    /// Signed sub-step of the current op.
+    tau,
+    /// Step size of each trajectory.
+    dt,
+    /// Initial time of each trajectory.
+    t0,
+    // Time terms, evaluated once per stage by a model's time op.
+    forcing, damping, pref, cw, sw,
+    // Model parameters, by their scene names (SPEC §2.4).
+    alpha, forcing_amplitude, forcing_frequency, epsilon, theta, index, eccentricity,
+    lambda, omega, tidal_k, tidal_eta, gamma, r,
+    // Derived parameters: spin–orbit Fourier weights, Liénard polynomial coefficients.
+    a1, a2, a3, a4, a5, a6, a7, a8, a9,
+    b1, b2, b3, b4, b5, b6, b7, b8, b9,
+    f0, f1, f2, f3, f4, f5, f6, f7, f8, f9,
+    g0, g1, g2, g3, g4, g5, g6, g7, g8, g9,
+}
