@@ -3,7 +3,14 @@
 //! See `README.md` for the command line and `../shared/SPEC.md` (the
 //! mathematics) for what every formula computes.
 
+pub mod backend;
 pub mod dsl;
+pub mod exact;
 pub mod math;
 pub mod models;
+pub mod observations;
+pub mod observe;
+pub mod plan;
 pub mod real;
+pub mod scheme;
+pub mod verify;

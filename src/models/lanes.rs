@@ -38,16 +38,40 @@ impl<'a, R> Bind<'a, R> for &'a mut R {
 macro_rules! define_lanes {
     ($( $(#[$m:meta])* $f:ident ),* $(,)?) => {
         /// One block of [`LANES`] trajectories; see the module documentation.
+        /// `repr(C)` with one field type: the layout of `[[R; LANES]; COUNT]`,
+        /// which [`Lanes::at`] relies on.
+        #[repr(C)]
         pub struct Lanes<R> {
             $( $(#[$m])* pub $f: [R; LANES], )*
         }
 
         /// Every name an op may bind, in declaration order.
         pub const NAMES: &[&str] = &[$(stringify!($f)),*];
+        /// Number of lane arrays.
+        pub const COUNT: usize = NAMES.len();
+
+        /// Position of the lane array called `name` (for [`Lanes::at`]).
+        pub fn index_of(name: &str) -> Option<usize> {
+            NAMES.iter().position(|n| *n == name)
+        }
 
         impl<R: Real> Lanes<R> {
             pub fn boxed() -> Box<Self> {
                 Box::new(Self { $( $f: [R::default(); LANES], )* })
+            }
+            /// The lane array at position `k` of [`NAMES`].
+            #[inline(always)]
+            pub fn at(&self, k: usize) -> &[R; LANES] {
+                assert!(k < COUNT);
+                // SAFETY: repr(C) struct of COUNT fields of type [R; LANES], no padding.
+                unsafe { &*(self as *const Self as *const [R; LANES]).add(k) }
+            }
+            /// The lane array at position `k` of [`NAMES`], mutable.
+            #[inline(always)]
+            pub fn at_mut(&mut self, k: usize) -> &mut [R; LANES] {
+                assert!(k < COUNT);
+                // SAFETY: as in `at`; the &mut self borrow covers the whole struct.
+                unsafe { &mut *(self as *mut Self as *mut [R; LANES]).add(k) }
             }
             /// The lane array called `name`.
             pub fn field(&self, name: &str) -> Option<&[R; LANES]> {
@@ -91,3 +115,6 @@ define_lanes! {
     f0, f1, f2, f3, f4, f5, f6, f7, f8, f9,
     g0, g1, g2, g3, g4, g5, g6, g7, g8, g9,
 }
+
+const _: () = assert!(std::mem::size_of::<Lanes<f64>>() == COUNT * LANES * 8);
+const _: () = assert!(std::mem::size_of::<Lanes<f32>>() == COUNT * LANES * 4);

@@ -40,6 +40,7 @@ pub trait Flows:
     + LienardOps
     + VanDerPolMethods
     + LienardMethods
+    + ObserveFlows
 {
 }
 
@@ -64,6 +65,7 @@ impl<T> Flows for T where
         + LienardOps
         + VanDerPolMethods
         + LienardMethods
+        + ObserveFlows
 {
 }
 
@@ -82,6 +84,7 @@ pub mod prelude {
     pub use super::mechanical::{Mechanical1dOps, MechanicalFlows};
     pub use super::quadratic_s::QuadraticSOps;
     pub use super::spin_orbit::{SpinOrbitFlows, SpinOrbitMethods, SpinOrbitOps};
+    pub use crate::observe::ObserveFlows;
     pub use crate::real::{Math, Prims};
 }
 
@@ -90,6 +93,7 @@ pub const COMMON_WGSL: &[&str] = &[
     mechanical::MECHANICAL_FLOWS_WGSL,
     mechanical::MECHANICAL_1D_WGSL,
     lienard::LIENARD_FLOWS_WGSL,
+    crate::observe::OBSERVE_WGSL,
 ];
 
 /// The lane loop of the op called `name`, from whichever model defines it.

@@ -1,0 +1,164 @@
+//! What a run produces, per trajectory, in the run's precision.
+
+use crate::observe::Section;
+use crate::plan::{ObsVar, Plan};
+use crate::real::{Precision, Real};
+
+/// Status of a trajectory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Status {
+    Ok,
+    /// A state variable became non-finite (overflow, a singular map such as
+    /// Kepler at q = 0) at this step (1-based); the trajectory stopped there.
+    NonFinite {
+        step: u64,
+    },
+}
+
+/// Observations of a whole ensemble. Arrays are indexed by trajectory (the
+/// row-major index over the plan's axes), then frame or point.
+#[derive(Debug, Clone)]
+pub struct Observations<R> {
+    pub n: usize,
+    /// `(variable, values[n])`; NaN for trajectories that did not finish.
+    pub final_values: Vec<(String, Vec<R>)>,
+    /// Frames per trajectory (`steps / every + 1`, from step 0).
+    pub frames: usize,
+    /// `(variable, values[n × frames])`, NaN after a trajectory stopped.
+    pub trajectory: Vec<(String, Vec<R>)>,
+    /// Points kept per trajectory.
+    pub max_points: usize,
+    /// `(variable, values[n × max_points])`, NaN-padded.
+    pub poincare: Vec<(String, Vec<R>)>,
+    /// Points found per trajectory (may exceed `max_points`; only that many kept).
+    pub poincare_count: Vec<u32>,
+    /// Half the peak-to-peak range of the cycle variable over the measuring window.
+    pub cycle_amplitude: Vec<R>,
+    /// Mean time between upward crossings of the cycle level in the window (NaN if fewer than two).
+    pub cycle_period: Vec<R>,
+    /// 0: ok; k > 0: non-finite at step k.
+    pub nonfinite_step: Vec<u64>,
+}
+
+fn var_name(plan: &Plan, v: ObsVar) -> String {
+    match v {
+        ObsVar::State(k) => plan.vars[k].to_string(),
+        ObsVar::Time => "t".to_string(),
+    }
+}
+
+impl<R: Real> Observations<R> {
+    /// Arrays for `plan`, filled with NaN (counts and status with 0).
+    pub fn for_plan(plan: &Plan) -> Self {
+        let n = plan.n;
+        let nan = |len: usize| vec![R::nan(); len];
+        let frames = plan
+            .observers
+            .trajectory
+            .as_ref()
+            .map_or(0, |t| (plan.steps / t.every) as usize + 1);
+        let max_points = plan.observers.poincare.as_ref().map_or(0, |p| p.max_points);
+        let has_cycle = plan.cycle_var.is_some();
+        Observations {
+            n,
+            final_values: plan
+                .final_vars
+                .iter()
+                .map(|v| (var_name(plan, *v), nan(n)))
+                .collect(),
+            frames,
+            trajectory: plan
+                .trajectory_vars
+                .iter()
+                .map(|v| (var_name(plan, *v), nan(n * frames)))
+                .collect(),
+            max_points,
+            poincare: plan
+                .poincare_vars
+                .iter()
+                .map(|v| (var_name(plan, *v), nan(n * max_points)))
+                .collect(),
+            poincare_count: if max_points > 0 { vec![0; n] } else { vec![] },
+            cycle_amplitude: if has_cycle { nan(n) } else { vec![] },
+            cycle_period: if has_cycle { nan(n) } else { vec![] },
+            nonfinite_step: vec![0; n],
+        }
+    }
+
+    pub fn status(&self, i: usize) -> Status {
+        match self.nonfinite_step[i] {
+            0 => Status::Ok,
+            step => Status::NonFinite { step },
+        }
+    }
+
+    /// Number of trajectories that finished with a finite state.
+    pub fn count_ok(&self) -> usize {
+        self.nonfinite_step.iter().filter(|s| **s == 0).count()
+    }
+
+    pub fn final_of(&self, var: &str) -> Option<&[R]> {
+        self.final_values
+            .iter()
+            .find(|(v, _)| v == var)
+            .map(|(_, x)| x.as_slice())
+    }
+
+    pub fn trajectory_of(&self, var: &str) -> Option<&[R]> {
+        self.trajectory
+            .iter()
+            .find(|(v, _)| v == var)
+            .map(|(_, x)| x.as_slice())
+    }
+
+    pub fn poincare_of(&self, var: &str) -> Option<&[R]> {
+        self.poincare
+            .iter()
+            .find(|(v, _)| v == var)
+            .map(|(_, x)| x.as_slice())
+    }
+}
+
+/// Bytes the observations of `plan` take in `precision`, before running.
+pub fn estimate_bytes(plan: &Plan, precision: Precision) -> u64 {
+    let n = plan.n as u64;
+    let b = precision.bytes() as u64;
+    let frames = plan
+        .observers
+        .trajectory
+        .as_ref()
+        .map_or(0, |t| plan.steps / t.every + 1);
+    let points = plan
+        .observers
+        .poincare
+        .as_ref()
+        .map_or(0, |p| p.max_points as u64);
+    let per_traj = plan.final_vars.len() as u64 * b
+        + plan.trajectory_vars.len() as u64 * frames * b
+        + plan.poincare_vars.len() as u64 * points * b
+        + if points > 0 { 4 } else { 0 }
+        + if plan.cycle_var.is_some() { 2 * b } else { 0 }
+        + 8;
+    n * per_traj
+}
+
+/// Is the stroboscopic section of `plan` sampled exactly (period and phase
+/// whole multiples of every trajectory's step)? Then no interpolation is needed.
+pub fn strobe_steps(period: f64, phase: f64, dt: f64) -> Option<(u64, u64)> {
+    let whole = |x: f64| {
+        let r = (x / dt).round();
+        (r >= 0.0 && ((x / dt) - r).abs() <= 1e-9 * r.max(1.0)).then_some(r as u64)
+    };
+    match (whole(period), whole(phase)) {
+        (Some(n), Some(k)) if n > 0 => Some((n, k)),
+        _ => None,
+    }
+}
+
+/// The section of a plan, if stroboscopic: `(period, phase)`.
+pub fn stroboscopic(plan: &Plan) -> Option<(f64, f64)> {
+    match plan.observers.poincare.as_ref().map(|p| &p.section) {
+        Some(Section::Stroboscopic { period, phase }) => Some((*period, *phase)),
+        _ => None,
+    }
+}
