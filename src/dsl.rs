@@ -72,7 +72,7 @@ macro_rules! shared_fns {
         $(
             $(#[$fmeta])*
             #[inline(always)]
-            #[allow(unused_mut, unused_variables, clippy::needless_return, clippy::excessive_precision, clippy::too_many_arguments)]
+            #[allow(unused_mut, unused_variables, clippy::needless_return, clippy::excessive_precision, clippy::too_many_arguments, clippy::approx_constant, clippy::assign_op_pattern)]
             pub fn $name($($arg: $aty),*) $(-> $ret)? $body
         )*
         /// Rust text of the shared functions; [`crate::dsl::to_wgsl`] makes it WGSL.
@@ -88,14 +88,14 @@ macro_rules! shared_fns {
     ) => {
         $(#[$tmeta])*
         pub trait $tr<R = Self> {
-            $( $(#[$fmeta])* fn $name($($arg: $aty),*) $(-> $ret)?; )*
+            $( $(#[$fmeta])* #[allow(clippy::too_many_arguments)] fn $name($($arg: $aty),*) $(-> $ret)?; )*
         }
         const _: () = {
             type R = f32;
             impl $tr for f32 {
                 $(
                     #[inline(always)]
-                    #[allow(unused_mut, unused_variables, clippy::needless_return, clippy::excessive_precision, clippy::too_many_arguments)]
+                    #[allow(unused_mut, unused_variables, clippy::needless_return, clippy::excessive_precision, clippy::too_many_arguments, clippy::approx_constant, clippy::assign_op_pattern)]
                     fn $name($($arg: $aty),*) $(-> $ret)? $body
                 )*
             }
@@ -105,7 +105,7 @@ macro_rules! shared_fns {
             impl $tr for f64 {
                 $(
                     #[inline(always)]
-                    #[allow(unused_mut, unused_variables, clippy::needless_return, clippy::excessive_precision, clippy::too_many_arguments)]
+                    #[allow(unused_mut, unused_variables, clippy::needless_return, clippy::excessive_precision, clippy::too_many_arguments, clippy::approx_constant, clippy::assign_op_pattern)]
                     fn $name($($arg: $aty),*) $(-> $ret)? $body
                 )*
             }

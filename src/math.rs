@@ -11,7 +11,7 @@
 //! `exp` ≤ 2 ULP over the whole finite range (f32 and f64), overflow to +∞,
 //! underflow to 0, NaN propagates. `sin`/`cos` ≤ 2 ULP for |x| ≤ 8192 (f32) and
 //! |x| ≤ 10⁶ (f64), where the Cody–Waite reduction by π/2 is exact enough;
-//! beyond that the result stays in [−1, 1] but loses accuracy.
+//! beyond that accuracy degrades gradually, and the result stays in [−1, 1].
 
 use crate::real::Prims;
 
@@ -57,8 +57,11 @@ crate::shared_fns! {
         let odd: bool = (q & 1) == 1;
         let s1: f32 = f32::select(s, c, odd);
         let c1: f32 = f32::select(c, s, odd);
-        *sn = f32::select(s1, -s1, q >= 2);
-        *cs = f32::select(c1, -c1, q == 1 || q == 2);
+        let s2: f32 = f32::select(s1, -s1, q >= 2);
+        let c2: f32 = f32::select(c1, -c1, q == 1 || q == 2);
+        // Far beyond the accurate range r is not reduced; stay in [−1, 1].
+        *sn = f32::select(f32::select(s2, 1.0, s2 > 1.0), -1.0, s2 < -1.0);
+        *cs = f32::select(f32::select(c2, 1.0, c2 > 1.0), -1.0, c2 < -1.0);
     }
 }
 
@@ -114,8 +117,11 @@ crate::shared_fns! {
         let odd: bool = (q & 1) == 1;
         let s1: f64 = f64::select(s, c, odd);
         let c1: f64 = f64::select(c, s, odd);
-        *sn = f64::select(s1, -s1, q >= 2);
-        *cs = f64::select(c1, -c1, q == 1 || q == 2);
+        let s2: f64 = f64::select(s1, -s1, q >= 2);
+        let c2: f64 = f64::select(c1, -c1, q == 1 || q == 2);
+        // Far beyond the accurate range r is not reduced; stay in [−1, 1].
+        *sn = f64::select(f64::select(s2, 1.0, s2 > 1.0), -1.0, s2 < -1.0);
+        *cs = f64::select(f64::select(c2, 1.0, c2 > 1.0), -1.0, c2 < -1.0);
     }
 }
 

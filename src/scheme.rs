@@ -243,6 +243,7 @@ mod tests {
     use super::*;
 
     #[test]
+    #[allow(clippy::excessive_precision)] // SPEC's table, digit for digit
     fn triple_jump_pairs_match_the_table() {
         let table = [
             (4, 1.351207191959657634047688, -1.702414383919315268095376),

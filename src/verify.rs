@@ -381,7 +381,7 @@ fn lane_emden_exact(engine: &dyn Engine, f32: bool) -> Vec<Check> {
                 .expect("s2")
                 .param("index", Source::Const(k as f64));
             p.dt = Source::Const(tau);
-            p.steps = (t_end / tau as f64).round() as u64;
+            p.steps = (t_end / tau).round() as u64;
             p.observers.trajectory = Some(TrajectoryObs {
                 every: 1,
                 vars: vec!["q".into(), "t".into()],
@@ -429,7 +429,7 @@ fn lienard_slope(engine: &dyn Engine, f32: bool) -> Vec<Check> {
     let p0 = eps * (1.0 - q0 * q0) - q0 / s0;
     let mut errs = vec![];
     for tau in [0.01, 0.005] {
-        let mut p = van_der_pol(eps, q0, s0, tau, (0.5 / tau as f64).round() as u64)
+        let mut p = van_der_pol(eps, q0, s0, tau, (0.5 / tau).round() as u64)
             .initial("p", Source::Const(p0));
         p.observers.final_vars = vec!["q".into(), "s".into(), "p".into()];
         match plan(&p).and_then(|pl| engine.run(&pl)) {

@@ -3,6 +3,9 @@
 //! which the compiler vectorises. Every block is independent, so results are
 //! bitwise identical for any number of threads.
 
+// Lane loops index several arrays by lane; iterators would hide that.
+#![allow(clippy::needless_range_loop)]
+
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
@@ -164,8 +167,8 @@ fn run_block<R: Real>(
         strobe_exact: [None; LANES],
         strobe_next: [0; LANES],
         points: [0; LANES],
-        cycle_max: [R::nan(); LANES],
-        cycle_min: [R::nan(); LANES],
+        cycle_max: [-R::inf(); LANES],
+        cycle_min: [R::inf(); LANES],
         cycle_count: [0; LANES],
         cycle_first: [R::nan(); LANES],
         cycle_mean_t: [R::default(); LANES],
@@ -481,10 +484,10 @@ fn cycle_update<R: Real>(
             continue;
         }
         let x = l.at(c.var[k])[i];
-        if !(obs.cycle_max[i] >= x) {
+        if x > obs.cycle_max[i] {
             obs.cycle_max[i] = x;
         }
-        if !(obs.cycle_min[i] <= x) {
+        if x < obs.cycle_min[i] {
             obs.cycle_min[i] = x;
         }
         let y0 = prev[k][i] - level;

@@ -174,12 +174,15 @@ pub const MODEL_NAMES: &[&str] = &[
     "quadratic_s",
 ];
 
+/// Map from a scene parameter's value to a derived lane parameter.
+pub type DeriveFn = fn(f64) -> f64;
+
 /// A lane parameter computed from a scene parameter (or from model data).
 pub struct Derived {
     /// Lane field it fills.
     pub name: &'static str,
     /// The scene parameter it depends on, with the map; `None`: a constant.
-    pub from: Option<(&'static str, fn(f64) -> f64)>,
+    pub from: Option<(&'static str, DeriveFn)>,
     /// Value when `from` is `None`.
     pub value: f64,
 }

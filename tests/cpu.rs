@@ -1,0 +1,169 @@
+//! CPU backend: determinism across thread counts, divergence isolation,
+//! exact solutions, and the observers.
+
+use reeb::backend::cpu;
+use reeb::exact;
+use reeb::models::{lane_emden, Model};
+use reeb::observations::Status;
+use reeb::observe::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
+use reeb::plan::{Plan, Problem, Source};
+
+fn vdp(eps: Source, dt: f64, steps: u64) -> Problem {
+    let mut p = Problem::new(Model::VanDerPol, "s2").unwrap().param("epsilon", eps).initial("q", Source::Const(2.0));
+    p.dt = Source::Const(dt);
+    p.steps = steps;
+    p
+}
+
+#[test]
+fn bitwise_identical_for_1_and_2_threads() {
+    for scheme in ["s2", "yoshida6a", "rk4"] {
+        let mut p = vdp(Source::Const(0.0), 0.01, 300);
+        let eps = p.axis("epsilon", (0..777).map(|i| 0.1 + 0.013 * i as f64).collect());
+        let q0 = p.axis("q0", vec![0.5, 1.0, 2.5]);
+        p = p.param("epsilon", eps).initial("q", q0);
+        p.scheme = reeb::scheme::Scheme::by_name(scheme).unwrap();
+        p.observers.trajectory = Some(TrajectoryObs { every: 50, vars: vec!["q".into()] });
+        let plan = Plan::new(&p).unwrap();
+        let run = |threads| {
+            rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| cpu::run::<f32>(&plan, None))
+        };
+        let (a, b) = (run(1), run(2));
+        for ((_, x), (_, y)) in a.final_values.iter().zip(&b.final_values) {
+            assert!(x.iter().zip(y).all(|(u, v)| u.to_bits() == v.to_bits()), "{scheme}");
+        }
+        assert!(a.trajectory[0].1.iter().zip(&b.trajectory[0].1).all(|(u, v)| u.to_bits() == v.to_bits()));
+    }
+}
+
+#[test]
+fn a_diverging_trajectory_is_flagged_and_isolated() {
+    // ετ = 100 in f32: near q = 0 the A flow multiplies s by e^{ετ(1−q²)} ≈
+    // e^{99.75}, beyond the f32 exponent range (finite in f64).
+    let mut with = vdp(Source::Const(0.0), 0.1, 200).initial("q", Source::Const(0.05));
+    let eps = with.axis("epsilon", vec![1.0, 1000.0, 2.0]);
+    with = with.param("epsilon", eps);
+    let mut without = vdp(Source::Const(0.0), 0.1, 200).initial("q", Source::Const(0.05));
+    let eps = without.axis("epsilon", vec![1.0, 2.0]);
+    without = without.param("epsilon", eps);
+    let a = cpu::run::<f32>(&Plan::new(&with).unwrap(), None);
+    let b = cpu::run::<f32>(&Plan::new(&without).unwrap(), None);
+    assert!(matches!(a.status(1), Status::NonFinite { step } if step <= 3), "{:?}", a.status(1));
+    assert_eq!(a.status(0), Status::Ok);
+    assert_eq!(a.status(2), Status::Ok);
+    assert!(a.final_of("q").unwrap()[1].is_nan());
+    let (qa, qb) = (a.final_of("q").unwrap(), b.final_of("q").unwrap());
+    assert_eq!(qa[0].to_bits(), qb[0].to_bits());
+    assert_eq!(qa[2].to_bits(), qb[1].to_bits());
+    assert_eq!(a.count_ok(), 2);
+}
+
+#[test]
+fn damped_oscillator_matches_its_closed_form_for_every_scheme() {
+    for scheme in ["s2", "triple_jump4", "yoshida6a", "yoshida8a", "variational2", "rk4", "leapfrog"] {
+        for alpha in [0.1, 2.0, 4.0] {
+            let mut p = Problem::new(Model::DampedOscillator, scheme).unwrap()
+                .param("alpha", Source::Const(alpha))
+                .initial("q", Source::Const(1.0))
+                .initial("p", Source::Const(1.0));
+            p.dt = Source::Const(0.001);
+            p.steps = 5000;
+            let o = cpu::run::<f64>(&Plan::new(&p).unwrap(), None);
+            let (q, pp) = exact::damped_oscillator(alpha, 0.0, 0.0, 1.0, 1.0, 5.0);
+            let e = (o.final_of("q").unwrap()[0] - q).abs().max((o.final_of("p").unwrap()[0] - pp).abs());
+            assert!(e < 2e-6, "{scheme} α = {alpha}: {e}");
+        }
+    }
+}
+
+#[test]
+fn lane_emden_matches_exact_solutions() {
+    for k in [0u32, 1, 5] {
+        let mut p = Problem::new(Model::LaneEmden, "yoshida6a").unwrap().param("index", Source::Const(k as f64));
+        p.dt = Source::Const(0.001);
+        p.steps = 3000;
+        p.observers.final_vars = vec!["q".into(), "p".into()];
+        let o = cpu::run::<f64>(&Plan::new(&p).unwrap(), None);
+        let (q, dq) = lane_emden::exact(k, 3.0).unwrap();
+        assert!((o.final_of("q").unwrap()[0] - q).abs() < 1e-5, "k = {k}");
+        assert!((o.final_of("p").unwrap()[0] - dq).abs() < 1e-5, "k = {k}");
+    }
+}
+
+#[test]
+fn harmonic_oscillator_observers() {
+    // ε = 0: q = 2 cos t. Trajectory frames, event section and cycle agree with it.
+    let mut p = vdp(Source::Const(0.0), 0.001, 20_000);
+    p.observers.trajectory = Some(TrajectoryObs { every: 1000, vars: vec!["q".into(), "t".into()] });
+    p.observers.poincare = Some(PoincareObs {
+        section: Section::Crossing { var: "q".into(), value: 0.0, direction: Direction::Up },
+        vars: vec!["t".into(), "s".into(), "q".into()],
+        max_points: 2,
+    });
+    p.observers.cycle = Some(CycleObs { var: "q".into(), level: 0.0, skip: 0.0 });
+    let o = cpu::run::<f64>(&Plan::new(&p).unwrap(), None);
+    assert_eq!(o.frames, 21);
+    let (q, t) = (o.trajectory_of("q").unwrap(), o.trajectory_of("t").unwrap());
+    for k in 0..o.frames {
+        assert!((t[k] - k as f64).abs() < 1e-12);
+        assert!((q[k] - exact::harmonic(2.0, 0.0, t[k]).0).abs() < 1e-5);
+    }
+    // Upward zero crossings at t = 3π/2 + 2πk: 3 in [0, 20], 2 kept.
+    assert_eq!(o.poincare_count[0], 3);
+    let pt = o.poincare_of("t").unwrap();
+    let ps = o.poincare_of("s").unwrap();
+    assert!((pt[0] - 1.5 * std::f64::consts::PI).abs() < 1e-6, "{}", pt[0]);
+    assert!((pt[1] - 3.5 * std::f64::consts::PI).abs() < 1e-6);
+    assert!((ps[0] - 2.0).abs() < 1e-5);
+    assert_eq!(o.poincare_of("q").unwrap()[0], 0.0);
+    assert!((o.cycle_amplitude[0] - 2.0).abs() < 1e-5);
+    assert!((o.cycle_period[0] - 2.0 * std::f64::consts::PI).abs() < 1e-5);
+}
+
+#[test]
+fn stroboscopic_sections_exact_and_interpolated_agree() {
+    // Period 2π with τ = 2π/20 samples exactly; with τ = 0.01 it interpolates.
+    let period = 2.0 * std::f64::consts::PI;
+    let run = |dt: f64, steps: u64| {
+        let mut p = Problem::new(Model::DampedOscillator, "yoshida8a").unwrap()
+            .param("alpha", Source::Const(0.05))
+            .param("forcing_amplitude", Source::Const(0.3))
+            .param("forcing_frequency", Source::Const(1.0))
+            .initial("q", Source::Const(1.0));
+        p.dt = Source::Const(dt);
+        p.steps = steps;
+        p.observers.poincare = Some(PoincareObs {
+            section: Section::Stroboscopic { period, phase: 0.0 },
+            vars: vec!["q".into(), "p".into(), "t".into()],
+            max_points: 10,
+        });
+        cpu::run::<f64>(&Plan::new(&p).unwrap(), None)
+    };
+    let exact = run(period / 200.0, 2000);
+    let interp = run(0.01, 6284);
+    assert_eq!(exact.poincare_count[0], 11);
+    assert_eq!(interp.poincare_count[0], 11);
+    for k in 0..10 {
+        let (a, b) = (exact.poincare_of("t").unwrap()[k], interp.poincare_of("t").unwrap()[k]);
+        assert!((a - k as f64 * period).abs() < 1e-9 && (b - k as f64 * period).abs() < 1e-9);
+        let (qa, qb) = (exact.poincare_of("q").unwrap()[k], interp.poincare_of("q").unwrap()[k]);
+        let (q, _) = exact::damped_oscillator(0.05, 0.3, 1.0, 1.0, 0.0, a);
+        assert!((qa - q).abs() < 1e-6 && (qb - q).abs() < 1e-6, "k = {k}: {qa} {qb} {q}");
+    }
+}
+
+#[test]
+fn kepler_orbit_closes() {
+    // Unperturbed Kepler, e = 0.5: after one period (2π) the orbit returns to perihelion.
+    let ([q1, q2], [p1, p2]) = reeb::models::kepler::perihelion(0.5);
+    let mut p = Problem::new(Model::Kepler, "yoshida8a").unwrap()
+        .initial("q1", Source::Const(q1))
+        .initial("q2", Source::Const(q2))
+        .initial("p1", Source::Const(p1))
+        .initial("p2", Source::Const(p2));
+    p.dt = Source::Const(2.0 * std::f64::consts::PI / 2000.0);
+    p.steps = 2000;
+    let o = cpu::run::<f64>(&Plan::new(&p).unwrap(), None);
+    assert!((o.final_of("q1").unwrap()[0] - q1).abs() < 1e-9);
+    assert!(o.final_of("q2").unwrap()[0].abs() < 1e-9);
+}

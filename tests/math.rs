@@ -1,0 +1,153 @@
+//! reeb's polynomial exp/sin/cos against the platform libm: ≤ 2 ULP over the
+//! documented ranges, and the edges (overflow, underflow, NaN, large arguments).
+
+use reeb::math::{exp_f32, exp_f64, sincos_f32, sincos_f64};
+
+/// Distance in ULPs of `x` from the f64 reference `r`, in f32 units.
+fn ulp32(x: f32, r: f64) -> f64 {
+    if r == 0.0 {
+        return (x as f64).abs() / f32::from_bits(1) as f64;
+    }
+    let rf = r as f32;
+    let ulp = (f32::from_bits(rf.abs().to_bits() + 1) - rf.abs()) as f64;
+    ((x as f64) - r).abs() / ulp
+}
+
+/// Distance in ULPs of `x` from the (≤ 1 ULP) libm value `r`, in f64 units.
+fn ulp64(x: f64, r: f64) -> f64 {
+    if x == r {
+        return 0.0;
+    }
+    let ulp = f64::from_bits(r.abs().to_bits() + 1) - r.abs();
+    (x - r).abs() / ulp
+}
+
+/// Deterministic sample of n points in [lo, hi] (SplitMix64).
+fn sample(lo: f64, hi: f64, n: usize, seed: u64) -> Vec<f64> {
+    let mut z = seed;
+    (0..n)
+        .map(|_| {
+            z = z.wrapping_add(0x9e3779b97f4a7c15);
+            let mut x = z;
+            x = (x ^ (x >> 30)).wrapping_mul(0xbf58476d1ce4e5b9);
+            x = (x ^ (x >> 27)).wrapping_mul(0x94d049bb133111eb);
+            x ^= x >> 31;
+            lo + (hi - lo) * (x >> 11) as f64 / (1u64 << 53) as f64
+        })
+        .collect()
+}
+
+#[test]
+fn exp_f32_within_2_ulp() {
+    let mut worst = (0.0, 0.0);
+    for x in sample(-87.3, 88.7, 200_000, 1).into_iter().chain(sample(-1.0, 1.0, 100_000, 2)) {
+        let x = x as f32;
+        let e = ulp32(exp_f32(x), (x as f64).exp());
+        if e > worst.0 {
+            worst = (e, x as f64);
+        }
+    }
+    assert!(worst.0 <= 2.0, "exp_f32: {} ULP at {}", worst.0, worst.1);
+}
+
+#[test]
+fn exp_f64_within_2_ulp() {
+    let mut worst = (0.0, 0.0);
+    for x in sample(-708.0, 709.7, 200_000, 3).into_iter().chain(sample(-1.0, 1.0, 100_000, 4)) {
+        let e = ulp64(exp_f64(x), x.exp());
+        if e > worst.0 {
+            worst = (e, x);
+        }
+    }
+    assert!(worst.0 <= 2.0, "exp_f64: {} ULP at {}", worst.0, worst.1);
+}
+
+#[test]
+fn exp_edges() {
+    assert_eq!(exp_f32(0.0), 1.0);
+    assert_eq!(exp_f64(0.0), 1.0);
+    assert_eq!(exp_f32(89.0), f32::INFINITY);
+    assert_eq!(exp_f32(1e30), f32::INFINITY);
+    assert_eq!(exp_f32(f32::INFINITY), f32::INFINITY);
+    assert_eq!(exp_f32(-104.0), 0.0);
+    assert_eq!(exp_f32(f32::NEG_INFINITY), 0.0);
+    assert_eq!(exp_f64(710.0), f64::INFINITY);
+    assert_eq!(exp_f64(f64::INFINITY), f64::INFINITY);
+    assert_eq!(exp_f64(-746.0), 0.0);
+    assert_eq!(exp_f64(f64::NEG_INFINITY), 0.0);
+    assert!(exp_f32(f32::NAN).is_nan());
+    assert!(exp_f64(f64::NAN).is_nan());
+    // Largest finite results, and the gradual-underflow range.
+    assert!(exp_f32(88.72).is_finite());
+    assert!(exp_f64(709.78).is_finite());
+    let sub = exp_f64(-740.0);
+    assert!(sub > 0.0 && sub < f64::MIN_POSITIVE && ulp64(sub, (-740f64).exp()) <= 1.0);
+    let sub32 = exp_f32(-100.0);
+    assert!(sub32 > 0.0 && sub32 < f32::MIN_POSITIVE);
+}
+
+fn sincos32(x: f32) -> (f32, f32) {
+    let (mut s, mut c) = (0.0, 0.0);
+    sincos_f32(x, &mut s, &mut c);
+    (s, c)
+}
+
+fn sincos64(x: f64) -> (f64, f64) {
+    let (mut s, mut c) = (0.0, 0.0);
+    sincos_f64(x, &mut s, &mut c);
+    (s, c)
+}
+
+#[test]
+fn sincos_f32_within_2_ulp() {
+    let mut worst = (0.0, 0.0);
+    for x in sample(-8192.0, 8192.0, 200_000, 5).into_iter().chain(sample(-4.0, 4.0, 100_000, 6)) {
+        let x = x as f32;
+        let (s, c) = sincos32(x);
+        let xd = x as f64;
+        // Near zeros of sin/cos an ULP is tiny; measure against max(|f|, 2^-24)
+        // scale there, as the reduction error is absolute (≈ 2^-24 · |r|).
+        for (v, r) in [(s, xd.sin()), (c, xd.cos())] {
+            let e = if r.abs() < 1e-3 { (v as f64 - r).abs() / (f32::EPSILON as f64 * 1e-3) } else { ulp32(v, r) };
+            if e > worst.0 {
+                worst = (e, xd);
+            }
+        }
+    }
+    assert!(worst.0 <= 2.0, "sincos_f32: {} ULP at {}", worst.0, worst.1);
+}
+
+#[test]
+fn sincos_f64_within_2_ulp() {
+    let mut worst = (0.0, 0.0);
+    for x in sample(-1e6, 1e6, 200_000, 7).into_iter().chain(sample(-4.0, 4.0, 100_000, 8)) {
+        let (s, c) = sincos64(x);
+        for (v, r) in [(s, x.sin()), (c, x.cos())] {
+            let e = if r.abs() < 1e-3 { (v - r).abs() / (f64::EPSILON * 1e-3) } else { ulp64(v, r) };
+            if e > worst.0 {
+                worst = (e, x);
+            }
+        }
+    }
+    assert!(worst.0 <= 2.0, "sincos_f64: {} ULP at {}", worst.0, worst.1);
+}
+
+#[test]
+fn sincos_edges() {
+    assert_eq!(sincos32(0.0), (0.0, 1.0));
+    assert_eq!(sincos64(0.0), (0.0, 1.0));
+    // Beyond the accurate range the results stay bounded.
+    for x in [1e5f32, 3.3e7, 1e20] {
+        let (s, c) = sincos32(x);
+        assert!(s.abs() <= 1.0 + 1e-6 && c.abs() <= 1.0 + 1e-6, "{x}: {s} {c}");
+    }
+    for x in [1e8f64, 1e15] {
+        let (s, c) = sincos64(x);
+        assert!(s.abs() <= 1.0 + 1e-12 && c.abs() <= 1.0 + 1e-12, "{x}: {s} {c}");
+    }
+    assert!(sincos32(f32::NAN).0.is_nan());
+    assert!(sincos64(f64::NAN).1.is_nan());
+    // Tiny arguments: sin x = x exactly for |x| far below the ULP of x²/6.
+    assert_eq!(sincos32(1e-20).0, 1e-20);
+    assert_eq!(sincos64(1e-200).0, 1e-200);
+}
