@@ -5,7 +5,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 use reeb::real::Precision;
-use reeb::verify::{run_all, CpuEngine, Engine};
+use reeb::verify::{run_all, CpuEngine, Engine, GpuEngine};
 
 #[derive(Parser)]
 #[command(
@@ -23,7 +23,7 @@ enum Command {
     /// Run the oracles of SPEC §4 and measure the convergence order of every scheme.
     Verify {
         /// Backend to verify.
-        #[arg(long, default_value = "cpu", value_parser = ["cpu"])]
+        #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
         backend: String,
         /// Working precision.
         #[arg(long, default_value = "f64")]
@@ -34,10 +34,22 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Verify {
-            backend: _,
-            precision,
-        } => verify(&CpuEngine(precision)),
+        Command::Verify { backend, precision } => {
+            if backend == "gpu" {
+                match reeb::backend::gpu::GpuContext::new() {
+                    Ok(ctx) => verify(&GpuEngine {
+                        ctx: &ctx,
+                        precision,
+                    }),
+                    Err(e) => {
+                        eprintln!("error: {e}");
+                        ExitCode::FAILURE
+                    }
+                }
+            } else {
+                verify(&CpuEngine(precision))
+            }
+        }
     }
 }
 

@@ -46,6 +46,12 @@ crate::shared_fns! {
         }
         return th;
     }
+    /// Position, in steps from t0, of stroboscopic sample k (time
+    /// t0 + phase + k·period); sample k is due after step n1 when the position
+    /// is at most n1 (+ 10⁻⁴ of a step, so rounding never drops a sample).
+    fn strobe_position(k: R, period: R, phase: R, dt: R) -> R {
+        return (phase + k * period) / dt;
+    }
     /// Adds crossing number k (0-based) at time u (relative to the first)
     /// to the running mean of u and the co-moment C = Σ (k − k̄)(u − ū), by
     /// Welford's update. The mean of the indices before this one is

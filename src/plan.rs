@@ -422,7 +422,10 @@ impl Plan {
                         ),
                     )
                 })?;
-                vec![Op::Time(0.0), Op::Tau(1.0), Op::Call(op)]
+                // Methods evaluate time terms themselves, from the step's start.
+                let mut ops = if time { vec![Op::Time(0.0)] } else { vec![] };
+                ops.extend([Op::Tau(1.0), Op::Call(op)]);
+                ops
             }
         };
         let field_ops = spec

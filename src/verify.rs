@@ -35,6 +35,35 @@ impl Engine for CpuEngine {
     }
 }
 
+/// The GPU backend as an [`Engine`].
+pub struct GpuEngine<'a> {
+    pub ctx: &'a crate::backend::gpu::GpuContext,
+    pub precision: Precision,
+}
+
+impl Engine for GpuEngine<'_> {
+    fn run(&self, plan: &Plan) -> Result<Observations<f64>, String> {
+        use crate::backend::gpu::run;
+        Ok(match self.precision {
+            Precision::F32 => run::<f32>(self.ctx, plan, None)
+                .map_err(|e| e.to_string())?
+                .observations
+                .convert(),
+            Precision::F64 => {
+                run::<f64>(self.ctx, plan, None)
+                    .map_err(|e| e.to_string())?
+                    .observations
+            }
+        })
+    }
+    fn precision(&self) -> Precision {
+        self.precision
+    }
+    fn describe(&self) -> String {
+        format!("gpu: {}", self.ctx.describe())
+    }
+}
+
 /// One row of the report.
 #[derive(Debug, Clone)]
 pub struct Check {

@@ -9,7 +9,10 @@ use reeb::observe::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
 use reeb::plan::{Plan, Problem, Source};
 
 fn vdp(eps: Source, dt: f64, steps: u64) -> Problem {
-    let mut p = Problem::new(Model::VanDerPol, "s2").unwrap().param("epsilon", eps).initial("q", Source::Const(2.0));
+    let mut p = Problem::new(Model::VanDerPol, "s2")
+        .unwrap()
+        .param("epsilon", eps)
+        .initial("q", Source::Const(2.0));
     p.dt = Source::Const(dt);
     p.steps = steps;
     p
@@ -19,20 +22,37 @@ fn vdp(eps: Source, dt: f64, steps: u64) -> Problem {
 fn bitwise_identical_for_1_and_2_threads() {
     for scheme in ["s2", "yoshida6a", "rk4"] {
         let mut p = vdp(Source::Const(0.0), 0.01, 300);
-        let eps = p.axis("epsilon", (0..777).map(|i| 0.1 + 0.013 * i as f64).collect());
+        let eps = p.axis(
+            "epsilon",
+            (0..777).map(|i| 0.1 + 0.013 * i as f64).collect(),
+        );
         let q0 = p.axis("q0", vec![0.5, 1.0, 2.5]);
         p = p.param("epsilon", eps).initial("q", q0);
         p.scheme = reeb::scheme::Scheme::by_name(scheme).unwrap();
-        p.observers.trajectory = Some(TrajectoryObs { every: 50, vars: vec!["q".into()] });
+        p.observers.trajectory = Some(TrajectoryObs {
+            every: 50,
+            vars: vec!["q".into()],
+        });
         let plan = Plan::new(&p).unwrap();
         let run = |threads| {
-            rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| cpu::run::<f32>(&plan, None))
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| cpu::run::<f32>(&plan, None))
         };
         let (a, b) = (run(1), run(2));
         for ((_, x), (_, y)) in a.final_values.iter().zip(&b.final_values) {
-            assert!(x.iter().zip(y).all(|(u, v)| u.to_bits() == v.to_bits()), "{scheme}");
+            assert!(
+                x.iter().zip(y).all(|(u, v)| u.to_bits() == v.to_bits()),
+                "{scheme}"
+            );
         }
-        assert!(a.trajectory[0].1.iter().zip(&b.trajectory[0].1).all(|(u, v)| u.to_bits() == v.to_bits()));
+        assert!(a.trajectory[0]
+            .1
+            .iter()
+            .zip(&b.trajectory[0].1)
+            .all(|(u, v)| u.to_bits() == v.to_bits()));
     }
 }
 
@@ -48,7 +68,11 @@ fn a_diverging_trajectory_is_flagged_and_isolated() {
     without = without.param("epsilon", eps);
     let a = cpu::run::<f32>(&Plan::new(&with).unwrap(), None);
     let b = cpu::run::<f32>(&Plan::new(&without).unwrap(), None);
-    assert!(matches!(a.status(1), Status::NonFinite { step } if step <= 3), "{:?}", a.status(1));
+    assert!(
+        matches!(a.status(1), Status::NonFinite { step } if step <= 3),
+        "{:?}",
+        a.status(1)
+    );
     assert_eq!(a.status(0), Status::Ok);
     assert_eq!(a.status(2), Status::Ok);
     assert!(a.final_of("q").unwrap()[1].is_nan());
@@ -60,9 +84,18 @@ fn a_diverging_trajectory_is_flagged_and_isolated() {
 
 #[test]
 fn damped_oscillator_matches_its_closed_form_for_every_scheme() {
-    for scheme in ["s2", "triple_jump4", "yoshida6a", "yoshida8a", "variational2", "rk4", "leapfrog"] {
+    for scheme in [
+        "s2",
+        "triple_jump4",
+        "yoshida6a",
+        "yoshida8a",
+        "variational2",
+        "rk4",
+        "leapfrog",
+    ] {
         for alpha in [0.1, 2.0, 4.0] {
-            let mut p = Problem::new(Model::DampedOscillator, scheme).unwrap()
+            let mut p = Problem::new(Model::DampedOscillator, scheme)
+                .unwrap()
                 .param("alpha", Source::Const(alpha))
                 .initial("q", Source::Const(1.0))
                 .initial("p", Source::Const(1.0));
@@ -70,7 +103,9 @@ fn damped_oscillator_matches_its_closed_form_for_every_scheme() {
             p.steps = 5000;
             let o = cpu::run::<f64>(&Plan::new(&p).unwrap(), None);
             let (q, pp) = exact::damped_oscillator(alpha, 0.0, 0.0, 1.0, 1.0, 5.0);
-            let e = (o.final_of("q").unwrap()[0] - q).abs().max((o.final_of("p").unwrap()[0] - pp).abs());
+            let e = (o.final_of("q").unwrap()[0] - q)
+                .abs()
+                .max((o.final_of("p").unwrap()[0] - pp).abs());
             assert!(e < 2e-6, "{scheme} α = {alpha}: {e}");
         }
     }
@@ -79,7 +114,9 @@ fn damped_oscillator_matches_its_closed_form_for_every_scheme() {
 #[test]
 fn lane_emden_matches_exact_solutions() {
     for k in [0u32, 1, 5] {
-        let mut p = Problem::new(Model::LaneEmden, "yoshida6a").unwrap().param("index", Source::Const(k as f64));
+        let mut p = Problem::new(Model::LaneEmden, "yoshida6a")
+            .unwrap()
+            .param("index", Source::Const(k as f64));
         p.dt = Source::Const(0.001);
         p.steps = 3000;
         p.observers.final_vars = vec!["q".into(), "p".into()];
@@ -94,13 +131,24 @@ fn lane_emden_matches_exact_solutions() {
 fn harmonic_oscillator_observers() {
     // ε = 0: q = 2 cos t. Trajectory frames, event section and cycle agree with it.
     let mut p = vdp(Source::Const(0.0), 0.001, 20_000);
-    p.observers.trajectory = Some(TrajectoryObs { every: 1000, vars: vec!["q".into(), "t".into()] });
+    p.observers.trajectory = Some(TrajectoryObs {
+        every: 1000,
+        vars: vec!["q".into(), "t".into()],
+    });
     p.observers.poincare = Some(PoincareObs {
-        section: Section::Crossing { var: "q".into(), value: 0.0, direction: Direction::Up },
+        section: Section::Crossing {
+            var: "q".into(),
+            value: 0.0,
+            direction: Direction::Up,
+        },
         vars: vec!["t".into(), "s".into(), "q".into()],
         max_points: 2,
     });
-    p.observers.cycle = Some(CycleObs { var: "q".into(), level: 0.0, skip: 0.0 });
+    p.observers.cycle = Some(CycleObs {
+        var: "q".into(),
+        level: 0.0,
+        skip: 0.0,
+    });
     let o = cpu::run::<f64>(&Plan::new(&p).unwrap(), None);
     assert_eq!(o.frames, 21);
     let (q, t) = (o.trajectory_of("q").unwrap(), o.trajectory_of("t").unwrap());
@@ -112,7 +160,11 @@ fn harmonic_oscillator_observers() {
     assert_eq!(o.poincare_count[0], 3);
     let pt = o.poincare_of("t").unwrap();
     let ps = o.poincare_of("s").unwrap();
-    assert!((pt[0] - 1.5 * std::f64::consts::PI).abs() < 1e-6, "{}", pt[0]);
+    assert!(
+        (pt[0] - 1.5 * std::f64::consts::PI).abs() < 1e-6,
+        "{}",
+        pt[0]
+    );
     assert!((pt[1] - 3.5 * std::f64::consts::PI).abs() < 1e-6);
     assert!((ps[0] - 2.0).abs() < 1e-5);
     assert_eq!(o.poincare_of("q").unwrap()[0], 0.0);
@@ -125,7 +177,8 @@ fn stroboscopic_sections_exact_and_interpolated_agree() {
     // Period 2π with τ = 2π/20 samples exactly; with τ = 0.01 it interpolates.
     let period = 2.0 * std::f64::consts::PI;
     let run = |dt: f64, steps: u64| {
-        let mut p = Problem::new(Model::DampedOscillator, "yoshida8a").unwrap()
+        let mut p = Problem::new(Model::DampedOscillator, "yoshida8a")
+            .unwrap()
             .param("alpha", Source::Const(0.05))
             .param("forcing_amplitude", Source::Const(0.3))
             .param("forcing_frequency", Source::Const(1.0))
@@ -144,11 +197,20 @@ fn stroboscopic_sections_exact_and_interpolated_agree() {
     assert_eq!(exact.poincare_count[0], 11);
     assert_eq!(interp.poincare_count[0], 11);
     for k in 0..10 {
-        let (a, b) = (exact.poincare_of("t").unwrap()[k], interp.poincare_of("t").unwrap()[k]);
+        let (a, b) = (
+            exact.poincare_of("t").unwrap()[k],
+            interp.poincare_of("t").unwrap()[k],
+        );
         assert!((a - k as f64 * period).abs() < 1e-9 && (b - k as f64 * period).abs() < 1e-9);
-        let (qa, qb) = (exact.poincare_of("q").unwrap()[k], interp.poincare_of("q").unwrap()[k]);
+        let (qa, qb) = (
+            exact.poincare_of("q").unwrap()[k],
+            interp.poincare_of("q").unwrap()[k],
+        );
         let (q, _) = exact::damped_oscillator(0.05, 0.3, 1.0, 1.0, 0.0, a);
-        assert!((qa - q).abs() < 1e-6 && (qb - q).abs() < 1e-6, "k = {k}: {qa} {qb} {q}");
+        assert!(
+            (qa - q).abs() < 1e-6 && (qb - q).abs() < 1e-6,
+            "k = {k}: {qa} {qb} {q}"
+        );
     }
 }
 
@@ -156,7 +218,8 @@ fn stroboscopic_sections_exact_and_interpolated_agree() {
 fn kepler_orbit_closes() {
     // Unperturbed Kepler, e = 0.5: after one period (2π) the orbit returns to perihelion.
     let ([q1, q2], [p1, p2]) = reeb::models::kepler::perihelion(0.5);
-    let mut p = Problem::new(Model::Kepler, "yoshida8a").unwrap()
+    let mut p = Problem::new(Model::Kepler, "yoshida8a")
+        .unwrap()
         .initial("q1", Source::Const(q1))
         .initial("q2", Source::Const(q2))
         .initial("p1", Source::Const(p1))

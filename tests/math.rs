@@ -40,7 +40,10 @@ fn sample(lo: f64, hi: f64, n: usize, seed: u64) -> Vec<f64> {
 #[test]
 fn exp_f32_within_2_ulp() {
     let mut worst = (0.0, 0.0);
-    for x in sample(-87.3, 88.7, 200_000, 1).into_iter().chain(sample(-1.0, 1.0, 100_000, 2)) {
+    for x in sample(-87.3, 88.7, 200_000, 1)
+        .into_iter()
+        .chain(sample(-1.0, 1.0, 100_000, 2))
+    {
         let x = x as f32;
         let e = ulp32(exp_f32(x), (x as f64).exp());
         if e > worst.0 {
@@ -53,7 +56,10 @@ fn exp_f32_within_2_ulp() {
 #[test]
 fn exp_f64_within_2_ulp() {
     let mut worst = (0.0, 0.0);
-    for x in sample(-708.0, 709.7, 200_000, 3).into_iter().chain(sample(-1.0, 1.0, 100_000, 4)) {
+    for x in sample(-708.0, 709.7, 200_000, 3)
+        .into_iter()
+        .chain(sample(-1.0, 1.0, 100_000, 4))
+    {
         let e = ulp64(exp_f64(x), x.exp());
         if e > worst.0 {
             worst = (e, x);
@@ -101,14 +107,21 @@ fn sincos64(x: f64) -> (f64, f64) {
 #[test]
 fn sincos_f32_within_2_ulp() {
     let mut worst = (0.0, 0.0);
-    for x in sample(-8192.0, 8192.0, 200_000, 5).into_iter().chain(sample(-4.0, 4.0, 100_000, 6)) {
+    for x in sample(-8192.0, 8192.0, 200_000, 5)
+        .into_iter()
+        .chain(sample(-4.0, 4.0, 100_000, 6))
+    {
         let x = x as f32;
         let (s, c) = sincos32(x);
         let xd = x as f64;
         // Near zeros of sin/cos an ULP is tiny; measure against max(|f|, 2^-24)
         // scale there, as the reduction error is absolute (≈ 2^-24 · |r|).
         for (v, r) in [(s, xd.sin()), (c, xd.cos())] {
-            let e = if r.abs() < 1e-3 { (v as f64 - r).abs() / (f32::EPSILON as f64 * 1e-3) } else { ulp32(v, r) };
+            let e = if r.abs() < 1e-3 {
+                (v as f64 - r).abs() / (f32::EPSILON as f64 * 1e-3)
+            } else {
+                ulp32(v, r)
+            };
             if e > worst.0 {
                 worst = (e, xd);
             }
@@ -120,10 +133,17 @@ fn sincos_f32_within_2_ulp() {
 #[test]
 fn sincos_f64_within_2_ulp() {
     let mut worst = (0.0, 0.0);
-    for x in sample(-1e6, 1e6, 200_000, 7).into_iter().chain(sample(-4.0, 4.0, 100_000, 8)) {
+    for x in sample(-1e6, 1e6, 200_000, 7)
+        .into_iter()
+        .chain(sample(-4.0, 4.0, 100_000, 8))
+    {
         let (s, c) = sincos64(x);
         for (v, r) in [(s, x.sin()), (c, x.cos())] {
-            let e = if r.abs() < 1e-3 { (v - r).abs() / (f64::EPSILON * 1e-3) } else { ulp64(v, r) };
+            let e = if r.abs() < 1e-3 {
+                (v - r).abs() / (f64::EPSILON * 1e-3)
+            } else {
+                ulp64(v, r)
+            };
             if e > worst.0 {
                 worst = (e, x);
             }
@@ -139,11 +159,17 @@ fn sincos_edges() {
     // Beyond the accurate range the results stay bounded.
     for x in [1e5f32, 3.3e7, 1e20] {
         let (s, c) = sincos32(x);
-        assert!(s.abs() <= 1.0 + 1e-6 && c.abs() <= 1.0 + 1e-6, "{x}: {s} {c}");
+        assert!(
+            s.abs() <= 1.0 + 1e-6 && c.abs() <= 1.0 + 1e-6,
+            "{x}: {s} {c}"
+        );
     }
     for x in [1e8f64, 1e15] {
         let (s, c) = sincos64(x);
-        assert!(s.abs() <= 1.0 + 1e-12 && c.abs() <= 1.0 + 1e-12, "{x}: {s} {c}");
+        assert!(
+            s.abs() <= 1.0 + 1e-12 && c.abs() <= 1.0 + 1e-12,
+            "{x}: {s} {c}"
+        );
     }
     assert!(sincos32(f32::NAN).0.is_nan());
     assert!(sincos64(f64::NAN).1.is_nan());

@@ -9,7 +9,12 @@ fn suite(precision: Precision) {
     let failed: Vec<String> = rows
         .iter()
         .filter(|c| !c.pass)
-        .map(|c| format!("{}: expected {} measured {} tolerance {}", c.name, c.expected, c.measured, c.tolerance))
+        .map(|c| {
+            format!(
+                "{}: expected {} measured {} tolerance {}",
+                c.name, c.expected, c.measured, c.tolerance
+            )
+        })
         .collect();
     assert!(rows.len() >= 40);
     assert!(failed.is_empty(), "{}", failed.join("\n"));

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use crate::models::lane_fn;
 use crate::models::lanes::{index_of, LaneFn, Lanes, LANES};
-use crate::observations::{strobe_steps, stroboscopic, Observations};
+use crate::observations::{stroboscopic, Observations};
 use crate::observe::{Direction, Section};
 use crate::plan::{ObsVar, Op, Plan, Source};
 use crate::real::Real;
@@ -127,10 +127,11 @@ fn compile<R: Real>(plan: &Plan) -> Compiled<'_, R> {
     }
 }
 
-/// Per-lane observer state of one block.
+/// Per-lane observer state of one block (the GPU kernel keeps the same state
+/// per trajectory, see `backend/gpu/codegen.rs`).
 struct BlockObservers<R> {
-    /// Stroboscopic section: exact sampling every `n` steps after `k0`.
-    strobe_exact: [Option<(u64, u64)>; LANES],
+    /// Stroboscopic section sampled exactly: `(every, first)` steps per lane.
+    strobe_exact: Option<([u64; LANES], [u64; LANES])>,
     strobe_next: [u64; LANES],
     points: [u32; LANES],
     cycle_max: [R; LANES],
@@ -164,7 +165,7 @@ fn run_block<R: Real>(
     let mut status = [0u64; LANES];
     let mut alive = count;
     let mut obs = BlockObservers::<R> {
-        strobe_exact: [None; LANES],
+        strobe_exact: None,
         strobe_next: [0; LANES],
         points: [0; LANES],
         cycle_max: [-R::inf(); LANES],
@@ -174,10 +175,15 @@ fn run_block<R: Real>(
         cycle_mean_t: [R::default(); LANES],
         cycle_comoment: [R::default(); LANES],
     };
-    if let Some((period, phase)) = stroboscopic(plan) {
-        for i in 0..count {
-            obs.strobe_exact[i] = strobe_steps(period, phase, l.dt[i].to_f64());
+    if let (Some((period, phase)), false) = (stroboscopic(plan), c.needs_field) {
+        // Every step divides the period: sample by step count, in R as the GPU does.
+        let (mut every, mut first) = ([1u64; LANES], [0u64; LANES]);
+        let (pr, ph, half) = (R::from_f64(period), R::from_f64(phase), R::from_f64(0.5));
+        for i in 0..LANES {
+            every[i] = (pr / l.dt[i] + half).floor().to_f64() as u64;
+            first[i] = (ph / l.dt[i] + half).floor().to_f64() as u64;
         }
+        obs.strobe_exact = Some((every, first));
     }
     // State (and slopes) at the start of the current step, for interpolation.
     let mut prev = vec![[R::default(); LANES]; nv];
@@ -405,29 +411,26 @@ fn observe<R: Real>(
     };
     match &pc.section {
         Section::Stroboscopic { period, phase } => {
+            let (pr, ph) = (R::from_f64(*period), R::from_f64(*phase));
+            let (n1r, tol) = (R::from_f64(n1 as f64), R::from_f64(1e-4));
             for i in 0..count {
                 if status[i] != 0 {
                     continue;
                 }
-                if let Some((every, first)) = obs.strobe_exact[i] {
-                    if n1 >= first && (n1 - first) % every == 0 {
+                if let Some((every, first)) = &obs.strobe_exact {
+                    if n1 >= first[i] && (n1 - first[i]) % every[i] == 0 {
                         record(obs, i, one, None);
                     }
                     continue;
                 }
-                // Interpolated: every target time in (t_n, t_{n+1}] (t_0 itself at step 0).
-                let dt = l.dt[i].to_f64();
-                let t1 = l.t0[i].to_f64() + n1 as f64 * dt;
+                // Every sample time in (t_{n1−1}, t_{n1}] (t_0 itself at step 0).
                 loop {
-                    let target = l.t0[i].to_f64() + phase + obs.strobe_next[i] as f64 * period;
-                    if target > t1 + 1e-12 * t1.abs().max(1.0) {
+                    let x =
+                        R::strobe_position(R::from_f64(obs.strobe_next[i] as f64), pr, ph, l.dt[i]);
+                    if x > n1r + tol {
                         break;
                     }
-                    let th = if n1 == 0 {
-                        one
-                    } else {
-                        R::from_f64(((target - (t1 - dt)) / dt).clamp(0.0, 1.0))
-                    };
+                    let th = if n1 == 0 { one } else { clamp01(x - n1r + one) };
                     record(obs, i, th, None);
                     obs.strobe_next[i] += 1;
                 }
@@ -461,6 +464,19 @@ fn observe<R: Real>(
                 }
             }
         }
+    }
+}
+
+/// `x` clamped to [0, 1] (WGSL's `clamp(x, 0.0, 1.0)`).
+#[inline]
+fn clamp01<R: Real>(x: R) -> R {
+    let (zero, one) = (R::default(), R::from_f64(1.0));
+    if x < zero {
+        zero
+    } else if x > one {
+        one
+    } else {
+        x
     }
 }
 

@@ -2,6 +2,7 @@
 //! return the same [`Observations`].
 
 pub mod cpu;
+pub mod gpu;
 
 use std::sync::atomic::AtomicU64;
 

@@ -1,0 +1,63 @@
+// reeb driver: one invocation integrates one trajectory over the window of
+// steps [u.step0, u.step0 + u.nsteps). src/backend/gpu/codegen.rs splices the
+// plan's code in at the `{{...}}` markers: the inputs (constants, or values
+// looked up along the ensemble's axes), the step (the plan's ops as calls of
+// the shared functions), the finite test and the observers.
+
+struct Uniforms {
+    // Global index of the chunk's first trajectory.
+    base: u32,
+    // Trajectories in the chunk, and the stride of the per-trajectory arrays.
+    count: u32,
+    cap: u32,
+    // The window of steps of this dispatch.
+    step0: u32,
+    nsteps: u32,
+    // First trajectory frame that traj_out holds, and how many it holds.
+    frame0: u32,
+    nframes: u32,
+    _pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> u: Uniforms;
+// Integrated variables: state[k * cap + i].
+@group(0) @binding(1) var<storage, read_write> state: array<R>;
+// Input values along the axes.
+@group(0) @binding(2) var<storage, read> table: array<R>;
+// 0: running; k > 0: non-finite at step k (the trajectory stopped there).
+@group(0) @binding(3) var<storage, read_write> status: array<u32>;
+// Observer state that lives across dispatches.
+@group(0) @binding(4) var<storage, read_write> aux_r: array<R>;
+@group(0) @binding(5) var<storage, read_write> aux_u: array<u32>;
+// Trajectory frames of this window: traj_out[(frame * vars + j) * cap + i].
+@group(0) @binding(6) var<storage, read_write> traj_out: array<R>;
+// Poincaré points: points_out[(k * vars + j) * cap + i].
+@group(0) @binding(7) var<storage, read_write> points_out: array<R>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
+        @builtin(local_invocation_index) li: u32) {
+    let i = (wg.y * nwg.x + wg.x) * 64u + li;
+    if i >= u.count {
+        return;
+    }
+    if status[i] != 0u {
+        return;
+    }
+    let g = u.base + i;
+{{INPUTS}}
+{{LOAD}}
+    var st: u32 = 0u;
+{{BEGIN}}
+    for (var n: u32 = u.step0; n < u.step0 + u.nsteps; n = n + 1u) {
+        let nf: R = R(n);
+{{STEP}}
+        if !({{FINITE}}) {
+            st = n + 1u;
+            break;
+        }
+{{OBSERVE}}
+    }
+{{STORE}}
+    status[i] = st;
+}

@@ -1,0 +1,48 @@
+// reeb prelude, f32: the working precision and the primitives that shared
+// functions call (their CPU twins are in src/real.rs, `Prims` and `Math`).
+
+alias R = f32;
+
+// 2^n, exact, for n in [-126, 127].
+fn pow2i(n: i32) -> f32 {
+    return bitcast<f32>(u32(n + 127) << 23u);
+}
+
+fn to_i32(x: f32) -> i32 {
+    return i32(x);
+}
+
+fn from_i32(n: i32) -> f32 {
+    return f32(n);
+}
+
+fn inf() -> f32 {
+    return bitcast<f32>(0x7f800000u);
+}
+
+// Finite test on the bits, so no compiler assumption about NaN/inf removes it.
+fn finite(x: f32) -> bool {
+    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
+}
+
+fn exp_r(x: f32) -> f32 {
+    return exp_f32(x);
+}
+
+fn sincos_r(x: f32, s: ptr<function, f32>, c: ptr<function, f32>) {
+    sincos_f32(x, s, c);
+}
+
+fn sin_r(x: f32) -> f32 {
+    var s: f32;
+    var c: f32;
+    sincos_f32(x, &s, &c);
+    return s;
+}
+
+fn cos_r(x: f32) -> f32 {
+    var s: f32;
+    var c: f32;
+    sincos_f32(x, &s, &c);
+    return c;
+}

@@ -1,0 +1,57 @@
+// reeb prelude, f64 (needs SHADER_F64): the working precision and the
+// primitives that shared functions call (CPU twins: src/real.rs). Nothing here
+// uses a WGSL builtin that lavapipe gets wrong in f64 (exp, sin, cos, ...):
+// reeb's own polynomials (src/math.rs) replace them.
+
+alias R = f64;
+
+// 2^n, exact, for n in [-1088, 1039], built from f32 powers of two without
+// 64-bit integers: n = 16k + r, 2^n = (2^k)^16 · 2^r, every product exact.
+fn pow2i(n: i32) -> f64 {
+    let k = n >> 4u;
+    let r = n - (k << 4u);
+    var a = f64(bitcast<f32>(u32(k + 127) << 23u));
+    a = a * a;
+    a = a * a;
+    a = a * a;
+    a = a * a;
+    return a * f64(bitcast<f32>(u32(r + 127) << 23u));
+}
+
+fn to_i32(x: f64) -> i32 {
+    return i32(x);
+}
+
+fn from_i32(n: i32) -> f64 {
+    return f64(n);
+}
+
+fn inf() -> f64 {
+    return f64(bitcast<f32>(0x7f800000u));
+}
+
+fn finite(x: f64) -> bool {
+    return abs(x) <= 1.7976931348623157e308;
+}
+
+fn exp_r(x: f64) -> f64 {
+    return exp_f64(x);
+}
+
+fn sincos_r(x: f64, s: ptr<function, f64>, c: ptr<function, f64>) {
+    sincos_f64(x, s, c);
+}
+
+fn sin_r(x: f64) -> f64 {
+    var s: f64;
+    var c: f64;
+    sincos_f64(x, &s, &c);
+    return s;
+}
+
+fn cos_r(x: f64) -> f64 {
+    var s: f64;
+    var c: f64;
+    sincos_f64(x, &s, &c);
+    return c;
+}

@@ -1,0 +1,542 @@
+//! Runs a plan's kernel: ensembles larger than the adapter's storage-binding
+//! limit are split into chunks; a dispatch never exceeds the workgroup limit
+//! per dimension; long horizons are cut into windows of steps whose length
+//! adapts so each dispatch takes about [`TARGET_DISPATCH_SECONDS`] (no
+//! multi-second kernels, and progress to report).
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+
+use wgpu::util::DeviceExt;
+
+use super::codegen::{generate, AUX_R, AUX_U};
+use super::{GpuContext, GpuError};
+use crate::observations::Observations;
+use crate::plan::{ObsVar, Plan};
+use crate::real::{Precision, Real};
+
+/// Wall time one dispatch aims at.
+pub const TARGET_DISPATCH_SECONDS: f64 = 0.1;
+/// GPU memory a run may take (buffers of one chunk).
+pub const MEMORY_BUDGET: u64 = 1 << 30;
+const WORKGROUP: u64 = 64;
+/// Steps one dispatch may take: llvmpipe (lavapipe) silently ends any shader
+/// loop after 65 535 iterations, so a window never asks for more.
+pub const MAX_STEPS_PER_DISPATCH: u64 = 65_535;
+
+/// Observations of a GPU run, and how long the integration took.
+pub struct GpuRun<R> {
+    pub observations: Observations<R>,
+    /// Integration alone: the dispatches, by GPU timestamps when the adapter
+    /// has them, else by wall clock around each dispatch.
+    pub seconds: f64,
+    pub timing: &'static str,
+    pub chunks: usize,
+    pub dispatches: u64,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Uniforms {
+    base: u32,
+    count: u32,
+    cap: u32,
+    step0: u32,
+    nsteps: u32,
+    frame0: u32,
+    nframes: u32,
+    _pad: u32,
+}
+
+struct Buffers {
+    uniform: wgpu::Buffer,
+    state: wgpu::Buffer,
+    table: wgpu::Buffer,
+    status: wgpu::Buffer,
+    aux_r: wgpu::Buffer,
+    aux_u: wgpu::Buffer,
+    traj: wgpu::Buffer,
+    points: wgpu::Buffer,
+    staging: wgpu::Buffer,
+}
+
+fn storage(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(16).next_multiple_of(4),
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// Reads `bytes` from the start of `src` through `staging`.
+fn read<T: bytemuck::Pod>(
+    ctx: &GpuContext,
+    src: &wgpu::Buffer,
+    staging: &wgpu::Buffer,
+    bytes: u64,
+) -> Result<Vec<T>, GpuError> {
+    if bytes == 0 {
+        return Ok(vec![]);
+    }
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    enc.copy_buffer_to_buffer(src, 0, staging, 0, bytes);
+    ctx.queue.submit([enc.finish()]);
+    let slice = staging.slice(..bytes);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    ctx.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| GpuError::Runtime(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| GpuError::Runtime(e.to_string()))?
+        .map_err(|e| GpuError::Runtime(e.to_string()))?;
+    let out = {
+        let view = slice
+            .get_mapped_range()
+            .map_err(|e| GpuError::Runtime(format!("{e:?}")))?;
+        bytemuck::cast_slice::<u8, T>(&view).to_vec()
+    };
+    staging.unmap();
+    Ok(out)
+}
+
+fn check(ctx: &GpuContext) -> Result<(), GpuError> {
+    let errors = ctx.take_errors();
+    if errors.is_empty() {
+        Ok(())
+    } else {
+        Err(GpuError::Runtime(errors.join("; ")))
+    }
+}
+
+/// Runs `plan` on the GPU in precision `R`.
+pub fn run<R: Real>(
+    ctx: &GpuContext,
+    plan: &Plan,
+    progress: Option<&AtomicU64>,
+) -> Result<GpuRun<R>, GpuError> {
+    let precision = if R::NAME == "f64" {
+        Precision::F64
+    } else {
+        Precision::F32
+    };
+    if precision == Precision::F64 && !ctx.shader_f64 {
+        return Err(GpuError::NoF64(ctx.describe()));
+    }
+    if plan.n > u32::MAX as usize || plan.steps > u32::MAX as u64 - 1 {
+        return Err(GpuError::TooLarge(format!(
+            "the GPU backend counts trajectories and steps in 32 bits: {} trajectories, {} steps",
+            plan.n, plan.steps
+        )));
+    }
+    let mut out = Observations::<R>::for_plan(plan);
+    if plan.n == 0 {
+        return Ok(GpuRun {
+            observations: out,
+            seconds: 0.0,
+            timing: "none",
+            chunks: 0,
+            dispatches: 0,
+        });
+    }
+    let kernel = generate(plan, precision)?;
+    let pipeline = ctx.pipeline(&kernel.source)?;
+
+    // Chunk capacity from the per-trajectory size of every buffer.
+    let b = std::mem::size_of::<R>() as u64;
+    let nv = plan.vars.len() as u64;
+    let tv = plan.trajectory_vars.len() as u64;
+    let pv = plan.poincare_vars.len() as u64;
+    let max_points = out.max_points as u64;
+    let every = plan.observers.trajectory.as_ref().map_or(0, |t| t.every);
+    let limit = (ctx.limits.max_storage_buffer_binding_size as u64).min(ctx.limits.max_buffer_size);
+    let per_buffer = [
+        nv * b,
+        4,
+        AUX_R.len() as u64 * b,
+        AUX_U.len() as u64 * 4,
+        max_points * pv * b,
+    ];
+    let widest = *per_buffer.iter().max().expect("nonempty");
+    let mut cap = (plan.n as u64)
+        .min(limit / widest)
+        .min(MEMORY_BUDGET / per_buffer.iter().sum::<u64>());
+    // Trajectory frames: at least two per window must fit.
+    if tv > 0 {
+        cap = cap.min(limit / (2 * tv * b));
+    }
+    if cap == 0 {
+        return Err(GpuError::TooLarge(format!(
+            "one trajectory's observations ({} bytes) exceed the adapter's storage binding limit ({limit} bytes): lower output.poincare.max_points or the number of recorded variables",
+            widest
+        )));
+    }
+    cap = cap
+        .next_multiple_of(WORKGROUP)
+        .min(limit / widest / WORKGROUP * WORKGROUP)
+        .max(WORKGROUP.min(cap));
+    let max_frames = if tv > 0 {
+        (limit / (cap * tv * b))
+            .min(MEMORY_BUDGET / (cap * tv * b))
+            .max(2)
+    } else {
+        0
+    };
+
+    let table: Vec<R> = kernel.table.iter().map(|v| R::from_f64(*v)).collect();
+    let bufs = Buffers {
+        uniform: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("uniforms"),
+            size: std::mem::size_of::<Uniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        }),
+        state: storage(ctx, "state", nv * cap * b),
+        table: if table.is_empty() {
+            storage(ctx, "table", 16)
+        } else {
+            ctx.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("table"),
+                    contents: bytemuck::cast_slice(&table),
+                    usage: wgpu::BufferUsages::STORAGE,
+                })
+        },
+        status: storage(ctx, "status", 4 * cap),
+        aux_r: storage(ctx, "aux_r", AUX_R.len() as u64 * cap * b),
+        aux_u: storage(ctx, "aux_u", AUX_U.len() as u64 * cap * 4),
+        traj: storage(ctx, "trajectory", max_frames * tv * cap * b),
+        points: storage(ctx, "points", max_points * pv * cap * b),
+        staging: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("staging"),
+            size: [
+                nv * b,
+                4,
+                AUX_R.len() as u64 * b,
+                AUX_U.len() as u64 * 4,
+                max_points * pv * b,
+                max_frames * tv * b,
+            ]
+            .into_iter()
+            .max()
+            .unwrap_or(16)
+            .max(4)
+                * cap,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        }),
+    };
+    let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("reeb kernel"),
+        layout: ctx.bind_group_layout(),
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: bufs.uniform.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: bufs.state.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: bufs.table.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: bufs.status.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: bufs.aux_r.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 5,
+                resource: bufs.aux_u.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 6,
+                resource: bufs.traj.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 7,
+                resource: bufs.points.as_entire_binding(),
+            },
+        ],
+    });
+    let queries = ctx.timestamps.then(|| {
+        let set = ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("dispatch"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        });
+        let resolve = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("timestamps"),
+            size: 16,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let readback = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("timestamps readback"),
+            size: 16,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        (set, resolve, readback)
+    });
+    let period_ns = ctx.queue.get_timestamp_period() as f64;
+
+    let frames_total = out.frames as u64;
+    let mut seconds = 0.0;
+    let mut dispatches = 0u64;
+    let mut chunks = 0usize;
+    // Trajectory-steps per dispatch, adapted to the measured speed.
+    let mut budget: f64 = 1e6;
+    let mut base = 0u64;
+    while base < plan.n as u64 {
+        let count = cap.min(plan.n as u64 - base);
+        chunks += 1;
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        enc.clear_buffer(&bufs.status, 0, None);
+        ctx.queue.submit([enc.finish()]);
+        let mut step0 = 0u64;
+        while step0 < plan.steps {
+            let mut nsteps = ((budget / count as f64) as u64)
+                .clamp(1, plan.steps - step0)
+                .min(MAX_STEPS_PER_DISPATCH);
+            // Frames f with f·every in the window (step 0 itself on the first
+            // window) go to traj_out; at most `max_frames` of them fit.
+            let (mut frame0, mut nframes) = (0, 0);
+            if every > 0 {
+                frame0 = if step0 == 0 { 0 } else { step0 / every + 1 };
+                nsteps = nsteps.min((frame0 + max_frames) * every - 1 - step0).max(1);
+                nframes = ((step0 + nsteps) / every + 1).saturating_sub(frame0);
+            }
+            let u = Uniforms {
+                base: base as u32,
+                count: count as u32,
+                cap: cap as u32,
+                step0: step0 as u32,
+                nsteps: nsteps as u32,
+                frame0: frame0 as u32,
+                nframes: nframes as u32,
+                _pad: 0,
+            };
+            ctx.queue
+                .write_buffer(&bufs.uniform, 0, bytemuck::bytes_of(&u));
+            let groups = count.div_ceil(WORKGROUP);
+            let max_dim = ctx.limits.max_compute_workgroups_per_dimension as u64;
+            let gx = groups.min(max_dim);
+            let gy = groups.div_ceil(gx);
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("reeb window"),
+                    timestamp_writes: queries.as_ref().map(|(set, _, _)| {
+                        wgpu::ComputePassTimestampWrites {
+                            query_set: set,
+                            beginning_of_pass_write_index: Some(0),
+                            end_of_pass_write_index: Some(1),
+                        }
+                    }),
+                });
+                pass.set_pipeline(&pipeline);
+                pass.set_bind_group(0, &bind, &[]);
+                pass.dispatch_workgroups(gx as u32, gy as u32, 1);
+            }
+            if let Some((set, resolve, readback)) = &queries {
+                enc.resolve_query_set(set, 0..2, resolve, 0);
+                enc.copy_buffer_to_buffer(resolve, 0, readback, 0, 16);
+            }
+            let started = Instant::now();
+            ctx.queue.submit([enc.finish()]);
+            ctx.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map_err(|e| GpuError::Runtime(e.to_string()))?;
+            let wall = started.elapsed().as_secs_f64();
+            check(ctx)?;
+            let took = match &queries {
+                Some((_, _, readback)) => {
+                    let ts: Vec<u64> = read_mapped(ctx, readback, 16)?;
+                    let gpu = ts[1].saturating_sub(ts[0]) as f64 * period_ns * 1e-9;
+                    if gpu > 0.0 {
+                        gpu
+                    } else {
+                        wall
+                    }
+                }
+                None => wall,
+            };
+            seconds += took;
+            dispatches += 1;
+            if nframes > 0 {
+                let frames: Vec<R> = read(ctx, &bufs.traj, &bufs.staging, nframes * tv * cap * b)?;
+                for (j, (_, dst)) in out.trajectory.iter_mut().enumerate() {
+                    for f in 0..nframes {
+                        for i in 0..count {
+                            let src = ((f * tv + j as u64) * cap + i) as usize;
+                            dst[((base + i) * frames_total + frame0 + f) as usize] = frames[src];
+                        }
+                    }
+                }
+            }
+            if let Some(p) = progress {
+                p.fetch_add(count * nsteps, Ordering::Relaxed);
+            }
+            // Aim at the target time per dispatch, changing by at most 4× at once.
+            let rate = (count * nsteps) as f64 / wall.max(1e-6);
+            budget = (rate * TARGET_DISPATCH_SECONDS)
+                .clamp(budget / 4.0, budget * 4.0)
+                .max(count as f64);
+            step0 += nsteps;
+        }
+        collect(ctx, plan, &bufs, &mut out, base, count, cap, b)?;
+        base += count;
+    }
+    let timing = if queries.is_some() {
+        "GPU timestamps"
+    } else {
+        "wall clock"
+    };
+    Ok(GpuRun {
+        observations: out,
+        seconds,
+        timing,
+        chunks,
+        dispatches,
+    })
+}
+
+/// Maps a small MAP_READ buffer and returns its contents.
+fn read_mapped<T: bytemuck::Pod>(
+    ctx: &GpuContext,
+    buf: &wgpu::Buffer,
+    bytes: u64,
+) -> Result<Vec<T>, GpuError> {
+    let slice = buf.slice(..bytes);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    ctx.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| GpuError::Runtime(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| GpuError::Runtime(e.to_string()))?
+        .map_err(|e| GpuError::Runtime(e.to_string()))?;
+    let out = {
+        let view = slice
+            .get_mapped_range()
+            .map_err(|e| GpuError::Runtime(format!("{e:?}")))?;
+        bytemuck::cast_slice::<u8, T>(&view).to_vec()
+    };
+    buf.unmap();
+    Ok(out)
+}
+
+/// Reads a finished chunk back into the observations (rows `base..base+count`).
+#[allow(clippy::too_many_arguments)]
+fn collect<R: Real>(
+    ctx: &GpuContext,
+    plan: &Plan,
+    bufs: &Buffers,
+    out: &mut Observations<R>,
+    base: u64,
+    count: u64,
+    cap: u64,
+    b: u64,
+) -> Result<(), GpuError> {
+    let nv = plan.vars.len() as u64;
+    let state: Vec<R> = read(ctx, &bufs.state, &bufs.staging, nv * cap * b)?;
+    let status: Vec<u32> = read(ctx, &bufs.status, &bufs.staging, 4 * cap)?;
+    let uses_aux = plan.observers.poincare.is_some() || plan.cycle_var.is_some();
+    let (aux_r, aux_u): (Vec<R>, Vec<u32>) = if uses_aux {
+        (
+            read(
+                ctx,
+                &bufs.aux_r,
+                &bufs.staging,
+                AUX_R.len() as u64 * cap * b,
+            )?,
+            read(
+                ctx,
+                &bufs.aux_u,
+                &bufs.staging,
+                AUX_U.len() as u64 * cap * 4,
+            )?,
+        )
+    } else {
+        (vec![], vec![])
+    };
+    let pv = plan.poincare_vars.len() as u64;
+    let mp = out.max_points as u64;
+    let points: Vec<R> = if mp > 0 {
+        read(ctx, &bufs.points, &bufs.staging, mp * pv * cap * b)?
+    } else {
+        vec![]
+    };
+    let steps = R::from_f64(plan.steps as f64);
+    let every = plan.observers.trajectory.as_ref().map_or(0, |t| t.every);
+    for i in 0..count {
+        let g = (base + i) as usize;
+        let ix = i as usize;
+        let st = status[ix] as u64;
+        out.nonfinite_step[g] = st;
+        for (j, v) in plan.final_vars.iter().enumerate() {
+            out.final_values[j].1[g] = if st != 0 {
+                R::nan()
+            } else {
+                match v {
+                    ObsVar::State(k) => state[(*k as u64 * cap + i) as usize],
+                    ObsVar::Time => {
+                        let t0 = R::from_f64(plan.binding("t0").value_at(g, &plan.strides));
+                        let dt = R::from_f64(plan.binding("dt").value_at(g, &plan.strides));
+                        t0 + steps * dt
+                    }
+                }
+            };
+        }
+        // Frames recorded at or after the step where it stopped are NaN (as on the CPU).
+        if st != 0 && every > 0 {
+            for (_, dst) in out.trajectory.iter_mut() {
+                for f in st.div_ceil(every)..out.frames as u64 {
+                    dst[g * out.frames + f as usize] = R::nan();
+                }
+            }
+        }
+        if uses_aux {
+            let a = |k: usize| aux_r[(k as u64 * cap + i) as usize];
+            let au = |k: usize| aux_u[(k as u64 * cap + i) as usize];
+            if plan.observers.poincare.is_some() {
+                let n = au(1);
+                out.poincare_count[g] = n;
+                for k in 0..(n as u64).min(mp) {
+                    for j in 0..pv {
+                        out.poincare[j as usize].1[g * mp as usize + k as usize] =
+                            points[((k * pv + j) * cap + i) as usize];
+                    }
+                }
+            }
+            if plan.cycle_var.is_some() {
+                let crossings = au(2);
+                let ok = st == 0;
+                out.cycle_amplitude[g] = if ok {
+                    R::from_f64(0.5) * (a(0) - a(1))
+                } else {
+                    R::nan()
+                };
+                out.cycle_period[g] = if ok && crossings >= 2 {
+                    R::cycle_period(a(4), R::from_f64(crossings as f64))
+                } else {
+                    R::nan()
+                };
+            }
+        }
+    }
+    check(ctx)
+}

@@ -1,0 +1,172 @@
+//! Every model × scheme × precision kernel, with every observer, is valid
+//! WGSL (naga, no GPU needed); and the kernels are specialised.
+
+use reeb::backend::gpu::{codegen::generate, validate};
+use reeb::models::{Model, MODEL_NAMES};
+use reeb::observe::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
+use reeb::plan::{Plan, Problem, Source};
+use reeb::real::Precision;
+use reeb::scheme::{Scheme, SchemeKind, SCHEME_NAMES};
+
+/// A problem for `model` with nonzero parameters (so every piece and time term is used).
+pub fn problem(model: &str, scheme: &str) -> Option<Problem> {
+    let mut m = Model::from_name(model).unwrap();
+    if let Model::Lienard { f, g } = &mut m {
+        *f = vec![-1.0, 0.0, 1.0];
+        *g = vec![0.0, 1.0, 0.0, 0.2];
+    }
+    let s = Scheme::by_name(scheme).unwrap();
+    if let SchemeKind::Method(me) = s.kind {
+        m.spec().method_op(me)?;
+    }
+    let mut p = Problem::new(m.clone(), scheme).unwrap();
+    let params: &[(&str, f64)] = match model {
+        "damped_oscillator" => &[
+            ("alpha", 0.3),
+            ("forcing_amplitude", 0.5),
+            ("forcing_frequency", 1.3),
+        ],
+        "van_der_pol" => &[
+            ("epsilon", 1.0),
+            ("forcing_amplitude", 0.5),
+            ("forcing_frequency", 1.1),
+        ],
+        "kepler" => &[("alpha", 0.01), ("theta", 6.283185307179586)],
+        "lane_emden" => &[("index", 3.0)],
+        "spin_orbit" => &[
+            ("eccentricity", 0.1),
+            ("epsilon", 0.05),
+            ("lambda", 0.1),
+            ("omega", 1.0),
+            ("tidal_k", 1e-3),
+            ("tidal_eta", 1.0),
+        ],
+        "quadratic_s" => &[("gamma", 0.2), ("r", 0.1)],
+        _ => &[],
+    };
+    for (k, v) in params {
+        p = p.param(k, Source::Const(*v));
+    }
+    match model {
+        "kepler" => {
+            p = p
+                .initial("q1", Source::Const(0.5))
+                .initial("p2", Source::Const(1.5));
+        }
+        "lane_emden" => {}
+        _ => {
+            p = p
+                .initial("q", Source::Const(1.0))
+                .initial("p", Source::Const(0.5));
+        }
+    }
+    p.steps = 10;
+    Some(p)
+}
+
+fn first_var(model: &str) -> &'static str {
+    if model == "kepler" {
+        "q1"
+    } else {
+        "q"
+    }
+}
+
+#[test]
+fn every_kernel_validates() {
+    let mut count = 0;
+    for model in MODEL_NAMES {
+        for scheme in SCHEME_NAMES {
+            let Some(base) = problem(model, scheme) else {
+                continue;
+            };
+            let spec = base.model.spec();
+            let x = first_var(model);
+            let all: Vec<String> = spec.vars.iter().map(|v| v.to_string()).collect();
+            // Observer variants: final only; everything (and the optional variable).
+            let mut variants = vec![base.clone()];
+            let mut full = base.clone();
+            if Scheme::by_name(scheme).unwrap().is_splitting() {
+                full.observers.final_vars = all.clone();
+            }
+            full.observers.trajectory = Some(TrajectoryObs {
+                every: 2,
+                vars: vec![x.into(), "t".into()],
+            });
+            full.observers.poincare = Some(PoincareObs {
+                section: Section::Crossing {
+                    var: x.into(),
+                    value: 0.1,
+                    direction: Direction::Both,
+                },
+                vars: vec![x.into(), "t".into()],
+                max_points: 4,
+            });
+            full.observers.cycle = Some(CycleObs {
+                var: x.into(),
+                level: 0.0,
+                skip: 0.5,
+            });
+            variants.push(full);
+            let mut strobe = base.clone();
+            strobe.observers.poincare = Some(PoincareObs {
+                section: Section::Stroboscopic {
+                    period: 0.25,
+                    phase: 0.0,
+                },
+                vars: vec![x.into()],
+                max_points: 4,
+            });
+            variants.push(strobe.clone());
+            strobe.observers.poincare = Some(PoincareObs {
+                section: Section::Stroboscopic {
+                    period: 0.3333,
+                    phase: 0.1,
+                },
+                vars: vec![x.into()],
+                max_points: 4,
+            });
+            variants.push(strobe);
+            for p in variants {
+                let plan = Plan::new(&p).unwrap_or_else(|e| panic!("{model} {scheme}: {e}"));
+                for precision in [Precision::F32, Precision::F64] {
+                    let k = generate(&plan, precision)
+                        .unwrap_or_else(|e| panic!("{model} {scheme} {precision}: {e}"));
+                    if let Err(e) = validate(&k.source, precision == Precision::F64) {
+                        panic!("{model} {scheme} {precision}:\n{e}");
+                    }
+                    count += 1;
+                }
+            }
+        }
+    }
+    assert!(count > 300, "{count}");
+}
+
+#[test]
+fn van_der_pol_qs_kernel_has_no_p_and_no_time() {
+    let mut p = Problem::new(Model::VanDerPol, "s2")
+        .unwrap()
+        .param("epsilon", Source::Const(1.0));
+    p.steps = 10;
+    let qs = generate(&Plan::new(&p).unwrap(), Precision::F32)
+        .unwrap()
+        .source;
+    let driver = &qs[qs.find("// ---- driver ----").unwrap()..];
+    assert!(
+        !driver.contains("var p:") && !driver.contains("&p"),
+        "{driver}"
+    );
+    assert!(!driver.contains("van_der_pol_a_p") && !driver.contains("lienard_c_p"));
+    assert!(!driver.contains("t = t0"), "autonomous: no time");
+    assert!(driver.contains("state[1u * u.cap + i] = s;") && !driver.contains("state[2u"));
+    p.observers.final_vars = vec!["q".into(), "s".into(), "p".into()];
+    let qsp = generate(&Plan::new(&p).unwrap(), Precision::F32)
+        .unwrap()
+        .source;
+    let driver_p = &qsp[qsp.find("// ---- driver ----").unwrap()..];
+    assert!(driver_p.contains("van_der_pol_a_p(q, s, &p, tau, epsilon)"));
+    assert!(driver_p.contains("state[2u * u.cap + i] = p;"));
+    // Per-thread state: 2 integrated variables instead of 3.
+    assert!(driver.matches("var ").count() < driver_p.matches("var ").count());
+}
