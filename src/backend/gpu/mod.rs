@@ -8,7 +8,7 @@ pub mod run;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
-pub use run::{run, GpuRun};
+pub use run::{run, run_with, GpuOptions, GpuRun};
 
 /// Why the GPU backend cannot run.
 #[derive(Debug, thiserror::Error)]

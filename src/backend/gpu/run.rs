@@ -24,6 +24,15 @@ const WORKGROUP: u64 = 64;
 /// loop after 65 535 iterations, so a window never asks for more.
 pub const MAX_STEPS_PER_DISPATCH: u64 = 65_535;
 
+/// Knobs of a GPU run; the defaults come from the adapter's limits.
+#[derive(Debug, Clone, Default)]
+pub struct GpuOptions {
+    /// Largest chunk of trajectories resident at once.
+    pub max_chunk: Option<u64>,
+    /// Largest window of steps per dispatch.
+    pub max_steps_per_dispatch: Option<u64>,
+}
+
 /// Observations of a GPU run, and how long the integration took.
 pub struct GpuRun<R> {
     pub observations: Observations<R>,
@@ -120,6 +129,17 @@ pub fn run<R: Real>(
     plan: &Plan,
     progress: Option<&AtomicU64>,
 ) -> Result<GpuRun<R>, GpuError> {
+    run_with(ctx, plan, progress, &GpuOptions::default())
+}
+
+/// [`run`] with explicit chunk and window limits (tests use small ones to
+/// exercise every boundary).
+pub fn run_with<R: Real>(
+    ctx: &GpuContext,
+    plan: &Plan,
+    progress: Option<&AtomicU64>,
+    opts: &GpuOptions,
+) -> Result<GpuRun<R>, GpuError> {
     let precision = if R::NAME == "f64" {
         Precision::F64
     } else {
@@ -180,6 +200,13 @@ pub fn run<R: Real>(
         .next_multiple_of(WORKGROUP)
         .min(limit / widest / WORKGROUP * WORKGROUP)
         .max(WORKGROUP.min(cap));
+    if let Some(m) = opts.max_chunk {
+        cap = cap.min(m.max(1));
+    }
+    let max_window = opts
+        .max_steps_per_dispatch
+        .unwrap_or(MAX_STEPS_PER_DISPATCH)
+        .clamp(1, MAX_STEPS_PER_DISPATCH);
     let max_frames = if tv > 0 {
         (limit / (cap * tv * b))
             .min(MEMORY_BUDGET / (cap * tv * b))
@@ -308,7 +335,7 @@ pub fn run<R: Real>(
         while step0 < plan.steps {
             let mut nsteps = ((budget / count as f64) as u64)
                 .clamp(1, plan.steps - step0)
-                .min(MAX_STEPS_PER_DISPATCH);
+                .min(max_window);
             // Frames f with f·every in the window (step 0 itself on the first
             // window) go to traj_out; at most `max_frames` of them fit.
             let (mut frame0, mut nframes) = (0, 0);

@@ -1,0 +1,313 @@
+//! GPU backend against the CPU backend: every model × scheme × precision,
+//! every observer, chunk and window boundaries, and scale.
+//!
+//! Tolerance (documented in the README): on short horizons in non-chaotic
+//! regimes the two backends evaluate the same formulas in the same order, so
+//! they differ only where the GPU compiler contracts `a*b + c` into an FMA or
+//! rounds `sqrt` differently: a few ULPs per step, growing at most linearly
+//! over the horizon. We allow `|gpu − cpu| ≤ tol · max(1, |cpu|)` with
+//! tol = 2·10⁻⁴ in f32 and 10⁻¹⁰ in f64 (60 steps), and identical status,
+//! Poincaré counts and crossings.
+
+use reeb::backend::{cpu, gpu};
+use reeb::models::{Model, MODEL_NAMES};
+use reeb::observations::Observations;
+use reeb::observe::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
+use reeb::plan::{Plan, Problem, Source};
+use reeb::real::Real;
+use reeb::scheme::{Scheme, SCHEME_NAMES};
+
+mod common;
+use common::{first_var, gpu, problem};
+
+/// Largest disagreement between two observation sets, with where it is.
+fn compare<R: Real>(label: &str, g: &Observations<R>, c: &Observations<R>, tol: f64) -> f64 {
+    assert_eq!(g.nonfinite_step, c.nonfinite_step, "{label}: status");
+    assert_eq!(
+        g.poincare_count, c.poincare_count,
+        "{label}: Poincaré counts"
+    );
+    let groups = [
+        ("final", &g.final_values, &c.final_values),
+        ("trajectory", &g.trajectory, &c.trajectory),
+        ("poincare", &g.poincare, &c.poincare),
+    ];
+    let mut worst = (0.0f64, String::new());
+    let mut consider = |name: &str, i: usize, a: R, b: R| {
+        let (a, b) = (a.to_f64(), b.to_f64());
+        if a.is_nan() && b.is_nan() {
+            return;
+        }
+        let d = (a - b).abs() / b.abs().max(1.0);
+        if !(d <= worst.0) {
+            worst = (
+                if d.is_nan() { f64::INFINITY } else { d },
+                format!("{name}[{i}]: gpu {a:e}, cpu {b:e}"),
+            );
+        }
+    };
+    for (group, gs, cs) in groups {
+        for ((name, gv), (_, cv)) in gs.iter().zip(cs.iter()) {
+            for (i, (a, b)) in gv.iter().zip(cv).enumerate() {
+                consider(&format!("{group}_{name}"), i, *a, *b);
+            }
+        }
+    }
+    for (i, (a, b)) in g.cycle_amplitude.iter().zip(&c.cycle_amplitude).enumerate() {
+        consider("cycle_amplitude", i, *a, *b);
+    }
+    for (i, (a, b)) in g.cycle_period.iter().zip(&c.cycle_period).enumerate() {
+        consider("cycle_period", i, *a, *b);
+    }
+    assert!(
+        worst.0 <= tol,
+        "{label}: worst relative difference {:e} at {} (tolerance {tol:e})",
+        worst.0,
+        worst.1
+    );
+    worst.0
+}
+
+/// An ensemble over the first variable's initial value and one parameter,
+/// with every observer.
+fn ensemble(model: &str, scheme: &str) -> Option<Problem> {
+    let mut p = problem(model, scheme)?;
+    let x = first_var(model);
+    let x0 = match &p.initial.get(x) {
+        Some(Source::Const(v)) => *v,
+        _ => 1.0,
+    };
+    let ax = p.axis("x0", vec![x0, 0.95 * x0, 1.05 * x0]);
+    p = p.initial(x, ax);
+    if let Some(first) = p.model.spec().params.first() {
+        if let Some(Source::Const(v)) = p.params.get(first.name).cloned() {
+            if first.name != "index" {
+                let ax = p.axis(first.name, vec![v, 1.1 * v, 0.9 * v, 1.2 * v]);
+                p = p.param(first.name, ax);
+            }
+        }
+    }
+    p.dt = Source::Const(0.05);
+    p.steps = 60;
+    if Scheme::by_name(scheme).unwrap().is_splitting() {
+        p.observers.final_vars = p
+            .model
+            .spec()
+            .vars
+            .iter()
+            .map(|v| v.to_string())
+            .chain(["t".to_string()])
+            .collect();
+    }
+    p.observers.trajectory = Some(TrajectoryObs {
+        every: 7,
+        vars: vec![x.into(), "t".into()],
+    });
+    p.observers.poincare = Some(PoincareObs {
+        section: Section::Crossing {
+            var: x.into(),
+            value: 0.9 * x0,
+            direction: Direction::Both,
+        },
+        vars: vec!["t".into(), x.into()],
+        max_points: 3,
+    });
+    p.observers.cycle = Some(CycleObs {
+        var: x.into(),
+        level: 0.9 * x0,
+        skip: 0.2,
+    });
+    Some(p)
+}
+
+#[test]
+fn gpu_agrees_with_cpu_for_every_model_scheme_and_precision() {
+    let Some(ctx) = gpu() else { return };
+    let mut checked = 0;
+    for model in MODEL_NAMES {
+        let (mut w32, mut w64) = (0.0f64, 0.0f64);
+        for scheme in SCHEME_NAMES {
+            let Some(p) = ensemble(model, scheme) else {
+                continue;
+            };
+            let plan = Plan::new(&p).unwrap_or_else(|e| panic!("{model} {scheme}: {e}"));
+            let label = format!("{model} {scheme} f32");
+            let g = gpu::run::<f32>(ctx, &plan, None).unwrap_or_else(|e| panic!("{label}: {e}"));
+            w32 = w32.max(compare(
+                &label,
+                &g.observations,
+                &cpu::run::<f32>(&plan, None),
+                2e-4,
+            ));
+            if ctx.shader_f64 {
+                let label = format!("{model} {scheme} f64");
+                let g =
+                    gpu::run::<f64>(ctx, &plan, None).unwrap_or_else(|e| panic!("{label}: {e}"));
+                w64 = w64.max(compare(
+                    &label,
+                    &g.observations,
+                    &cpu::run::<f64>(&plan, None),
+                    1e-10,
+                ));
+            }
+            checked += 1;
+        }
+        eprintln!("max |gpu − cpu| / max(1, |cpu|), {model}: f32 {w32:.2e}, f64 {w64:.2e}");
+    }
+    assert!(checked >= 80, "{checked}");
+}
+
+#[test]
+fn stroboscopic_sections_agree() {
+    let Some(ctx) = gpu() else { return };
+    for (period, phase, dt) in [
+        (std::f64::consts::PI, 0.0, std::f64::consts::PI / 20.0),
+        (1.0, 0.25, 0.03),
+    ] {
+        let mut p = Problem::new(Model::SpinOrbit, "s2")
+            .unwrap()
+            .param("eccentricity", Source::Const(0.06))
+            .param("epsilon", Source::Const(0.045))
+            .param("lambda", Source::Const(0.01))
+            .param("omega", Source::Const(std::f64::consts::SQRT_2));
+        let q0 = p.axis("q0", vec![0.0, 1.0, 2.0, 3.0]);
+        let p0 = p.axis("p0", (0..40).map(|k| 0.4 + 0.035 * k as f64).collect());
+        p = p.initial("q", q0).initial("p", p0);
+        p.dt = Source::Const(dt);
+        p.steps = 200;
+        p.observers.poincare = Some(PoincareObs {
+            section: Section::Stroboscopic { period, phase },
+            vars: vec!["q".into(), "p".into(), "t".into()],
+            max_points: 100,
+        });
+        let plan = Plan::new(&p).unwrap();
+        let g = gpu::run::<f32>(ctx, &plan, None).unwrap();
+        compare(
+            "spin-orbit strobe f32",
+            &g.observations,
+            &cpu::run::<f32>(&plan, None),
+            2e-4,
+        );
+        if ctx.shader_f64 {
+            let g = gpu::run::<f64>(ctx, &plan, None).unwrap();
+            compare(
+                "spin-orbit strobe f64",
+                &g.observations,
+                &cpu::run::<f64>(&plan, None),
+                1e-10,
+            );
+        }
+    }
+}
+
+#[test]
+fn chunk_and_window_boundaries() {
+    let Some(ctx) = gpu() else { return };
+    for n in [1usize, 63, 64, 65, 1000] {
+        let mut p = Problem::new(Model::VanDerPol, "yoshida6a")
+            .unwrap()
+            .initial("q", Source::Const(2.0));
+        let eps = p.axis(
+            "epsilon",
+            (0..n).map(|k| 0.1 + 3.0 * k as f64 / n as f64).collect(),
+        );
+        p = p.param("epsilon", eps);
+        p.dt = Source::Const(0.02);
+        p.steps = 101;
+        p.observers.trajectory = Some(TrajectoryObs {
+            every: 3,
+            vars: vec!["q".into(), "s".into()],
+        });
+        p.observers.poincare = Some(PoincareObs {
+            section: Section::Crossing {
+                var: "q".into(),
+                value: 1.0,
+                direction: Direction::Down,
+            },
+            vars: vec!["s".into()],
+            max_points: 2,
+        });
+        p.observers.cycle = Some(CycleObs {
+            var: "q".into(),
+            level: 0.0,
+            skip: 0.0,
+        });
+        let plan = Plan::new(&p).unwrap();
+        let c = cpu::run::<f32>(&plan, None);
+        for (chunk, window) in [
+            (None, None),
+            (Some(64), Some(7)),
+            (Some(100), Some(1)),
+            (Some(1), Some(50)),
+        ] {
+            let opts = gpu::GpuOptions {
+                max_chunk: chunk,
+                max_steps_per_dispatch: window,
+            };
+            let g = gpu::run_with::<f32>(ctx, &plan, None, &opts).unwrap();
+            compare(
+                &format!("n = {n}, chunk {chunk:?}, window {window:?}"),
+                &g.observations,
+                &c,
+                2e-4,
+            );
+        }
+    }
+}
+
+#[test]
+fn diverging_trajectories_stop_on_the_gpu_too() {
+    let Some(ctx) = gpu() else { return };
+    let mut p = Problem::new(Model::VanDerPol, "s2")
+        .unwrap()
+        .initial("q", Source::Const(0.05));
+    let eps = p.axis("epsilon", vec![1.0, 1000.0, 2.0]);
+    p = p.param("epsilon", eps);
+    p.dt = Source::Const(0.1);
+    p.steps = 200;
+    p.observers.trajectory = Some(TrajectoryObs {
+        every: 1,
+        vars: vec!["q".into()],
+    });
+    let plan = Plan::new(&p).unwrap();
+    let g = gpu::run_with::<f32>(
+        ctx,
+        &plan,
+        None,
+        &gpu::GpuOptions {
+            max_chunk: None,
+            max_steps_per_dispatch: Some(13),
+        },
+    )
+    .unwrap();
+    let c = cpu::run::<f32>(&plan, None);
+    assert!(g.observations.nonfinite_step[1] > 0);
+    compare("divergence", &g.observations, &c, 2e-4);
+}
+
+#[test]
+fn ten_million_trajectories_on_the_gpu() {
+    let Some(ctx) = gpu() else { return };
+    let mut p = Problem::new(Model::VanDerPol, "s2").unwrap();
+    let eps = p.axis(
+        "epsilon",
+        (0..3163).map(|k| 0.1 + 10.0 * k as f64 / 3163.0).collect(),
+    );
+    let q0 = p.axis(
+        "q0",
+        (0..3163).map(|k| 2.0 + 0.5 * k as f64 / 3163.0).collect(),
+    );
+    p = p.param("epsilon", eps).initial("q", q0);
+    p.dt = Source::Const(0.01);
+    p.steps = 20;
+    let plan = Plan::new(&p).unwrap();
+    assert!(plan.n >= 10_000_000);
+    let g = gpu::run::<f32>(ctx, &plan, None).unwrap();
+    assert_eq!(g.observations.count_ok(), plan.n);
+    let c = cpu::run::<f32>(&plan, None);
+    compare("10⁷ trajectories", &g.observations, &c, 1e-4);
+    eprintln!(
+        "10⁷ trajectories: {} chunks, {} dispatches, {:.3} s ({})",
+        g.chunks, g.dispatches, g.seconds, g.timing
+    );
+}
