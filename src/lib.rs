@@ -12,5 +12,6 @@ pub mod observations;
 pub mod observe;
 pub mod plan;
 pub mod real;
+pub mod scene;
 pub mod scheme;
 pub mod verify;
