@@ -1,10 +1,16 @@
 //! The `reeb` command line.
 
+use std::io::IsTerminal;
+use std::path::PathBuf;
 use std::process::ExitCode;
 
+use anyhow::Result;
 use clap::{Parser, Subcommand};
 
+use reeb::backend::gpu::{list_adapters, GpuContext};
 use reeb::real::Precision;
+use reeb::runner::{run_scene, RunOptions};
+use reeb::scene::{BackendChoice, Scene};
 use reeb::verify::{run_all, CpuEngine, Engine, GpuEngine};
 
 #[derive(Parser)]
@@ -20,6 +26,24 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Integrate a scene: arrays (.npy), summary.json and pictures in one directory.
+    Run {
+        /// The scene file (TOML).
+        scene: PathBuf,
+        /// Output directory (default: runs/<scene name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override the scene's backend: auto, cpu or gpu.
+        #[arg(long)]
+        backend: Option<BackendChoice>,
+        /// Override the scene's precision: f32 or f64.
+        #[arg(long)]
+        precision: Option<Precision>,
+    },
+    /// Check a scene file without running it.
+    Check { scene: PathBuf },
+    /// List GPU adapters, their type, limits, and whether f64 and timestamps are available.
+    Info,
     /// Run the oracles of SPEC §4 and measure the convergence order of every scheme.
     Verify {
         /// Backend to verify.
@@ -33,24 +57,112 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    match cli.command {
+    let result = match cli.command {
+        Command::Run {
+            scene,
+            out,
+            backend,
+            precision,
+        } => run(scene, out, backend, precision),
+        Command::Check { scene } => Scene::load(&scene)
+            .map(|s| {
+                let runs = s.sub_runs().map(|r| r.len()).unwrap_or(0);
+                println!(
+                    "{}: ok: model {}, scheme {}, {} trajectories over {} axes, {} plan(s)",
+                    s.path.display(),
+                    s.model.name(),
+                    s.scheme,
+                    s.ensemble_size(),
+                    s.axes.len(),
+                    runs
+                );
+                ExitCode::SUCCESS
+            })
+            .map_err(anyhow::Error::from),
+        Command::Info => info(),
         Command::Verify { backend, precision } => {
             if backend == "gpu" {
-                match reeb::backend::gpu::GpuContext::new() {
-                    Ok(ctx) => verify(&GpuEngine {
+                GpuContext::new().map_err(anyhow::Error::from).map(|ctx| {
+                    verify(&GpuEngine {
                         ctx: &ctx,
                         precision,
-                    }),
-                    Err(e) => {
-                        eprintln!("error: {e}");
-                        ExitCode::FAILURE
-                    }
-                }
+                    })
+                })
             } else {
-                verify(&CpuEngine(precision))
+                Ok(verify(&CpuEngine(precision)))
             }
         }
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
     }
+}
+
+fn run(
+    scene: PathBuf,
+    out: Option<PathBuf>,
+    backend: Option<BackendChoice>,
+    precision: Option<Precision>,
+) -> Result<ExitCode> {
+    let scene = Scene::load(&scene)?;
+    let opts = RunOptions {
+        out,
+        backend,
+        precision,
+        progress: std::io::stderr().is_terminal(),
+        max_output_bytes: None,
+    };
+    let report = run_scene(&scene, &opts)?;
+    println!("{}", report.line);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn info() -> Result<ExitCode> {
+    println!(
+        "reeb {}; CPU backend: {} threads (rayon)",
+        env!("CARGO_PKG_VERSION"),
+        rayon::current_num_threads()
+    );
+    let adapters = list_adapters();
+    if adapters.is_empty() {
+        println!("no GPU adapter (install a Vulkan driver; mesa-vulkan-drivers gives the software one, lavapipe)");
+    }
+    for a in &adapters {
+        println!("adapter: {}", a.name);
+        println!(
+            "  backend {}, type {}, driver {}",
+            a.backend, a.device_type, a.driver
+        );
+        println!(
+            "  f64 shaders: {}, timestamp queries: {}",
+            if a.shader_f64 { "yes" } else { "no" },
+            if a.timestamps { "yes" } else { "no" }
+        );
+        println!(
+            "  limits: storage binding {} MiB, buffer {} MiB, {} workgroups per dimension, {} storage buffers per stage",
+            a.max_storage_buffer_binding_size >> 20,
+            a.max_buffer_size >> 20,
+            a.max_compute_workgroups_per_dimension,
+            a.max_storage_buffers_per_shader_stage
+        );
+    }
+    match GpuContext::new() {
+        Ok(ctx) => println!(
+            "--backend gpu uses: {}; --backend auto uses: {}",
+            ctx.describe(),
+            if reeb::backend::gpu::is_software(&ctx.info) {
+                "the CPU (the adapter is a software one)"
+            } else {
+                "the GPU"
+            }
+        ),
+        Err(e) => println!("--backend gpu: unavailable ({e}); --backend auto uses the CPU"),
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
 fn verify(engine: &dyn Engine) -> ExitCode {

@@ -155,10 +155,10 @@ pub fn strobe_steps(period: f64, phase: f64, dt: f64) -> Option<(u64, u64)> {
     }
 }
 
-/// The section of a plan, if stroboscopic: `(period, phase)`.
-pub fn stroboscopic(plan: &Plan) -> Option<(f64, f64)> {
-    match plan.observers.poincare.as_ref().map(|p| &p.section) {
-        Some(Section::Stroboscopic { period, phase }) => Some((*period, *phase)),
-        _ => None,
-    }
+/// Is the plan's section stroboscopic (fixed or forcing period)?
+pub fn stroboscopic(plan: &Plan) -> bool {
+    matches!(
+        plan.observers.poincare.as_ref().map(|p| &p.section),
+        Some(Section::Stroboscopic { .. } | Section::Forced { .. })
+    )
 }

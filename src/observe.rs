@@ -86,6 +86,9 @@ pub enum Section {
     /// Sample at `t0 + phase + k·period`, k = 0, 1, …: exact when the period
     /// (and phase) are whole multiples of the step, else interpolated.
     Stroboscopic { period: f64, phase: f64 },
+    /// Stroboscopic at each trajectory's forcing period 2π/ω (the model's
+    /// forcing frequency, which may run along an axis), after `skip` periods.
+    Forced { skip: f64 },
     /// Sample where `var` crosses `value` in `direction`, located inside the step.
     Crossing {
         var: String,
@@ -197,6 +200,14 @@ impl Observers {
                         return e(
                             "output.poincare.phase",
                             format!("{phase} is not a finite number ≥ 0"),
+                        );
+                    }
+                }
+                Section::Forced { skip } => {
+                    if !(skip.is_finite() && *skip >= 0.0) {
+                        return e(
+                            "output.poincare.skip",
+                            format!("{skip} is not a number of periods ≥ 0"),
                         );
                     }
                 }

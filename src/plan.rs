@@ -58,7 +58,8 @@ impl Source {
             Source::Axis { axis, values } => values[(index / strides[*axis]) % values.len()],
         }
     }
-    fn map(&self, f: impl Fn(f64) -> f64) -> Source {
+    /// The same source with every value mapped by `f`.
+    pub fn map(&self, f: impl Fn(f64) -> f64) -> Source {
         match self {
             Source::Const(v) => Source::Const(f(*v)),
             Source::Axis { axis, values } => Source::Axis {
@@ -386,6 +387,49 @@ impl Plan {
         }
         bindings.push(("t0", t0));
         bindings.push(("dt", problem.dt.clone()));
+        // Stroboscopic sections: period and phase are lane inputs like any parameter.
+        match problem.observers.poincare.as_ref().map(|p| &p.section) {
+            Some(Section::Stroboscopic { period, phase }) => {
+                bindings.push(("strobe_period", Source::Const(*period)));
+                bindings.push(("strobe_phase", Source::Const(*phase)));
+            }
+            Some(Section::Forced { skip }) => {
+                let field = "output.poincare.period";
+                let param = problem.model.forcing_frequency_param().ok_or_else(|| {
+                    err(
+                        field,
+                        format!("model `{}` has no forcing period", spec.name),
+                    )
+                })?;
+                let omega = if param.is_empty() {
+                    Source::Const(1.0)
+                } else {
+                    bindings
+                        .iter()
+                        .find(|(b, _)| *b == param)
+                        .map(|(_, s)| s.clone())
+                        .unwrap_or(Source::Const(0.0))
+                };
+                if omega.values().iter().any(|w| !(w.is_finite() && *w > 0.0)) {
+                    return Err(err(
+                        field,
+                        format!(
+                            "the forcing period 2π/{param} needs {param} > 0 for every trajectory"
+                        ),
+                    ));
+                }
+                let skip = *skip;
+                bindings.push((
+                    "strobe_period",
+                    omega.map(|w| 2.0 * std::f64::consts::PI / w),
+                ));
+                bindings.push((
+                    "strobe_phase",
+                    omega.map(move |w| skip * 2.0 * std::f64::consts::PI / w),
+                ));
+            }
+            _ => {}
+        }
         for (name, _) in &bindings {
             debug_assert!(
                 lane_name(name).is_some(),
@@ -510,15 +554,28 @@ impl Plan {
     /// Does any observer need the vector field at the step ends (for
     /// interpolation inside a step)?
     pub fn needs_field(&self) -> bool {
-        let strobe_interpolated = match crate::observations::stroboscopic(self) {
-            Some((period, phase)) => self
-                .binding("dt")
-                .values()
+        self.crossing_var.is_some() || self.cycle_var.is_some() || self.strobe_interpolated()
+    }
+
+    /// Does some trajectory's stroboscopic sample fall inside a step (period
+    /// or phase not a whole number of steps), so that it is interpolated?
+    pub fn strobe_interpolated(&self) -> bool {
+        if !crate::observations::stroboscopic(self) {
+            return false;
+        }
+        let dts = self.binding("dt").values();
+        // Period and phase run along the same axis (or are both constant).
+        let pairs: Vec<(f64, f64)> = self
+            .binding("strobe_period")
+            .values()
+            .into_iter()
+            .zip(self.binding("strobe_phase").values())
+            .collect();
+        !dts.iter().all(|dt| {
+            pairs
                 .iter()
-                .any(|dt| crate::observations::strobe_steps(period, phase, *dt).is_none()),
-            None => false,
-        };
-        self.crossing_var.is_some() || self.cycle_var.is_some() || strobe_interpolated
+                .all(|(pe, ph)| crate::observations::strobe_steps(*pe, *ph, *dt).is_some())
+        })
     }
 
     /// The source of a lane input (`dt`, `t0`, a parameter or an initial value).

@@ -105,6 +105,10 @@ pub struct PlotSettings {
     pub wrap_x: Option<String>,
     /// Trajectories drawn in the phase portrait (default 64).
     pub max_trajectories: usize,
+    /// Draw van der Pol's phase portrait in the Liénard plane (q, q − q³/3 − s/ε).
+    pub lienard_plane: bool,
+    /// Bifurcation diagram: Poincaré values of `var` against the axis `axis`.
+    pub bifurcation: Option<(String, String)>,
 }
 
 /// What `reeb report` reads from `[report]` (see `reeb report --help`).
@@ -181,7 +185,14 @@ const TOP_KEYS: &[&str] = &[
 const INTEGRATOR_KEYS: &[&str] = &["scheme", "order", "dt", "t_end", "steps"];
 const OUTPUT_KEYS: &[&str] = &["final", "trajectory", "poincare", "cycle"];
 const RUN_KEYS: &[&str] = &["backend", "precision"];
-const PLOT_KEYS: &[&str] = &["phase", "poincare", "wrap_x", "max_trajectories"];
+const PLOT_KEYS: &[&str] = &[
+    "phase",
+    "poincare",
+    "wrap_x",
+    "max_trajectories",
+    "lienard_plane",
+    "bifurcation",
+];
 const REPORT_KEYS: &[&str] = &[
     "schemes",
     "backends",
@@ -376,7 +387,7 @@ impl<'a> Parser<'a> {
                         let high = self.number(&format!("{f}.high"), get("high")?)?;
                         let n = self.integer(&format!("{f}.n"), get("n")?)? as usize;
                         let seed = self.integer(&format!("{f}.seed"), get("seed")?)?;
-                        if n == 0 || !(high > low) {
+                        if n == 0 || high <= low {
                             return Err(self.err(&f, Some(&val.span()), "needs n ≥ 1 and high > low"));
                         }
                         Ok(Err(splitmix64(seed, n).into_iter().map(|u| low + (high - low) * u).collect()))
@@ -571,6 +582,10 @@ impl Scene {
         let mut initial = BTreeMap::new();
         let mut known_initial: Vec<&str> = spec.vars.to_vec();
         known_initial.push("t0");
+        if matches!(model, Model::Kepler) {
+            // An orbit of semi-major axis 1 at perihelion (SPEC §2.1).
+            known_initial.push("eccentricity");
+        }
         if let Some(t) = table(&p, "initial")? {
             for (k, v) in p.entries(t, "initial", Some(&known_initial))? {
                 let field = format!("initial.{}", k.get_ref());
@@ -781,25 +796,59 @@ impl Scene {
                                 "direction",
                                 "vars",
                                 "max_points",
+                                "skip",
                             ]),
                         )?;
                         let pget =
                             |n: &str| pe.iter().find(|(k, _)| k.get_ref() == n).map(|(_, v)| *v);
                         let section = match (pget("period"), pget("crossing")) {
                             (Some(per), None) => {
-                                let period = p.number(&format!("{field}.period"), per)?;
+                                let mut forced = false;
+                                let skip = pget("skip")
+                                    .map(|x| p.number(&format!("{field}.skip"), x))
+                                    .transpose()?
+                                    .unwrap_or(0.0);
+                                if skip < 0.0 || skip.fract() != 0.0 {
+                                    return Err(p.err(
+                                        &format!("{field}.skip"),
+                                        pget("skip").map(|x| x.span()).as_ref(),
+                                        "must be a whole number of periods ≥ 0",
+                                    ));
+                                }
+                                let period = if matches!(per.get_ref(), DeValue::String(_)) {
+                                    let s = p.string(&format!("{field}.period"), per)?;
+                                    if s != "forcing" {
+                                        return Err(p.err(&format!("{field}.period"), Some(&per.span()), "expected a number or \"forcing\" (the forcing period 2π/ω of each trajectory)"));
+                                    }
+                                    if model.forcing_frequency_param().is_none() {
+                                        return Err(p.err(
+                                            &format!("{field}.period"),
+                                            Some(&per.span()),
+                                            format!("model `{}` has no forcing period", spec.name),
+                                        ));
+                                    }
+                                    forced = true;
+                                    1.0
+                                } else {
+                                    p.number(&format!("{field}.period"), per)?
+                                };
                                 let phase = pget("phase")
                                     .map(|x| p.number(&format!("{field}.phase"), x))
                                     .transpose()?
-                                    .unwrap_or(0.0);
-                                if !(period > 0.0) || phase < 0.0 {
+                                    .unwrap_or(0.0)
+                                    + skip * period;
+                                if period <= 0.0 || phase < 0.0 {
                                     return Err(p.err(
                                         &format!("{field}.period"),
                                         Some(&per.span()),
                                         "needs period > 0 and phase ≥ 0",
                                     ));
                                 }
-                                Section::Stroboscopic { period, phase }
+                                if forced {
+                                    Section::Forced { skip }
+                                } else {
+                                    Section::Stroboscopic { period, phase }
+                                }
                             }
                             (None, Some(c)) => {
                                 let var = p.string(&format!("{field}.crossing"), c)?;
@@ -962,6 +1011,46 @@ impl Scene {
                         }
                         plot.wrap_x = Some(w);
                     }
+                    "lienard_plane" => {
+                        plot.lienard_plane = match v.get_ref() {
+                            DeValue::Boolean(b) => *b,
+                            other => {
+                                return Err(p.err(
+                                    &field,
+                                    Some(&v.span()),
+                                    format!("expected true or false, found {}", other.type_str()),
+                                ))
+                            }
+                        };
+                        if plot.lienard_plane && !matches!(model, Model::VanDerPol) {
+                            return Err(p.err(
+                                &field,
+                                Some(&v.span()),
+                                "the Liénard plane is drawn for van_der_pol only",
+                            ));
+                        }
+                    }
+                    "bifurcation" => {
+                        let DeValue::Table(bt) = v.get_ref() else {
+                            return Err(p.err(
+                                &field,
+                                Some(&v.span()),
+                                "expected { axis = \"…\", var = \"…\" }",
+                            ));
+                        };
+                        let be = p.entries(bt, &field, Some(&["axis", "var"]))?;
+                        let bget = |n: &str| {
+                            be.iter()
+                                .find(|(k, _)| k.get_ref() == n)
+                                .map(|(_, v)| *v)
+                                .ok_or_else(|| {
+                                    p.err(&format!("{field}.{n}"), Some(&v.span()), "missing")
+                                })
+                        };
+                        let axis = p.string(&format!("{field}.axis"), bget("axis")?)?;
+                        let var = p.string(&format!("{field}.var"), bget("var")?)?;
+                        plot.bifurcation = Some((axis, var));
+                    }
                     _ => plot.max_trajectories = p.integer(&field, v)? as usize,
                 }
             }
@@ -1025,6 +1114,28 @@ impl Scene {
             }
         };
 
+        if let Some((axis, _)) = &plot.bifurcation {
+            if !axes.iter().any(|a| &a.name == axis) {
+                return Err(p.err(
+                    "plot.bifurcation.axis",
+                    p.spans.get("plot.bifurcation"),
+                    format!(
+                        "`{axis}` is not an axis of this scene; its axes are: {}",
+                        axes.iter()
+                            .map(|a| a.name.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                ));
+            }
+            if poincare.is_none() {
+                return Err(p.err(
+                    "plot.bifurcation",
+                    p.spans.get("plot.bifurcation"),
+                    "needs an output.poincare section",
+                ));
+            }
+        }
         let spans = p.spans;
         let scene = Scene {
             path: path.to_path_buf(),
@@ -1083,6 +1194,17 @@ impl Scene {
         }
     }
 
+    /// Value of parameter `name` for trajectory `i` (row-major `strides`).
+    pub fn param_value(&self, name: &str, i: usize, strides: &[usize]) -> f64 {
+        match self.params.get(name) {
+            Some(Input::Const(v)) => *v,
+            Some(Input::Axis(k)) => {
+                self.axes[*k].values[(i / strides[*k]) % self.axes[*k].values.len()]
+            }
+            None => 0.0,
+        }
+    }
+
     /// Number of trajectories.
     pub fn ensemble_size(&self) -> usize {
         self.axes.iter().map(|a| a.values.len()).product()
@@ -1097,7 +1219,8 @@ impl Scene {
         self.initial.get("t0").cloned().unwrap_or(Input::Const(0.0))
     }
 
-    /// The axes whose values change the step count (dt and t0 with t_end).
+    /// The axes that change the step count (dt and t0 with t_end): each plan
+    /// holds them at one value.
     fn step_axes(&self) -> Vec<usize> {
         let mut v = vec![];
         if let Horizon::TEnd(_) = self.horizon {
@@ -1179,6 +1302,28 @@ impl Scene {
         for (k, v) in &self.initial {
             problem.initial.insert(k.clone(), source(v));
         }
+        if let Some(e) = problem.initial.remove("eccentricity") {
+            for v in e.values() {
+                if !(0.0..1.0).contains(&v) {
+                    return Err(self.error("initial.eccentricity", format!("{v} is not in [0, 1)")));
+                }
+            }
+            let derive = |f: fn(f64) -> f64| match &e {
+                Source::Const(v) => Source::Const(f(*v)),
+                Source::Axis { axis, values } => Source::Axis {
+                    axis: *axis,
+                    values: values.iter().map(|v| f(*v)).collect(),
+                },
+            };
+            problem
+                .initial
+                .entry("q1".into())
+                .or_insert_with(|| derive(|e| crate::models::kepler::perihelion(e).0[0]));
+            problem
+                .initial
+                .entry("p2".into())
+                .or_insert_with(|| derive(|e| crate::models::kepler::perihelion(e).1[1]));
+        }
         problem.dt = source(&self.dt);
         problem.steps = match self.horizon {
             Horizon::Steps(s) => s,
@@ -1188,7 +1333,7 @@ impl Scene {
                 else {
                     unreachable!("dt and t0 are fixed in every sub-run when t_end is given")
                 };
-                if !(dt > 0.0) {
+                if dt <= 0.0 {
                     return Err(self.error("integrator.dt", format!("must be > 0 (got {dt})")));
                 }
                 if t_end <= t0 {

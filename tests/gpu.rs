@@ -38,12 +38,11 @@ fn compare<R: Real>(label: &str, g: &Observations<R>, c: &Observations<R>, tol: 
         if a.is_nan() && b.is_nan() {
             return;
         }
+        // One NaN and one number: as bad as it gets.
         let d = (a - b).abs() / b.abs().max(1.0);
-        if !(d <= worst.0) {
-            worst = (
-                if d.is_nan() { f64::INFINITY } else { d },
-                format!("{name}[{i}]: gpu {a:e}, cpu {b:e}"),
-            );
+        let d = if d.is_nan() { f64::INFINITY } else { d };
+        if d > worst.0 {
+            worst = (d, format!("{name}[{i}]: gpu {a:e}, cpu {b:e}"));
         }
     };
     for (group, gs, cs) in groups {

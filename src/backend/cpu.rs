@@ -175,13 +175,13 @@ fn run_block<R: Real>(
         cycle_mean_t: [R::default(); LANES],
         cycle_comoment: [R::default(); LANES],
     };
-    if let (Some((period, phase)), false) = (stroboscopic(plan), c.needs_field) {
+    if stroboscopic(plan) && !plan.strobe_interpolated() {
         // Every step divides the period: sample by step count, in R as the GPU does.
         let (mut every, mut first) = ([1u64; LANES], [0u64; LANES]);
-        let (pr, ph, half) = (R::from_f64(period), R::from_f64(phase), R::from_f64(0.5));
+        let half = R::from_f64(0.5);
         for i in 0..LANES {
-            every[i] = (pr / l.dt[i] + half).floor().to_f64() as u64;
-            first[i] = (ph / l.dt[i] + half).floor().to_f64() as u64;
+            every[i] = (l.strobe_period[i] / l.dt[i] + half).floor().to_f64() as u64;
+            first[i] = (l.strobe_phase[i] / l.dt[i] + half).floor().to_f64() as u64;
         }
         obs.strobe_exact = Some((every, first));
     }
@@ -377,7 +377,7 @@ fn observe<R: Real>(
     let plan = c.plan;
     let one = R::from_f64(1.0);
     if let Some(tr) = &plan.observers.trajectory {
-        if n1 % tr.every == 0 {
+        if n1.is_multiple_of(tr.every) {
             let frame = (n1 / tr.every) as usize;
             let frames = (plan.steps / tr.every) as usize + 1;
             for (j, v) in plan.trajectory_vars.iter().enumerate() {
@@ -410,23 +410,26 @@ fn observe<R: Real>(
         obs.points[i] = obs.points[i].saturating_add(1);
     };
     match &pc.section {
-        Section::Stroboscopic { period, phase } => {
-            let (pr, ph) = (R::from_f64(*period), R::from_f64(*phase));
+        Section::Stroboscopic { .. } | Section::Forced { .. } => {
             let (n1r, tol) = (R::from_f64(n1 as f64), R::from_f64(1e-4));
             for i in 0..count {
                 if status[i] != 0 {
                     continue;
                 }
                 if let Some((every, first)) = &obs.strobe_exact {
-                    if n1 >= first[i] && (n1 - first[i]) % every[i] == 0 {
+                    if n1 >= first[i] && (n1 - first[i]).is_multiple_of(every[i]) {
                         record(obs, i, one, None);
                     }
                     continue;
                 }
                 // Every sample time in (t_{n1−1}, t_{n1}] (t_0 itself at step 0).
                 loop {
-                    let x =
-                        R::strobe_position(R::from_f64(obs.strobe_next[i] as f64), pr, ph, l.dt[i]);
+                    let x = R::strobe_position(
+                        R::from_f64(obs.strobe_next[i] as f64),
+                        l.strobe_period[i],
+                        l.strobe_phase[i],
+                        l.dt[i],
+                    );
                     if x > n1r + tol {
                         break;
                     }

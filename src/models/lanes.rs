@@ -104,6 +104,9 @@ define_lanes! {
     dt,
     /// Initial time of each trajectory.
     t0,
+    /// Stroboscopic section: period and phase (time of the first sample after t0).
+    strobe_period,
+    strobe_phase,
     // Time terms, evaluated once per stage by a model's time op.
     forcing, damping, pref, cw, sw,
     // Model parameters, by their scene names (SPEC §2.4).

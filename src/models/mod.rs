@@ -231,6 +231,18 @@ impl Model {
         self.spec().name
     }
 
+    /// The parameter whose value ω sets the forcing period 2π/ω, or `None`
+    /// without forcing; the spin–orbit problem's orbit has period 2π
+    /// (`Some("")`: mean motion 1).
+    pub fn forcing_frequency_param(&self) -> Option<&'static str> {
+        match self {
+            Model::DampedOscillator | Model::VanDerPol => Some("forcing_frequency"),
+            Model::Kepler => Some("theta"),
+            Model::SpinOrbit => Some(""),
+            _ => None,
+        }
+    }
+
     /// Lane parameters derived from scene parameters or model data.
     pub fn derived(&self) -> Vec<Derived> {
         match self {

@@ -31,7 +31,7 @@ pub fn problem(model: &str, scheme: &str) -> Option<Problem> {
             ("forcing_amplitude", 0.5),
             ("forcing_frequency", 1.1),
         ],
-        "kepler" => &[("alpha", 0.01), ("theta", 6.283185307179586)],
+        "kepler" => &[("alpha", 0.01), ("theta", std::f64::consts::TAU)],
         "lane_emden" => &[("index", 3.0)],
         "spin_orbit" => &[
             ("eccentricity", 0.1),

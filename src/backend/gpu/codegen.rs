@@ -141,6 +141,10 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
     }
     names.insert("dt".into());
     names.insert("t0".into());
+    if stroboscopic(plan) {
+        names.insert("strobe_period".into());
+        names.insert("strobe_phase".into());
+    }
 
     // Inputs: constants as literals, axis-dependent values from the table.
     let mut table: Vec<f64> = vec![];
@@ -231,8 +235,7 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
     };
 
     // Observers.
-    let strobe = stroboscopic(plan);
-    let strobe_exact = strobe.is_some() && !needs_field_for_strobe(plan);
+    let strobe_exact = stroboscopic(plan) && !plan.strobe_interpolated();
     let mut begin = String::new();
     let mut observe = String::new();
     let uses_aux = plan.observers.poincare.is_some() || plan.cycle_var.is_some();
@@ -313,16 +316,16 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
                 r
             };
             match &pc.section {
-                Section::Stroboscopic { period, phase } => {
+                Section::Stroboscopic { .. } | Section::Forced { .. } => {
                     if strobe_exact {
-                        writeln!(s, "        {{\n            let every = u32(floor({} / dt + 0.5));\n            let first = u32(floor({} / dt + 0.5));\n            if ({n1}) >= first && (({n1}) - first) % every == 0u {{", lit(*period), lit(*phase)).unwrap();
+                        writeln!(s, "        {{\n            let every = u32(floor(strobe_period / dt + 0.5));\n            let first = u32(floor(strobe_phase / dt + 0.5));\n            if ({n1}) >= first && (({n1}) - first) % every == 0u {{").unwrap();
                         s.push_str(
                             &record("1.0", None).replace("\n            ", "\n                "),
                         );
                         s.push_str("            }\n        }\n");
                     } else {
                         // Every sample time in (t_{n1−1}, t_{n1}] (t_0 itself at step 0).
-                        writeln!(s, "        loop {{\n            let x = strobe_position(R(strobe_k), {}, {}, dt);\n            if x > R({n1}) + 1e-4 {{\n                break;\n            }}\n            let th: R = {};", lit(*period), lit(*phase), if initial { "1.0".to_string() } else { format!("clamp(x - R({n1}) + 1.0, 0.0, 1.0)") }).unwrap();
+                        writeln!(s, "        loop {{\n            let x = strobe_position(R(strobe_k), strobe_period, strobe_phase, dt);\n            if x > R({n1}) + 1e-4 {{\n                break;\n            }}\n            let th: R = {};", if initial { "1.0".to_string() } else { format!("clamp(x - R({n1}) + 1.0, 0.0, 1.0)") }).unwrap();
                         s.push_str(&record("th", None));
                         s.push_str("            strobe_k = strobe_k + 1u;\n        }\n");
                     }
@@ -390,16 +393,4 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
         table,
         strobe_exact,
     })
-}
-
-/// Whether the stroboscopic section needs interpolation for some trajectory.
-fn needs_field_for_strobe(plan: &Plan) -> bool {
-    match stroboscopic(plan) {
-        Some((period, phase)) => plan
-            .binding("dt")
-            .values()
-            .iter()
-            .any(|dt| crate::observations::strobe_steps(period, phase, *dt).is_none()),
-        None => false,
-    }
 }

@@ -59,7 +59,7 @@ fn summary(a: &wgpu::Adapter) -> AdapterSummary {
             .to_string(),
         shader_f64: f.contains(wgpu::Features::SHADER_F64),
         timestamps: f.contains(wgpu::Features::TIMESTAMP_QUERY),
-        max_storage_buffer_binding_size: l.max_storage_buffer_binding_size as u64,
+        max_storage_buffer_binding_size: l.max_storage_buffer_binding_size,
         max_buffer_size: l.max_buffer_size,
         max_compute_workgroups_per_dimension: l.max_compute_workgroups_per_dimension,
         max_storage_buffers_per_shader_stage: l.max_storage_buffers_per_shader_stage,

@@ -174,7 +174,10 @@ pub fn run_with<R: Real>(
     let pv = plan.poincare_vars.len() as u64;
     let max_points = out.max_points as u64;
     let every = plan.observers.trajectory.as_ref().map_or(0, |t| t.every);
-    let limit = (ctx.limits.max_storage_buffer_binding_size as u64).min(ctx.limits.max_buffer_size);
+    let limit = ctx
+        .limits
+        .max_storage_buffer_binding_size
+        .min(ctx.limits.max_buffer_size);
     let per_buffer = [
         nv * b,
         4,
@@ -339,8 +342,8 @@ pub fn run_with<R: Real>(
             // Frames f with f·every in the window (step 0 itself on the first
             // window) go to traj_out; at most `max_frames` of them fit.
             let (mut frame0, mut nframes) = (0, 0);
-            if every > 0 {
-                frame0 = if step0 == 0 { 0 } else { step0 / every + 1 };
+            if let Some(after) = step0.checked_div(every) {
+                frame0 = if step0 == 0 { 0 } else { after + 1 };
                 nsteps = nsteps.min((frame0 + max_frames) * every - 1 - step0).max(1);
                 nframes = ((step0 + nsteps) / every + 1).saturating_sub(frame0);
             }

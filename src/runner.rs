@@ -1,0 +1,568 @@
+//! `reeb run`: a scene through a backend into a directory of arrays, a
+//! summary and pictures.
+//!
+//! The directory is written as `<dir>.partial` and renamed into place at the
+//! end, so a run that fails or is killed never leaves a directory that looks
+//! complete; `summary.json` is the last file written.
+
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use npyz::WriterBuilder;
+
+use crate::backend::cpu;
+use crate::backend::gpu::{self, GpuContext};
+use crate::observations::{estimate_bytes, Observations};
+use crate::real::{Precision, Real};
+use crate::scene::{BackendChoice, OutVar, Scene};
+
+/// The backend a run ends up on.
+pub enum Engine {
+    Cpu,
+    Gpu(Box<GpuContext>),
+}
+
+impl Engine {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Engine::Cpu => "cpu",
+            Engine::Gpu(_) => "gpu",
+        }
+    }
+    pub fn describe(&self) -> String {
+        match self {
+            Engine::Cpu => format!("cpu ({} threads)", rayon::current_num_threads()),
+            Engine::Gpu(ctx) => format!("gpu: {}", ctx.describe()),
+        }
+    }
+}
+
+/// Chooses the backend. `auto` takes a hardware GPU adapter when there is one
+/// (and it has f64 if asked for), and otherwise the CPU, returning the
+/// one-line notice to print. A software adapter (lavapipe) is slower than the
+/// CPU backend, so `auto` uses it only when asked with `gpu`.
+pub fn resolve_backend(
+    choice: BackendChoice,
+    precision: Precision,
+) -> Result<(Engine, Option<String>)> {
+    match choice {
+        BackendChoice::Cpu => Ok((Engine::Cpu, None)),
+        BackendChoice::Gpu => {
+            let ctx = GpuContext::new()?;
+            if precision == Precision::F64 && !ctx.shader_f64 {
+                bail!("{}", gpu::GpuError::NoF64(ctx.describe()));
+            }
+            Ok((Engine::Gpu(Box::new(ctx)), None))
+        }
+        BackendChoice::Auto => match GpuContext::new() {
+            Err(e) => Ok((Engine::Cpu, Some(format!("note: no GPU adapter ({}); running on the CPU", first_line(&e.to_string()))))),
+            Ok(ctx) if gpu::is_software(&ctx.info) => Ok((Engine::Cpu, Some(format!("note: only a software GPU adapter ({}); running on the CPU (use --backend gpu to run it anyway)", ctx.info.name)))),
+            Ok(ctx) if precision == Precision::F64 && !ctx.shader_f64 => Ok((Engine::Cpu, Some(format!("note: {} has no f64 shaders; running on the CPU", ctx.info.name)))),
+            Ok(ctx) => Ok((Engine::Gpu(Box::new(ctx)), None)),
+        },
+    }
+}
+
+fn first_line(s: &str) -> &str {
+    s.lines().next().unwrap_or(s)
+}
+
+/// What a finished run reports.
+pub struct RunReport {
+    pub out: PathBuf,
+    pub summary: serde_json::Value,
+    pub line: String,
+}
+
+/// Options of `reeb run` that override the scene.
+#[derive(Default)]
+pub struct RunOptions {
+    pub out: Option<PathBuf>,
+    pub backend: Option<BackendChoice>,
+    pub precision: Option<Precision>,
+    /// Show a progress bar (on stderr, when it is a terminal).
+    pub progress: bool,
+    /// Largest output size accepted before running (default: 70 % of available memory).
+    pub max_output_bytes: Option<u64>,
+}
+
+/// Available memory in bytes (Linux `/proc/meminfo`), if known.
+fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    line.split_whitespace()
+        .nth(1)?
+        .parse::<u64>()
+        .ok()
+        .map(|kb| kb * 1024)
+}
+
+/// Human-readable bytes.
+pub fn bytes(b: u64) -> String {
+    let units = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut x = b as f64;
+    let mut u = 0;
+    while x >= 1024.0 && u + 1 < units.len() {
+        x /= 1024.0;
+        u += 1;
+    }
+    format!("{x:.1} {}", units[u])
+}
+
+/// Runs `scene` and writes its directory.
+pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
+    let precision = opts.precision.unwrap_or(scene.precision);
+    let choice = opts.backend.unwrap_or(scene.backend);
+    let subs = scene.sub_runs()?;
+    // Memory before any work: the observations of every sub-run, twice over
+    // while they are assembled into the scene's arrays.
+    let need: u64 = 2 * subs
+        .iter()
+        .map(|s| estimate_bytes(&s.plan, precision))
+        .sum::<u64>();
+    let limit = opts
+        .max_output_bytes
+        .or_else(|| available_memory().map(|m| m / 10 * 7))
+        .unwrap_or(u64::MAX);
+    if need > limit {
+        bail!(
+            "{}: the outputs need about {} and {} is available; record less: a larger output.trajectory.every, fewer output.trajectory.vars or output.poincare.vars, a smaller output.poincare.max_points, or fewer values along an axis",
+            scene.path.display(),
+            bytes(need),
+            bytes(limit)
+        );
+    }
+    let (engine, notice) = resolve_backend(choice, precision)?;
+    if let Some(n) = notice {
+        eprintln!("{n}");
+    }
+    match precision {
+        Precision::F32 => run_typed::<f32>(scene, opts, &engine, precision),
+        Precision::F64 => run_typed::<f64>(scene, opts, &engine, precision),
+    }
+}
+
+/// Integrates one plan on the chosen engine; returns the observations and
+/// the integration time (and how it was measured).
+pub fn integrate<R: Real>(
+    engine: &Engine,
+    plan: &crate::plan::Plan,
+    progress: Option<&AtomicU64>,
+) -> Result<(Observations<R>, f64, &'static str)> {
+    Ok(match engine {
+        Engine::Cpu => {
+            let t = Instant::now();
+            let o = cpu::run::<R>(plan, progress);
+            (o, t.elapsed().as_secs_f64(), "wall clock")
+        }
+        Engine::Gpu(ctx) => {
+            let r = gpu::run::<R>(ctx, plan, progress)?;
+            (r.observations, r.seconds, r.timing)
+        }
+    })
+}
+
+/// Global arrays of a scene: rows in the scene's axis order.
+struct Assembled<R> {
+    final_values: Vec<(String, Vec<R>)>,
+    frames: usize,
+    trajectory: Vec<(String, Vec<R>)>,
+    max_points: usize,
+    poincare: Vec<(String, Vec<R>)>,
+    poincare_count: Vec<u32>,
+    cycle_amplitude: Vec<R>,
+    cycle_period: Vec<R>,
+    nonfinite_step: Vec<u64>,
+}
+
+fn run_typed<R: Real>(
+    scene: &Scene,
+    opts: &RunOptions,
+    engine: &Engine,
+    precision: Precision,
+) -> Result<RunReport> {
+    let subs = scene.sub_runs()?;
+    let n = scene.ensemble_size();
+    let total: u64 = subs.iter().map(|s| s.plan.traj_steps()).sum();
+    let done = AtomicU64::new(0);
+    let bar = (opts.progress && total > 0).then(|| {
+        let b = indicatif::ProgressBar::with_draw_target(
+            Some(total),
+            indicatif::ProgressDrawTarget::stderr(),
+        );
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} {msg} [{bar:30}] {percent:>3}% {elapsed} (eta {eta}) {per_sec}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+        );
+        b.set_message(format!("{} on {}", scene.name, engine.name()));
+        b
+    });
+    let frames = subs
+        .iter()
+        .map(|s| {
+            s.plan
+                .observers
+                .trajectory
+                .as_ref()
+                .map_or(0, |t| (s.plan.steps / t.every) as usize + 1)
+        })
+        .max()
+        .unwrap_or(0);
+    let mut asm: Option<Assembled<R>> = None;
+    let mut seconds = 0.0;
+    let mut timing = "wall clock";
+    let mut max_steps = 0;
+    let strides: Vec<usize> = {
+        let shape = scene.shape();
+        let mut s = vec![1usize; shape.len()];
+        for k in (0..shape.len().saturating_sub(1)).rev() {
+            s[k] = s[k + 1] * shape[k + 1];
+        }
+        s
+    };
+    let finished = std::sync::atomic::AtomicBool::new(false);
+    std::thread::scope(|scope| -> Result<()> {
+        if let Some(b) = &bar {
+            let (b, done, finished) = (b.clone(), &done, &finished);
+            scope.spawn(move || {
+                while !finished.load(Ordering::Relaxed) {
+                    b.set_position(done.load(Ordering::Relaxed));
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+            });
+        }
+        let result = (|| -> Result<()> {
+            for sub in &subs {
+                let (obs, secs, how) = integrate::<R>(engine, &sub.plan, Some(&done))?;
+                seconds += secs;
+                timing = how;
+                max_steps = max_steps.max(sub.plan.steps);
+                if subs.len() == 1 {
+                    asm = Some(Assembled {
+                        frames: obs.frames,
+                        final_values: obs.final_values,
+                        trajectory: obs.trajectory,
+                        max_points: obs.max_points,
+                        poincare: obs.poincare,
+                        poincare_count: obs.poincare_count,
+                        cycle_amplitude: obs.cycle_amplitude,
+                        cycle_period: obs.cycle_period,
+                        nonfinite_step: obs.nonfinite_step,
+                    });
+                    continue;
+                }
+                let a = asm.get_or_insert_with(|| {
+                    let nan = |len: usize| vec![R::nan(); len];
+                    Assembled {
+                        frames,
+                        final_values: obs
+                            .final_values
+                            .iter()
+                            .map(|(v, _)| (v.clone(), nan(n)))
+                            .collect(),
+                        trajectory: obs
+                            .trajectory
+                            .iter()
+                            .map(|(v, _)| (v.clone(), nan(n * frames)))
+                            .collect(),
+                        max_points: obs.max_points,
+                        poincare: obs
+                            .poincare
+                            .iter()
+                            .map(|(v, _)| (v.clone(), nan(n * obs.max_points)))
+                            .collect(),
+                        poincare_count: if obs.max_points > 0 {
+                            vec![0; n]
+                        } else {
+                            vec![]
+                        },
+                        cycle_amplitude: if obs.cycle_amplitude.is_empty() {
+                            vec![]
+                        } else {
+                            nan(n)
+                        },
+                        cycle_period: if obs.cycle_period.is_empty() {
+                            vec![]
+                        } else {
+                            nan(n)
+                        },
+                        nonfinite_step: vec![0; n],
+                    }
+                });
+                // Local row j (over the free axes) → global row.
+                let free: Vec<usize> = (0..scene.axes.len())
+                    .filter(|k| !sub.fixed.iter().any(|(f, _)| f == k))
+                    .collect();
+                let fixed_offset: usize = sub.fixed.iter().map(|(k, i)| i * strides[*k]).sum();
+                for j in 0..sub.plan.n {
+                    let mut g = fixed_offset;
+                    for (fk, k) in free.iter().enumerate() {
+                        g += (j / sub.plan.strides[fk]) % scene.axes[*k].values.len() * strides[*k];
+                    }
+                    for ((_, dst), (_, src)) in a.final_values.iter_mut().zip(&obs.final_values) {
+                        dst[g] = src[j];
+                    }
+                    for ((_, dst), (_, src)) in a.trajectory.iter_mut().zip(&obs.trajectory) {
+                        dst[g * frames..g * frames + obs.frames]
+                            .copy_from_slice(&src[j * obs.frames..(j + 1) * obs.frames]);
+                    }
+                    let mp = obs.max_points;
+                    for ((_, dst), (_, src)) in a.poincare.iter_mut().zip(&obs.poincare) {
+                        dst[g * mp..(g + 1) * mp].copy_from_slice(&src[j * mp..(j + 1) * mp]);
+                    }
+                    if mp > 0 {
+                        a.poincare_count[g] = obs.poincare_count[j];
+                    }
+                    if !obs.cycle_amplitude.is_empty() {
+                        a.cycle_amplitude[g] = obs.cycle_amplitude[j];
+                        a.cycle_period[g] = obs.cycle_period[j];
+                    }
+                    a.nonfinite_step[g] = obs.nonfinite_step[j];
+                }
+            }
+            Ok(())
+        })();
+        finished.store(true, Ordering::Relaxed);
+        result
+    })?;
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    let a = asm.context("the scene produced no run")?;
+
+    // Write into <out>.partial, then move into place.
+    let out = opts
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("runs").join(&scene.name));
+    let partial = partial_dir(&out);
+    if partial.exists() {
+        std::fs::remove_dir_all(&partial)
+            .with_context(|| format!("removing {}", partial.display()))?;
+    }
+    std::fs::create_dir_all(&partial).with_context(|| format!("creating {}", partial.display()))?;
+    let mut files: Vec<String> = vec![];
+    let shape: Vec<u64> = scene.shape().iter().map(|s| *s as u64).collect();
+    let with = |extra: &[u64]| -> Vec<u64> { shape.iter().chain(extra).copied().collect() };
+
+    for ax in &scene.axes {
+        write_npy(
+            &partial.join(format!("axis_{}.npy", ax.name)),
+            &[ax.values.len() as u64],
+            ax.values.iter().copied(),
+        )?;
+        files.push(format!("axis_{}.npy", ax.name));
+    }
+    let vec_out = |vars: &[OutVar],
+                   arrays: &[(String, Vec<R>)],
+                   inner: usize,
+                   prefix: &str,
+                   files: &mut Vec<String>|
+     -> Result<()> {
+        for v in vars {
+            let comps: Vec<&Vec<R>> = v
+                .components
+                .iter()
+                .map(|c| {
+                    arrays
+                        .iter()
+                        .find(|(n, _)| n == c)
+                        .map(|(_, x)| x)
+                        .context("recorded component")
+                })
+                .collect::<Result<_>>()?;
+            let mut dims = if inner > 0 {
+                with(&[inner as u64])
+            } else {
+                with(&[])
+            };
+            let name = format!("{prefix}_{}.npy", v.name);
+            if comps.len() == 1 {
+                write_npy(&partial.join(&name), &dims, comps[0].iter().copied())?;
+            } else {
+                dims.push(comps.len() as u64);
+                let len = comps[0].len();
+                write_npy(
+                    &partial.join(&name),
+                    &dims,
+                    (0..len).flat_map(|i| comps.iter().map(move |c| c[i])),
+                )?;
+            }
+            files.push(name);
+        }
+        Ok(())
+    };
+    vec_out(&scene.final_vars, &a.final_values, 0, "final", &mut files)?;
+    if let Some((_, vars)) = &scene.trajectory {
+        vec_out(vars, &a.trajectory, a.frames, "trajectory", &mut files)?;
+    }
+    if let Some((_, vars, _)) = &scene.poincare {
+        vec_out(vars, &a.poincare, a.max_points, "poincare", &mut files)?;
+        write_npy(
+            &partial.join("poincare_count.npy"),
+            &with(&[]),
+            a.poincare_count.iter().copied(),
+        )?;
+        files.push("poincare_count.npy".into());
+    }
+    if scene.cycle.is_some() {
+        write_npy(
+            &partial.join("cycle_amplitude.npy"),
+            &with(&[]),
+            a.cycle_amplitude.iter().copied(),
+        )?;
+        write_npy(
+            &partial.join("cycle_period.npy"),
+            &with(&[]),
+            a.cycle_period.iter().copied(),
+        )?;
+        files.extend([
+            "cycle_amplitude.npy".to_string(),
+            "cycle_period.npy".to_string(),
+        ]);
+    }
+    // status: 0 ok, 1 non-finite; status_step: the step it became non-finite (−1: never).
+    write_npy(
+        &partial.join("status.npy"),
+        &with(&[]),
+        a.nonfinite_step.iter().map(|s| u8::from(*s != 0)),
+    )?;
+    write_npy(
+        &partial.join("status_step.npy"),
+        &with(&[]),
+        a.nonfinite_step
+            .iter()
+            .map(|s| if *s == 0 { -1i64 } else { *s as i64 }),
+    )?;
+    files.extend(["status.npy".to_string(), "status_step.npy".to_string()]);
+
+    let pictures = crate::pictures::draw(
+        scene,
+        &partial,
+        &PictureData {
+            final_values: &a.final_values,
+            frames: a.frames,
+            trajectory: &a.trajectory,
+            max_points: a.max_points,
+            poincare: &a.poincare,
+            poincare_count: &a.poincare_count,
+            cycle_amplitude: &a.cycle_amplitude,
+            cycle_period: &a.cycle_period,
+            nonfinite_step: &a.nonfinite_step,
+        },
+    );
+    let pictures = match pictures {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("warning: pictures not drawn: {e:#}");
+            vec![]
+        }
+    };
+    files.extend(pictures);
+
+    let ok = a.nonfinite_step.iter().filter(|s| **s == 0).count();
+    let rate = if seconds > 0.0 {
+        total as f64 / seconds
+    } else {
+        f64::NAN
+    };
+    let summary = serde_json::json!({
+        "reeb_version": env!("CARGO_PKG_VERSION"),
+        "scene": {
+            "name": scene.name,
+            "title": scene.title,
+            "path": scene.path.display().to_string(),
+            "model": scene.model.name(),
+            "scheme": scene.scheme,
+            "order": scene.order.clone().unwrap_or_else(|| scene.model.spec().default_order.to_string()),
+            "horizon": scene.horizon,
+            "axes": scene.axes.iter().map(|a| serde_json::json!({"name": a.name, "field": a.field, "len": a.values.len(), "first": a.values.first(), "last": a.values.last()})).collect::<Vec<_>>(),
+            "text": scene.text,
+        },
+        "backend": engine.name(),
+        "adapter": engine.describe(),
+        "precision": precision.name(),
+        "ensemble_size": n,
+        "shape": scene.shape(),
+        "steps": max_steps,
+        "steps_per_run": subs.iter().map(|s| s.plan.steps).collect::<Vec<_>>(),
+        "traj_steps": total,
+        "integration_seconds": seconds,
+        "timing": timing,
+        "traj_steps_per_s": rate,
+        "evaluations_per_step": crate::scheme::Scheme::by_name(&scene.scheme).map(|s| s.evaluations()),
+        "status": {"ok": ok, "non_finite": n - ok},
+        "files": files,
+    });
+    {
+        let mut f = BufWriter::new(std::fs::File::create(partial.join("summary.json"))?);
+        serde_json::to_writer_pretty(&mut f, &summary)?;
+        f.write_all(b"\n")?;
+        f.flush()?;
+    }
+    if out.exists() {
+        std::fs::remove_dir_all(&out).with_context(|| format!("replacing {}", out.display()))?;
+    }
+    std::fs::rename(&partial, &out)
+        .with_context(|| format!("moving {} to {}", partial.display(), out.display()))?;
+    let line = format!(
+        "{}: {} trajectories × {} steps on {} ({}) in {:.3} s: {:.3e} trajectory-steps/s; {} ok, {} non-finite → {}",
+        scene.name,
+        n,
+        max_steps,
+        engine.name(),
+        precision,
+        seconds,
+        rate,
+        ok,
+        n - ok,
+        out.display()
+    );
+    Ok(RunReport { out, summary, line })
+}
+
+/// The observations the pictures are drawn from.
+pub struct PictureData<'a, R> {
+    pub final_values: &'a [(String, Vec<R>)],
+    pub frames: usize,
+    pub trajectory: &'a [(String, Vec<R>)],
+    pub max_points: usize,
+    pub poincare: &'a [(String, Vec<R>)],
+    pub poincare_count: &'a [u32],
+    pub cycle_amplitude: &'a [R],
+    pub cycle_period: &'a [R],
+    pub nonfinite_step: &'a [u64],
+}
+
+fn partial_dir(out: &Path) -> PathBuf {
+    let mut name = out
+        .file_name()
+        .map(|s| s.to_os_string())
+        .unwrap_or_else(|| "run".into());
+    name.push(".partial");
+    out.with_file_name(name)
+}
+
+/// Writes a C-order .npy array.
+pub fn write_npy<T: npyz::AutoSerialize + npyz::Serialize>(
+    path: &Path,
+    shape: &[u64],
+    data: impl IntoIterator<Item = T>,
+) -> Result<()> {
+    let file =
+        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+    let mut w = npyz::WriteOptions::new()
+        .default_dtype()
+        .shape(shape)
+        .writer(BufWriter::new(file))
+        .begin_nd()?;
+    w.extend(data)?;
+    w.finish()?;
+    Ok(())
+}
