@@ -258,31 +258,46 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &PictureData<R>) -> Result<Ve
             Some("pi") => (x + PI).rem_euclid(2.0 * PI) - PI,
             _ => x,
         };
+        // Few orbits: one colour each. Many: ten colour bands along the last
+        // varying axis (the orbits of an area-preserving map fill the plane
+        // evenly, so a single density would show no structure).
         let per_orbit = n <= 12;
-        let mut xs: Vec<Vec<f64>> = vec![];
-        let mut ys: Vec<Vec<f64>> = vec![];
+        let band_axis = varying.last().copied();
+        let bands = if per_orbit {
+            n
+        } else if band_axis.is_some() {
+            10
+        } else {
+            1
+        };
+        let band_of = |i: usize| match (per_orbit, band_axis) {
+            (true, _) => i,
+            (false, Some(k)) => (i / strides[k]) % shape[k] * bands / shape[k],
+            (false, None) => 0,
+        };
+        let mut xs: Vec<Vec<f64>> = vec![vec![]; bands];
+        let mut ys: Vec<Vec<f64>> = vec![vec![]; bands];
         for i in 0..n {
-            if per_orbit || xs.is_empty() {
-                xs.push(vec![]);
-                ys.push(vec![]);
-            }
             let k = (d.poincare_count[i] as usize).min(d.max_points);
-            let (x, y) = (
-                xs.last_mut().expect("pushed"),
-                ys.last_mut().expect("pushed"),
-            );
+            let b = band_of(i);
+            let (x, y) = (&mut xs[b], &mut ys[b]);
             for p in 0..k {
                 x.push(wrap(d.poincare[jx].1[i * d.max_points + p].to_f64()));
                 y.push(d.poincare[jy].1[i * d.max_points + p].to_f64());
             }
         }
         let labels: Vec<String> = (0..xs.len())
-            .map(|i| {
-                if per_orbit {
-                    trajectory_label(scene, i, &strides)
-                } else {
-                    format!("{n} orbits")
+            .map(|b| match (per_orbit, band_axis) {
+                (true, _) => trajectory_label(scene, b, &strides),
+                (false, Some(k)) => {
+                    let v = &scene.axes[k].values;
+                    let (lo, hi) = (
+                        v[b * v.len() / bands],
+                        v[((b + 1) * v.len() / bands).max(1) - 1],
+                    );
+                    format!("{} ∈ [{lo:.3}, {hi:.3}]", scene.axes[k].name)
                 }
+                (false, None) => format!("{n} orbits"),
             })
             .collect();
         let series: Vec<Series> = (0..xs.len())
