@@ -39,6 +39,9 @@ enum Command {
         /// Override the scene's precision: f32 or f64.
         #[arg(long)]
         precision: Option<Precision>,
+        /// Quick look: at most 4 values per axis and 2000 steps per plan, into runs/<name>-preview.
+        #[arg(long)]
+        preview: bool,
     },
     /// Check a scene file without running it.
     Check { scene: PathBuf },
@@ -63,7 +66,8 @@ fn main() -> ExitCode {
             out,
             backend,
             precision,
-        } => run(scene, out, backend, precision),
+            preview,
+        } => run(scene, out, backend, precision, preview),
         Command::Check { scene } => Scene::load(&scene)
             .map(|s| {
                 let runs = s.sub_runs().map(|r| r.len()).unwrap_or(0);
@@ -102,13 +106,11 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(
-    scene: PathBuf,
-    out: Option<PathBuf>,
-    backend: Option<BackendChoice>,
-    precision: Option<Precision>,
-) -> Result<ExitCode> {
-    let scene = Scene::load(&scene)?;
+fn run(scene: PathBuf, out: Option<PathBuf>, backend: Option<BackendChoice>, precision: Option<Precision>, preview: bool) -> Result<ExitCode> {
+    let mut scene = Scene::load(&scene)?;
+    if preview {
+        scene = scene.preview(4, 2000);
+    }
     let opts = RunOptions {
         out,
         backend,

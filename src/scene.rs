@@ -152,6 +152,8 @@ pub struct Scene {
     pub report: Option<ReportSettings>,
     /// The file's text (copied into summary.json).
     pub text: String,
+    /// Preview: at most this many steps per plan.
+    pub step_cap: Option<u64>,
     spans: BTreeMap<String, Range<usize>>,
 }
 
@@ -1158,12 +1160,33 @@ impl Scene {
             plot,
             report,
             text: text.to_string(),
+            step_cap: None,
             spans,
         };
         // Everything the plan checks (parameters, values, scheme for the
         // model, variables), reported at the line of the field.
         scene.sub_runs()?;
         Ok(scene)
+    }
+
+    /// A small version of the scene for a quick look or a smoke test: every
+    /// axis thinned to at most `values` evenly spaced values (first and last
+    /// kept), at most `steps` steps per plan, trajectory frames thinned to
+    /// match; written under `<name>-preview`.
+    pub fn preview(&self, values: usize, steps: u64) -> Scene {
+        let mut s = self.clone();
+        s.name = format!("{}-preview", self.name);
+        for a in &mut s.axes {
+            let n = a.values.len();
+            if n > values {
+                a.values = (0..values).map(|k| a.values[k * (n - 1) / (values - 1).max(1)]).collect();
+            }
+        }
+        s.step_cap = Some(steps);
+        if let Some((every, _)) = &mut s.trajectory {
+            *every = (*every).min((steps / 10).max(1));
+        }
+        s
     }
 
     /// The line of a field (e.g. `params.epsilon`), if the file gives it.
@@ -1352,6 +1375,9 @@ impl Scene {
                 (steps as u64).max(1)
             }
         };
+        if let Some(cap) = self.step_cap {
+            problem.steps = problem.steps.min(cap);
+        }
         let comps = |vars: &[OutVar]| -> Vec<String> {
             vars.iter().flat_map(|v| v.components.clone()).collect()
         };
