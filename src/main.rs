@@ -106,7 +106,13 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(scene: PathBuf, out: Option<PathBuf>, backend: Option<BackendChoice>, precision: Option<Precision>, preview: bool) -> Result<ExitCode> {
+fn run(
+    scene: PathBuf,
+    out: Option<PathBuf>,
+    backend: Option<BackendChoice>,
+    precision: Option<Precision>,
+    preview: bool,
+) -> Result<ExitCode> {
     let mut scene = Scene::load(&scene)?;
     if preview {
         scene = scene.preview(4, 2000);

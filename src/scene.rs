@@ -1179,7 +1179,9 @@ impl Scene {
         for a in &mut s.axes {
             let n = a.values.len();
             if n > values {
-                a.values = (0..values).map(|k| a.values[k * (n - 1) / (values - 1).max(1)]).collect();
+                a.values = (0..values)
+                    .map(|k| a.values[k * (n - 1) / (values - 1).max(1)])
+                    .collect();
             }
         }
         s.step_cap = Some(steps);

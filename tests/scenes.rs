@@ -12,11 +12,12 @@ mod common;
 use common::gpu;
 
 fn scenes() -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-        .collect();
+    let mut v: Vec<PathBuf> =
+        std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes"))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .collect();
     v.sort();
     v
 }
@@ -35,13 +36,38 @@ fn every_scene_runs_on_the_cpu_and_writes_its_files() {
         let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
         let small = scene.preview(3, 300);
         let out = tmp(&small.name);
-        let opts = RunOptions { out: Some(out.clone()), backend: Some(BackendChoice::Cpu), ..RunOptions::default() };
-        let report = run_scene(&small, &opts).unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
-        let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
-        for key in ["reeb_version", "scene", "backend", "adapter", "precision", "ensemble_size", "steps", "integration_seconds", "traj_steps_per_s", "status"] {
-            assert!(summary.get(key).is_some(), "{}: summary.json lacks {key}", path.display());
+        let opts = RunOptions {
+            out: Some(out.clone()),
+            backend: Some(BackendChoice::Cpu),
+            ..RunOptions::default()
+        };
+        let report =
+            run_scene(&small, &opts).unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        for key in [
+            "reeb_version",
+            "scene",
+            "backend",
+            "adapter",
+            "precision",
+            "ensemble_size",
+            "steps",
+            "integration_seconds",
+            "traj_steps_per_s",
+            "status",
+        ] {
+            assert!(
+                summary.get(key).is_some(),
+                "{}: summary.json lacks {key}",
+                path.display()
+            );
         }
-        assert_eq!(summary["ensemble_size"].as_u64().unwrap() as usize, small.ensemble_size());
+        assert_eq!(
+            summary["ensemble_size"].as_u64().unwrap() as usize,
+            small.ensemble_size()
+        );
         for f in ["status.npy", "status_step.npy"] {
             assert!(out.join(f).exists(), "{}: no {f}", path.display());
         }
@@ -52,12 +78,26 @@ fn every_scene_runs_on_the_cpu_and_writes_its_files() {
             assert!(out.join(format!("axis_{}.npy", a.name)).exists());
         }
         if small.poincare.is_some() {
-            assert!(out.join("poincare_count.npy").exists() && out.join("poincare.png").exists(), "{}", path.display());
+            assert!(
+                out.join("poincare_count.npy").exists() && out.join("poincare.png").exists(),
+                "{}",
+                path.display()
+            );
         }
         if small.cycle.is_some() {
-            assert!(out.join("cycle_amplitude.npy").exists() && out.join("cycle_period.npy").exists());
+            assert!(
+                out.join("cycle_amplitude.npy").exists() && out.join("cycle_period.npy").exists()
+            );
         }
-        assert!(std::fs::read_dir(&out).unwrap().any(|e| e.unwrap().path().extension().is_some_and(|x| x == "png")), "{}: no picture", path.display());
+        assert!(
+            std::fs::read_dir(&out).unwrap().any(|e| e
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "png")),
+            "{}: no picture",
+            path.display()
+        );
         assert!(!report.line.is_empty());
         std::fs::remove_dir_all(&out).unwrap();
     }
@@ -76,35 +116,75 @@ fn every_scene_agrees_between_cpu_and_gpu() {
         for sub in scene.sub_runs().unwrap() {
             let (c, g) = match scene.precision {
                 Precision::F32 => {
-                    let c = integrate::<f32>(&Engine::Cpu, &sub.plan, None).unwrap().0.convert::<f64>();
-                    let g = integrate::<f32>(&engine, &sub.plan, None).unwrap().0.convert::<f64>();
+                    let c = integrate::<f32>(&Engine::Cpu, &sub.plan, None)
+                        .unwrap()
+                        .0
+                        .convert::<f64>();
+                    let g = integrate::<f32>(&engine, &sub.plan, None)
+                        .unwrap()
+                        .0
+                        .convert::<f64>();
                     (c, g)
                 }
-                Precision::F64 => (integrate::<f64>(&Engine::Cpu, &sub.plan, None).unwrap().0, integrate::<f64>(&engine, &sub.plan, None).unwrap().0),
+                Precision::F64 => (
+                    integrate::<f64>(&Engine::Cpu, &sub.plan, None).unwrap().0,
+                    integrate::<f64>(&engine, &sub.plan, None).unwrap().0,
+                ),
             };
-            let tol = if scene.precision == Precision::F32 { 1e-3 } else { 1e-9 };
+            let tol = if scene.precision == Precision::F32 {
+                1e-3
+            } else {
+                1e-9
+            };
             // Cells where a method blows up (finite but huge, e.g. the corners of
             // the stability map) agree in status only.
-            let close = |a: f64, b: f64| (a.is_nan() && b.is_nan()) || b.abs() > 1e3 || (a - b).abs() <= tol * b.abs().max(1.0);
+            let close = |a: f64, b: f64| {
+                (a.is_nan() && b.is_nan())
+                    || b.abs() > 1e3
+                    || (a - b).abs() <= tol * b.abs().max(1.0)
+            };
             for i in 0..c.n {
                 if c.nonfinite_step[i] != 0 || g.nonfinite_step[i] != 0 {
-                    assert!(c.nonfinite_step[i] != 0 && g.nonfinite_step[i] != 0, "{}: status of {i}", path.display());
+                    assert!(
+                        c.nonfinite_step[i] != 0 && g.nonfinite_step[i] != 0,
+                        "{}: status of {i}",
+                        path.display()
+                    );
                     continue;
                 }
                 for ((name, a), (_, b)) in g.final_values.iter().zip(&c.final_values) {
-                    assert!(close(a[i], b[i]), "{}: final {name}[{i}] gpu {} cpu {}", path.display(), a[i], b[i]);
+                    assert!(
+                        close(a[i], b[i]),
+                        "{}: final {name}[{i}] gpu {} cpu {}",
+                        path.display(),
+                        a[i],
+                        b[i]
+                    );
                 }
             }
-            for ((name, a), (_, b)) in g.trajectory.iter().zip(&c.trajectory).chain(g.poincare.iter().zip(&c.poincare)) {
+            for ((name, a), (_, b)) in g
+                .trajectory
+                .iter()
+                .zip(&c.trajectory)
+                .chain(g.poincare.iter().zip(&c.poincare))
+            {
                 for (k, (x, y)) in a.iter().zip(b).enumerate() {
-                    assert!(close(*x, *y), "{}: {name}[{k}] gpu {x} cpu {y}", path.display());
+                    assert!(
+                        close(*x, *y),
+                        "{}: {name}[{k}] gpu {x} cpu {y}",
+                        path.display()
+                    );
                 }
             }
             assert_eq!(g.poincare_count, c.poincare_count, "{}", path.display());
         }
         // And the whole pipeline on the GPU.
         let out = tmp(&format!("{}-gpu", scene.name));
-        let opts = RunOptions { out: Some(out.clone()), backend: Some(BackendChoice::Gpu), ..RunOptions::default() };
+        let opts = RunOptions {
+            out: Some(out.clone()),
+            backend: Some(BackendChoice::Gpu),
+            ..RunOptions::default()
+        };
         run_scene(&scene, &opts).unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
         std::fs::remove_dir_all(&out).unwrap();
     }
@@ -115,15 +195,32 @@ fn a_failed_run_leaves_no_complete_looking_directory() {
     let scene = Scene::parse(Path::new("t.toml"), "model = \"van_der_pol\"\n[integrator]\ndt = 0.01\nsteps = 10\n[output]\ntrajectory = { every = 1 }\n").unwrap();
     let out = tmp("refused");
     // An output budget of 1 byte: refused before any work, with the estimate.
-    let opts = RunOptions { out: Some(out.clone()), backend: Some(BackendChoice::Cpu), max_output_bytes: Some(1), ..RunOptions::default() };
+    let opts = RunOptions {
+        out: Some(out.clone()),
+        backend: Some(BackendChoice::Cpu),
+        max_output_bytes: Some(1),
+        ..RunOptions::default()
+    };
     let e = format!("{:#}", run_scene(&scene, &opts).err().unwrap());
-    assert!(e.contains("need about") && e.contains("output.trajectory.every"), "{e}");
+    assert!(
+        e.contains("need about") && e.contains("output.trajectory.every"),
+        "{e}"
+    );
     assert!(!out.exists());
     // A successful run replaces the directory; no .partial remains.
-    let opts = RunOptions { out: Some(out.clone()), backend: Some(BackendChoice::Cpu), ..RunOptions::default() };
+    let opts = RunOptions {
+        out: Some(out.clone()),
+        backend: Some(BackendChoice::Cpu),
+        ..RunOptions::default()
+    };
     run_scene(&scene, &opts).unwrap();
     run_scene(&scene, &opts).unwrap();
     assert!(out.join("summary.json").exists());
-    assert!(!out.with_file_name(format!("{}.partial", out.file_name().unwrap().to_string_lossy())).exists());
+    assert!(!out
+        .with_file_name(format!(
+            "{}.partial",
+            out.file_name().unwrap().to_string_lossy()
+        ))
+        .exists());
     std::fs::remove_dir_all(&out).unwrap();
 }
