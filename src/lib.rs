@@ -4,6 +4,7 @@
 //! mathematics) for what every formula computes.
 
 pub mod backend;
+pub mod bench;
 pub mod dsl;
 pub mod exact;
 pub mod math;

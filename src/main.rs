@@ -47,6 +47,33 @@ enum Command {
     Check { scene: PathBuf },
     /// List GPU adapters, their type, limits, and whether f64 and timestamps are available.
     Info,
+    /// Measure trajectory-steps per second on this machine (median of repeats).
+    Bench {
+        /// Backends: cpu, gpu (default: cpu, and gpu when an adapter exists).
+        #[arg(long, value_delimiter = ',')]
+        backend: Vec<String>,
+        /// Scenarios (default: all): van_der_pol/s2, van_der_pol/s2_with_p, van_der_pol/yoshida6a, spin_orbit/s2, kepler/s2.
+        #[arg(long, value_delimiter = ',')]
+        scenario: Vec<String>,
+        /// Precisions.
+        #[arg(long, value_delimiter = ',', default_value = "f32,f64")]
+        precision: Vec<Precision>,
+        /// Ensemble sizes.
+        #[arg(long, value_delimiter = ',', default_value = "100000,1000000")]
+        n: Vec<usize>,
+        /// Steps per run.
+        #[arg(long, default_value_t = 1000)]
+        steps: u64,
+        /// CPU thread counts (default: 1 and all).
+        #[arg(long, value_delimiter = ',')]
+        threads: Vec<usize>,
+        /// Repeats per measurement (the median is reported).
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        /// Also write the rows as JSON lines to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     /// Run the oracles of SPEC §4 and measure the convergence order of every scheme.
     Verify {
         /// Backend to verify.
@@ -84,6 +111,18 @@ fn main() -> ExitCode {
             })
             .map_err(anyhow::Error::from),
         Command::Info => info(),
+        Command::Bench {
+            backend,
+            scenario,
+            precision,
+            n,
+            steps,
+            threads,
+            repeats,
+            json,
+        } => bench(
+            backend, scenario, precision, n, steps, threads, repeats, json,
+        ),
         Command::Verify { backend, precision } => {
             if backend == "gpu" {
                 GpuContext::new().map_err(anyhow::Error::from).map(|ctx| {
@@ -126,6 +165,125 @@ fn run(
     };
     let report = run_scene(&scene, &opts)?;
     println!("{}", report.line);
+    Ok(ExitCode::SUCCESS)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn bench(
+    backends: Vec<String>,
+    scenarios: Vec<String>,
+    precisions: Vec<Precision>,
+    sizes: Vec<usize>,
+    steps: u64,
+    threads: Vec<usize>,
+    repeats: usize,
+    json: Option<PathBuf>,
+) -> Result<ExitCode> {
+    use reeb::bench::{rate, time_cpu, time_gpu, Scenario, SCENARIOS};
+    use std::io::Write;
+    let scenarios: Vec<Scenario> = if scenarios.is_empty() {
+        SCENARIOS.to_vec()
+    } else {
+        scenarios
+            .iter()
+            .map(|s| Scenario::by_label(s).ok_or_else(|| anyhow::anyhow!("unknown scenario `{s}`")))
+            .collect::<Result<_>>()?
+    };
+    let all = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = if threads.is_empty() {
+        if all > 1 {
+            vec![1, all]
+        } else {
+            vec![1]
+        }
+    } else {
+        threads
+    };
+    let ctx = GpuContext::new().ok();
+    let backends = if backends.is_empty() {
+        if ctx.is_some() {
+            vec!["cpu".to_string(), "gpu".to_string()]
+        } else {
+            vec!["cpu".to_string()]
+        }
+    } else {
+        backends
+    };
+    let mut out = json.map(std::fs::File::create).transpose()?;
+    println!(
+        "reeb {} bench: {steps} steps per run, median of {repeats}",
+        env!("CARGO_PKG_VERSION")
+    );
+    println!(
+        "{:<40} {:<24} {:>9} {:>10} {:>8} {:>16}",
+        "backend", "scenario", "precision", "n", "threads", "traj-steps/s"
+    );
+    for b in &backends {
+        for s in &scenarios {
+            for p in &precisions {
+                for n in &sizes {
+                    let plan = s.plan(*n, steps);
+                    let rows: Vec<(String, usize, f64)> = match b.as_str() {
+                        "cpu" => threads
+                            .iter()
+                            .map(|t| {
+                                let pool = rayon::ThreadPoolBuilder::new()
+                                    .num_threads(*t)
+                                    .build()
+                                    .expect("thread pool");
+                                (
+                                    "cpu".to_string(),
+                                    *t,
+                                    pool.install(|| rate(&plan, repeats, |pl| time_cpu(pl, *p))),
+                                )
+                            })
+                            .collect(),
+                        "gpu" => match &ctx {
+                            Some(c) if *p == Precision::F32 || c.shader_f64 => {
+                                let mut err = None;
+                                let r = rate(&plan, repeats, |pl| {
+                                    time_gpu(c, pl, *p).unwrap_or_else(|e| {
+                                        err = Some(e.to_string());
+                                        f64::NAN
+                                    })
+                                });
+                                if let Some(e) = err {
+                                    anyhow::bail!("gpu {}: {e}", s.label());
+                                }
+                                vec![(format!("gpu: {}", c.info.name), 0, r)]
+                            }
+                            Some(_) => vec![],
+                            None => anyhow::bail!("no GPU adapter for --backend gpu"),
+                        },
+                        other => anyhow::bail!("unknown backend `{other}` (cpu or gpu)"),
+                    };
+                    for (name, t, r) in rows {
+                        let th = if t == 0 {
+                            "-".to_string()
+                        } else {
+                            t.to_string()
+                        };
+                        println!(
+                            "{:<40} {:<24} {:>9} {:>10} {:>8} {:>16.4e}",
+                            name,
+                            s.label(),
+                            p,
+                            n,
+                            th,
+                            r
+                        );
+                        if let Some(f) = &mut out {
+                            writeln!(
+                                f,
+                                "{}",
+                                serde_json::json!({"backend": name, "scenario": s.label(), "precision": p.name(), "n": n, "steps": steps, "threads": t, "traj_steps_per_s": r})
+                            )?;
+                        }
+                    }
+                }
+            }
+        }
+    }
     Ok(ExitCode::SUCCESS)
 }
 

@@ -1,0 +1,152 @@
+//! Throughput benchmarks: `reeb bench` and `benches/throughput.rs` run the
+//! same scenarios. Rates are trajectory-steps per second of the integration
+//! alone (no kernel compilation, no upload: the GPU timing is the dispatches'),
+//! as the median of several repeats.
+
+use std::time::Instant;
+
+use crate::backend::{cpu, gpu::GpuContext};
+use crate::models::Model;
+use crate::plan::{Plan, Problem, Source};
+use crate::real::Precision;
+
+/// A benchmark scenario: a plan family parameterised by ensemble size.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scenario {
+    /// Van der Pol S2(CBABC), (q, s) only, per-trajectory ε, dt = 0.01,
+    /// final state only: the job of `../shared/peers`.
+    VdpS2,
+    /// The same with the slope variable p integrated too (what the
+    /// specialisation leaves out).
+    VdpS2WithP,
+    /// Van der Pol, Yoshida 6A.
+    VdpYoshida6a,
+    /// Spin–orbit S2 (e = 0.06, ε = 0.045, λ = 0.01, Ω = √2), per-trajectory p0.
+    SpinOrbitS2,
+    /// Perturbed Kepler S2 (α = 0.01, θ = 2π), per-trajectory eccentricity.
+    KeplerS2,
+}
+
+pub const SCENARIOS: [Scenario; 5] = [
+    Scenario::VdpS2,
+    Scenario::VdpS2WithP,
+    Scenario::VdpYoshida6a,
+    Scenario::SpinOrbitS2,
+    Scenario::KeplerS2,
+];
+
+impl Scenario {
+    /// `model/scheme` label of criterion groups and `reeb bench` rows.
+    pub fn label(self) -> &'static str {
+        match self {
+            Scenario::VdpS2 => "van_der_pol/s2",
+            Scenario::VdpS2WithP => "van_der_pol/s2_with_p",
+            Scenario::VdpYoshida6a => "van_der_pol/yoshida6a",
+            Scenario::SpinOrbitS2 => "spin_orbit/s2",
+            Scenario::KeplerS2 => "kepler/s2",
+        }
+    }
+
+    pub fn by_label(label: &str) -> Option<Scenario> {
+        SCENARIOS.iter().copied().find(|s| s.label() == label)
+    }
+
+    /// The plan for `n` trajectories and `steps` steps.
+    pub fn plan(self, n: usize, steps: u64) -> Plan {
+        let frac = |i: usize| i as f64 / n as f64;
+        let mut p = match self {
+            Scenario::VdpS2 | Scenario::VdpS2WithP | Scenario::VdpYoshida6a => {
+                let scheme = if self == Scenario::VdpYoshida6a {
+                    "yoshida6a"
+                } else {
+                    "s2"
+                };
+                let mut p = Problem::new(Model::VanDerPol, scheme).expect("scheme");
+                // The peers' ensemble: q0 = 2 + 0.5 i/N, ε = 0.1 + 10 i/N, s0 = 0.
+                let q0 = p.axis("i", (0..n).map(|i| 2.0 + 0.5 * frac(i)).collect());
+                p = p.initial("q", q0).param(
+                    "epsilon",
+                    Source::Axis {
+                        axis: 0,
+                        values: (0..n).map(|i| 0.1 + 10.0 * frac(i)).collect(),
+                    },
+                );
+                if self == Scenario::VdpS2WithP {
+                    p = p.initial("p", Source::Const(-1.0));
+                    p.observers.final_vars = vec!["q".into(), "s".into(), "p".into()];
+                }
+                p
+            }
+            Scenario::SpinOrbitS2 => {
+                let mut p = Problem::new(Model::SpinOrbit, "s2")
+                    .expect("s2")
+                    .param("eccentricity", Source::Const(0.06))
+                    .param("epsilon", Source::Const(0.045))
+                    .param("lambda", Source::Const(0.01))
+                    .param("omega", Source::Const(std::f64::consts::SQRT_2));
+                let p0 = p.axis("i", (0..n).map(|i| 0.4 + 1.4 * frac(i)).collect());
+                p.initial("p", p0)
+            }
+            Scenario::KeplerS2 => {
+                let mut p = Problem::new(Model::Kepler, "s2")
+                    .expect("s2")
+                    .param("alpha", Source::Const(0.01))
+                    .param("theta", Source::Const(std::f64::consts::TAU));
+                let e: Vec<f64> = (0..n).map(|i| 0.5 * frac(i)).collect();
+                let q1 = p.axis("i", e.iter().map(|e| 1.0 - e).collect());
+                p.initial("q1", q1).initial(
+                    "p2",
+                    Source::Axis {
+                        axis: 0,
+                        values: e.iter().map(|e| ((1.0 + e) / (1.0 - e)).sqrt()).collect(),
+                    },
+                )
+            }
+        };
+        p.dt = Source::Const(0.01);
+        p.steps = steps;
+        Plan::new(&p).expect("benchmark plans are valid")
+    }
+}
+
+/// Median of a sample.
+pub fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() {
+        f64::NAN
+    } else if v.len() % 2 == 1 {
+        v[v.len() / 2]
+    } else {
+        0.5 * (v[v.len() / 2 - 1] + v[v.len() / 2])
+    }
+}
+
+/// Seconds of one CPU integration of `plan`.
+pub fn time_cpu(plan: &Plan, precision: Precision) -> f64 {
+    let t = Instant::now();
+    match precision {
+        Precision::F32 => drop(std::hint::black_box(cpu::run::<f32>(plan, None))),
+        Precision::F64 => drop(std::hint::black_box(cpu::run::<f64>(plan, None))),
+    }
+    t.elapsed().as_secs_f64()
+}
+
+/// Seconds of the dispatches of one GPU integration of `plan` (the kernel
+/// is compiled, and cached, by the first call).
+pub fn time_gpu(
+    ctx: &GpuContext,
+    plan: &Plan,
+    precision: Precision,
+) -> Result<f64, crate::backend::gpu::GpuError> {
+    Ok(match precision {
+        Precision::F32 => crate::backend::gpu::run::<f32>(ctx, plan, None)?.seconds,
+        Precision::F64 => crate::backend::gpu::run::<f64>(ctx, plan, None)?.seconds,
+    })
+}
+
+/// Median trajectory-steps per second over `repeats` runs (after one warm-up).
+pub fn rate(plan: &Plan, repeats: usize, mut once: impl FnMut(&Plan) -> f64) -> f64 {
+    once(plan);
+    let times: Vec<f64> = (0..repeats.max(1)).map(|_| once(plan)).collect();
+    plan.traj_steps() as f64 / median(times)
+}
