@@ -60,6 +60,27 @@ macro_rules! shared_fns {
                     _ => None,
                 }
             }
+
+            /// The same ops on one trajectory, binding the fields of a [`Lane`].
+            pub mod scalar {
+                #[allow(unused_imports)]
+                use super::super::*;
+                use $crate::models::lanes::{Bind, Lane, ScalarFn};
+                use $crate::real::Real;
+                $(
+                    #[inline(always)]
+                    pub fn $name<R: Real>(x: &mut Lane<R>) {
+                        <R as $tr>::$name($( Bind::bind(&mut x.$arg) ),*);
+                    }
+                )*
+                /// The scalar op called `name`.
+                pub fn lookup<R: Real>(name: &str) -> Option<ScalarFn<R>> {
+                    match name {
+                        $( stringify!($name) => Some($name::<R> as ScalarFn<R>), )*
+                        _ => None,
+                    }
+                }
+            }
         }
     };
     (

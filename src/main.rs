@@ -43,6 +43,12 @@ enum Command {
         #[arg(long)]
         preview: bool,
     },
+    /// Reports: work-precision (error against run time per scheme, backend,
+    /// precision and step) or stability (accurate / distorted / diverged over a 2-D grid).
+    Report {
+        #[command(subcommand)]
+        kind: ReportKind,
+    },
     /// Check a scene file without running it.
     Check { scene: PathBuf },
     /// List GPU adapters, their type, limits, and whether f64 and timestamps are available.
@@ -85,6 +91,32 @@ enum Command {
     },
 }
 
+#[derive(Subcommand)]
+enum ReportKind {
+    /// For every scheme, backend and precision of the scene's [report] table and every dt of its axis: error and time.
+    WorkPrecision {
+        scene: PathBuf,
+        /// Output directory (default: runs/<scene name>-work-precision).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        #[arg(long)]
+        backend: Option<BackendChoice>,
+        #[arg(long)]
+        precision: Option<Precision>,
+    },
+    /// Classify every cell of a 2-D grid as accurate, distorted or diverged.
+    Stability {
+        scene: PathBuf,
+        /// Output directory (default: runs/<scene name>-stability).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        #[arg(long)]
+        backend: Option<BackendChoice>,
+        #[arg(long)]
+        precision: Option<Precision>,
+    },
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
@@ -111,6 +143,7 @@ fn main() -> ExitCode {
             })
             .map_err(anyhow::Error::from),
         Command::Info => info(),
+        Command::Report { kind } => report(kind),
         Command::Bench {
             backend,
             scenario,
@@ -282,6 +315,47 @@ fn bench(
                     }
                 }
             }
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn report(kind: ReportKind) -> Result<ExitCode> {
+    use reeb::report::{stability, work_precision, ReportOptions};
+    match kind {
+        ReportKind::WorkPrecision {
+            scene,
+            out,
+            backend,
+            precision,
+        } => {
+            let scene = Scene::load(&scene)?;
+            let md = work_precision(
+                &scene,
+                &ReportOptions {
+                    out,
+                    backend,
+                    precision,
+                },
+            )?;
+            println!("{}", md.display());
+        }
+        ReportKind::Stability {
+            scene,
+            out,
+            backend,
+            precision,
+        } => {
+            let scene = Scene::load(&scene)?;
+            let csv = stability(
+                &scene,
+                &ReportOptions {
+                    out,
+                    backend,
+                    precision,
+                },
+            )?;
+            println!("{}", csv.display());
         }
     }
     Ok(ExitCode::SUCCESS)

@@ -588,6 +588,37 @@ impl Plan {
             .1
     }
 
+    /// The same plan with every trajectory repeated `copies` times (a last
+    /// axis `copy`), so that timings of small ensembles measure throughput.
+    pub fn replicated(&self, copies: usize) -> Plan {
+        let mut p = self.clone();
+        if copies > 1 {
+            for s in &mut p.strides {
+                *s *= copies;
+            }
+            p.strides.push(1);
+            p.axes.push(Axis {
+                name: "copy".into(),
+                len: copies,
+            });
+            p.n *= copies;
+        }
+        p
+    }
+
+    /// Output times of the trajectory observer (or the final time alone) for
+    /// trajectory `traj`.
+    pub fn output_times(&self, traj: usize) -> Vec<f64> {
+        let t0 = self.binding("t0").value_at(traj, &self.strides);
+        let dt = self.binding("dt").value_at(traj, &self.strides);
+        match &self.observers.trajectory {
+            Some(tr) => (0..=self.steps / tr.every)
+                .map(|f| t0 + (f * tr.every) as f64 * dt)
+                .collect(),
+            None => vec![t0 + self.steps as f64 * dt],
+        }
+    }
+
     /// Trajectory-steps of the run.
     pub fn traj_steps(&self) -> u64 {
         self.n as u64 * self.steps

@@ -15,6 +15,9 @@ pub const LANES: usize = 64;
 /// The lane loop of one op.
 pub type LaneFn<R> = fn(&mut Lanes<R>);
 
+/// One op applied to a single trajectory.
+pub type ScalarFn<R> = fn(&mut Lane<R>);
+
 /// Binds a lane element to a shared function's argument: by value for `R`,
 /// by reference for `&mut R`. The argument's type chooses the impl.
 pub trait Bind<'a, R> {
@@ -53,6 +56,30 @@ macro_rules! define_lanes {
         /// Position of the lane array called `name` (for [`Lanes::at`]).
         pub fn index_of(name: &str) -> Option<usize> {
             NAMES.iter().position(|n| *n == name)
+        }
+
+        /// One trajectory of a block: the scalar twin of [`Lanes`], with the
+        /// same field names, which scalar ops bind by name.
+        #[derive(Debug, Clone, Copy, Default)]
+        pub struct Lane<R> {
+            $( $(#[$m])* pub $f: R, )*
+        }
+
+        impl<R: Real> Lane<R> {
+            /// The scalar named `name`.
+            pub fn get(&self, name: &str) -> Option<R> {
+                match name {
+                    $( stringify!($f) => Some(self.$f), )*
+                    _ => None,
+                }
+            }
+            /// The scalar named `name`, mutable.
+            pub fn get_mut(&mut self, name: &str) -> Option<&mut R> {
+                match name {
+                    $( stringify!($f) => Some(&mut self.$f), )*
+                    _ => None,
+                }
+            }
         }
 
         impl<R: Real> Lanes<R> {

@@ -96,20 +96,32 @@ pub const COMMON_WGSL: &[&str] = &[
     crate::observe::OBSERVE_WGSL,
 ];
 
-/// The lane loop of the op called `name`, from whichever model defines it.
-pub fn lane_fn<R: Real>(name: &str) -> Option<LaneFn<R>> {
-    mechanical::mechanical_1d_lanes::lookup(name)
-        .or_else(|| damped_oscillator::damped_oscillator_lanes::lookup(name))
-        .or_else(|| damped_oscillator::damped_oscillator_method_lanes::lookup(name))
-        .or_else(|| kepler::kepler_lanes::lookup(name))
-        .or_else(|| lane_emden::lane_emden_lanes::lookup(name))
-        .or_else(|| lane_emden::lane_emden_method_lanes::lookup(name))
-        .or_else(|| spin_orbit::spin_orbit_lanes::lookup(name))
-        .or_else(|| spin_orbit::spin_orbit_method_lanes::lookup(name))
-        .or_else(|| quadratic_s::quadratic_s_lanes::lookup(name))
-        .or_else(|| lienard::lienard_lanes::lookup(name))
-        .or_else(|| lienard::van_der_pol_method_lanes::lookup(name))
-        .or_else(|| lienard::lienard_method_lanes::lookup(name))
+macro_rules! op_modules {
+    ($($m:ident :: $lanes:ident),* $(,)?) => {
+        /// The lane loop of the op called `name`, from whichever model defines it.
+        pub fn lane_fn<R: Real>(name: &str) -> Option<LaneFn<R>> {
+            None$(.or_else(|| $m::$lanes::lookup(name)))*
+        }
+        /// The scalar op called `name` (one trajectory).
+        pub fn scalar_fn<R: Real>(name: &str) -> Option<lanes::ScalarFn<R>> {
+            None$(.or_else(|| $m::$lanes::scalar::lookup(name)))*
+        }
+    };
+}
+
+op_modules! {
+    mechanical::mechanical_1d_lanes,
+    damped_oscillator::damped_oscillator_lanes,
+    damped_oscillator::damped_oscillator_method_lanes,
+    kepler::kepler_lanes,
+    lane_emden::lane_emden_lanes,
+    lane_emden::lane_emden_method_lanes,
+    spin_orbit::spin_orbit_lanes,
+    spin_orbit::spin_orbit_method_lanes,
+    quadratic_s::quadratic_s_lanes,
+    lienard::lienard_lanes,
+    lienard::van_der_pol_method_lanes,
+    lienard::lienard_method_lanes,
 }
 
 /// A comparison integrator (SPEC §3), as opposed to a splitting scheme.
@@ -296,6 +308,7 @@ mod tests {
             ops.extend(spec.methods.iter().map(|(_, o)| *o));
             for op in ops {
                 assert!(lane_fn::<f64>(op).is_some(), "{name}: no op {op}");
+                assert!(scalar_fn::<f32>(op).is_some(), "{name}: no scalar op {op}");
             }
             for text in spec.wgsl.iter().chain(COMMON_WGSL) {
                 to_wgsl(text).unwrap();

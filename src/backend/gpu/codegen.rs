@@ -173,7 +173,15 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
         if plan.vars.contains(name) || !names.contains(*name) {
             continue;
         }
-        let e = input_expr(src, &mut table)?;
+        // The step and the start time come from the table even when constant,
+        // so that the plans of a scene's sub-runs (one per dt) share a kernel.
+        let e = match (src, *name) {
+            (Source::Const(v), "dt" | "t0") => {
+                table.push(*v);
+                format!("table[{}u]", table.len() - 1)
+            }
+            _ => input_expr(src, &mut table)?,
+        };
         writeln!(inputs, "    let {name}: R = {e};").unwrap();
         declared.insert(name.to_string());
     }
