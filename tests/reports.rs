@@ -1,0 +1,133 @@
+//! `reeb report`: the work–precision report measures every scheme's order,
+//! and the stability report classifies every cell, stiff and extreme corners
+//! included, in f32 and f64.
+
+use std::path::Path;
+
+use reeb::report::{stability, work_precision, ReportOptions};
+use reeb::scene::{BackendChoice, Scene};
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("reeb-report-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+#[test]
+fn work_precision_measures_the_orders() {
+    // The damped-oscillator scene of scenes/, on the four schemes the issue names.
+    let mut scene = Scene::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/damped_oscillator_work_precision.toml"),
+    )
+    .unwrap();
+    let r = scene.report.as_mut().unwrap();
+    r.schemes = ["s2", "triple_jump4", "yoshida6a", "yoshida8a"]
+        .map(String::from)
+        .to_vec();
+    r.precisions = vec![reeb::real::Precision::F64];
+    let out = tmp("wp");
+    let md = work_precision(
+        &scene,
+        &ReportOptions {
+            out: Some(out.clone()),
+            backend: Some(BackendChoice::Cpu),
+            precision: None,
+        },
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(&md).unwrap();
+    for (scheme, order) in [
+        ("s2", 2.0),
+        ("triple_jump4", 4.0),
+        ("yoshida6a", 6.0),
+        ("yoshida8a", 8.0),
+    ] {
+        let line = text
+            .lines()
+            .find(|l| l.starts_with(&format!("| {scheme} cpu f64 |")))
+            .unwrap_or_else(|| panic!("{scheme} missing:\n{text}"));
+        let measured: f64 = line
+            .split('|')
+            .nth(3)
+            .unwrap()
+            .trim()
+            .parse()
+            .unwrap_or_else(|_| panic!("{line}"));
+        assert!((measured - order).abs() <= 0.2, "{scheme}: {measured}");
+    }
+    let csv = std::fs::read_to_string(out.join("work_precision.csv")).unwrap();
+    assert!(csv.starts_with("scheme,backend,precision,dt,steps,evaluations,error_max,error_rel,seconds,traj_steps_per_s"));
+    assert_eq!(
+        csv.lines().filter(|l| l.starts_with("yoshida6a,")).count(),
+        16
+    );
+    assert!(
+        csv.lines().any(|l| l.starts_with("dop853")),
+        "the reference is a point too"
+    );
+    for f in ["work_precision.png", "error_vs_dt.png", "report.md"] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+#[test]
+fn stability_classifies_every_cell_in_both_precisions() {
+    let scene = Scene::parse(
+        Path::new("st.toml"),
+        r#"
+model = "van_der_pol"
+[params]
+epsilon = { logspace = [-1.0, 3.0, 6] }
+[initial]
+q = 2.0
+[integrator]
+dt = { logspace = [-3.0, 0.30102999566398120, 6] }
+t_end = 20.0
+[output]
+cycle = true
+[report]
+precisions = ["f32", "f64"]
+"#,
+    )
+    .unwrap();
+    let out = tmp("st");
+    let csv = stability(
+        &scene,
+        &ReportOptions {
+            out: Some(out.clone()),
+            backend: Some(BackendChoice::Cpu),
+            precision: None,
+        },
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(csv).unwrap();
+    let rows: Vec<Vec<&str>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 2 * 36);
+    for r in &rows {
+        assert!(
+            ["accurate", "distorted", "diverged"].contains(&r[3]),
+            "{r:?}"
+        );
+        let e: f64 = r[4].parse().unwrap();
+        assert!(!e.is_nan(), "NaN error leaked: {r:?}");
+    }
+    // The corners: ε = 1000 with τ = 2 (ετ = 2000: e^{ετ} far beyond f32) and the smallest cell.
+    let num = |s: &str| s.parse::<f64>().unwrap();
+    let corner = rows
+        .iter()
+        .find(|r| num(r[0]) == 1e3 && (num(r[1]) - 2.0).abs() < 1e-9 && r[2] == "f32")
+        .expect("corner row");
+    assert_ne!(corner[3], "accurate");
+    let easy = rows
+        .iter()
+        .find(|r| num(r[0]) == 0.1 && num(r[1]) == 1e-3 && r[2] == "f64")
+        .expect("small cell");
+    assert_eq!(easy[3], "accurate", "{easy:?}");
+    assert!(out.join("stability.png").exists());
+    std::fs::remove_dir_all(&out).unwrap();
+}
