@@ -177,6 +177,17 @@ pub enum Op {
     Call(&'static str),
 }
 
+/// A splitting step as stages `S2(w_k τ)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stages {
+    /// Piece order outermost first (P1, P2, P3).
+    pub order: [char; 3],
+    /// Per stage: weight w and time offset c (midpoint, in steps).
+    pub stages: Vec<(f64, f64)>,
+    /// Is the optional variable integrated?
+    pub with_optional: bool,
+}
+
 /// A state variable or time, as observers see it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ObsVar {
@@ -203,6 +214,9 @@ pub struct Plan {
     pub bindings: Vec<(&'static str, Source)>,
     /// One step.
     pub ops: Vec<Op>,
+    /// The same step as S2 stages for the CPU's fused kernels: the piece
+    /// order and, per stage, its weight and time offset (splitting schemes).
+    pub stages: Option<Stages>,
     /// Ops that put the vector field at (state, t) into `d<var>`.
     pub field_ops: Vec<&'static str>,
     pub steps: u64,
@@ -443,11 +457,28 @@ impl Plan {
                 .is_some_and(|(_, s)| s.any_nonzero())
         };
 
+        let mut stages = None;
         let ops = match &problem.scheme.kind {
             SchemeKind::Splitting { weights } => {
                 let order = problem.order.as_deref().unwrap_or(spec.default_order);
                 let half =
                     parse_order(order, spec.pieces).map_err(|m| err("integrator.order", m))?;
+                if let [a, b, c] = half[..] {
+                    let mut cum = 0.0;
+                    let list = weights
+                        .iter()
+                        .map(|w| {
+                            let s = (*w, cum + 0.5 * w);
+                            cum += w;
+                            s
+                        })
+                        .collect();
+                    stages = Some(Stages {
+                        order: [a, b, c],
+                        stages: list,
+                        with_optional,
+                    });
+                }
                 splitting_ops(spec, weights, &half, time, with_optional, &is_zero)
             }
             SchemeKind::Method(m) => {
@@ -540,6 +571,7 @@ impl Plan {
             time,
             bindings,
             ops,
+            stages,
             field_ops,
             steps: problem.steps,
             observers: problem.observers.clone(),

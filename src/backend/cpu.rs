@@ -12,6 +12,7 @@ use rayon::prelude::*;
 
 use crate::models::lane_fn;
 use crate::models::lanes::{index_of, LaneFn, Lanes, LANES};
+use crate::models::pieces::{has_v3, StageFn};
 use crate::observations::{stroboscopic, Observations};
 use crate::observe::{Direction, Section};
 use crate::plan::{ObsVar, Op, Plan, Source};
@@ -21,6 +22,9 @@ use crate::real::Real;
 struct Compiled<'p, R> {
     plan: &'p Plan,
     ops: Vec<CpuOp<R>>,
+    /// The step as fused S2 stages `(kernel, w/2, w, time offset)`, when the
+    /// plan is a splitting (preferred over `ops`).
+    stages: Option<Vec<FusedStage<R>>>,
     field: Vec<LaneFn<R>>,
     needs_field: bool,
     /// Lane index of each integrated variable and of its derivative.
@@ -34,6 +38,9 @@ enum CpuOp<R> {
     Time(R),
     Call(LaneFn<R>),
 }
+
+/// A fused S2 stage with its `w/2`, `w` and time offset.
+type FusedStage<R> = (StageFn<R>, R, R, R);
 
 /// Raw view of an output array that blocks fill in disjoint rows.
 struct Rows<T> {
@@ -116,9 +123,22 @@ fn compile<R: Real>(plan: &Plan) -> Compiled<'_, R> {
         })
         .collect();
     let idx = |name: &str| index_of(name).unwrap_or_else(|| panic!("{name} is not a lane field"));
+    let v3 = has_v3();
+    let stages = plan.stages.as_ref().and_then(|st| {
+        let f = plan
+            .model
+            .stage_fn::<R>(st.order, st.with_optional, plan.time, v3)?;
+        Some(
+            st.stages
+                .iter()
+                .map(|(w, c)| (f, R::from_f64(0.5 * w), R::from_f64(*w), R::from_f64(*c)))
+                .collect(),
+        )
+    });
     Compiled {
         plan,
         ops,
+        stages,
         field: plan.field_ops.iter().map(|f| call(f)).collect(),
         needs_field: plan.needs_field(),
         var: plan.vars.iter().map(|v| idx(v)).collect(),
@@ -207,7 +227,13 @@ fn run_block<R: Real>(
             }
         }
         let nf = R::from_f64(n as f64);
-        for op in &c.ops {
+        if let Some(stages) = &c.stages {
+            for (f, half, full, tc) in stages {
+                // SAFETY: `has_v3` chose the AVX2/FMA kernels only where the CPU has them.
+                unsafe { f(l, *half, *full, *tc, nf) };
+            }
+        }
+        for op in c.ops.iter().filter(|_| c.stages.is_none()) {
             match op {
                 CpuOp::Tau(coef) => {
                     for i in 0..LANES {
@@ -223,14 +249,19 @@ fn run_block<R: Real>(
             }
         }
         // Status: the first step at which any variable is non-finite.
+        // One vectorised pass per variable with an OR-reduction; lanes are
+        // examined one by one only in the rare step where one went bad.
         let mut bad = [false; LANES];
+        let mut any = false;
         for &k in &c.var {
             let x = l.at(k);
             for i in 0..LANES {
-                bad[i] |= !x[i].finite();
+                let b = !x[i].finite();
+                bad[i] |= b;
+                any |= b;
             }
         }
-        if bad[..count].iter().any(|b| *b) {
+        if any {
             for i in 0..count {
                 if bad[i] && status[i] == 0 {
                     status[i] = n + 1;

@@ -4,7 +4,7 @@
 #[allow(unused_imports)]
 use super::prelude::*;
 
-use super::spec::{ModelSpec, ParamDef, PieceOps, TimeDependence};
+use super::spec::{ModelSpec, ParamDef, TimeDependence};
 use super::Method;
 
 crate::shared_fns! {
@@ -56,6 +56,14 @@ crate::mechanical_1d_methods! {
     params [alpha, forcing_amplitude, forcing_frequency]
 }
 
+crate::pieces! {
+    DAMPED_OSCILLATOR_PIECES, DAMPED_OSCILLATOR_TIME, DampedOscillatorPieces;
+    time [damped_oscillator_time];
+    'A' [damped_oscillator_a_p, damped_oscillator_a_s(opt)] identity_when_zero [alpha];
+    'B' [damped_oscillator_b_p, damped_oscillator_b_s(opt)] identity_when_zero [];
+    'C' [mech1_c_q, mech1_c_s(opt)] identity_when_zero [];
+}
+
 pub const SPEC: ModelSpec = ModelSpec {
     name: "damped_oscillator",
     summary: "q'' = -q - alpha q' + forcing_amplitude sin(forcing_frequency t)",
@@ -72,30 +80,8 @@ pub const SPEC: ModelSpec = ModelSpec {
     pieces: "ABC",
     default_order: "CBABC",
     time: TimeDependence::WhenNonzero(&["forcing_amplitude"]),
-    time_ops: &["damped_oscillator_time"],
-    piece_ops: &[
-        PieceOps {
-            piece: 'A',
-            ops: &[
-                ("damped_oscillator_a_p", false),
-                ("damped_oscillator_a_s", true),
-            ],
-            identity_when_zero: &["alpha"],
-        },
-        PieceOps {
-            piece: 'B',
-            ops: &[
-                ("damped_oscillator_b_p", false),
-                ("damped_oscillator_b_s", true),
-            ],
-            identity_when_zero: &[],
-        },
-        PieceOps {
-            piece: 'C',
-            ops: &[("mech1_c_q", false), ("mech1_c_s", true)],
-            identity_when_zero: &[],
-        },
-    ],
+    time_ops: DAMPED_OSCILLATOR_TIME,
+    piece_ops: DAMPED_OSCILLATOR_PIECES,
     field_ops: &[("damped_oscillator_field", false)],
     methods: &[
         (Method::Rk4, "damped_oscillator_rk4"),

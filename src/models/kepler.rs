@@ -5,7 +5,7 @@
 #[allow(unused_imports)]
 use super::prelude::*;
 
-use super::spec::{ModelSpec, ParamDef, PieceOps, TimeDependence};
+use super::spec::{ModelSpec, ParamDef, TimeDependence};
 use super::Method;
 
 crate::shared_fns! {
@@ -197,6 +197,14 @@ pub fn perihelion(e: f64) -> ([f64; 2], [f64; 2]) {
     ([1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()])
 }
 
+crate::pieces! {
+    KEPLER_PIECES, KEPLER_TIME, KeplerPieces;
+    time [kepler_time];
+    'A' [kepler_a_p, mech1_a_s(opt)] identity_when_zero [alpha];
+    'B' [kepler_b_p, kepler_b_s(opt)] identity_when_zero [];
+    'C' [kepler_c_q, kepler_c_s(opt)] identity_when_zero [];
+}
+
 pub const SPEC: ModelSpec = ModelSpec {
     name: "kepler",
     summary: "q'' = -q/|q|^3 - alpha sin(theta t) q' in the plane",
@@ -209,24 +217,8 @@ pub const SPEC: ModelSpec = ModelSpec {
     pieces: "ABC",
     default_order: "CBABC",
     time: TimeDependence::WhenNonzero(&["alpha"]),
-    time_ops: &["kepler_time"],
-    piece_ops: &[
-        PieceOps {
-            piece: 'A',
-            ops: &[("kepler_a_p", false), ("mech1_a_s", true)],
-            identity_when_zero: &["alpha"],
-        },
-        PieceOps {
-            piece: 'B',
-            ops: &[("kepler_b_p", false), ("kepler_b_s", true)],
-            identity_when_zero: &[],
-        },
-        PieceOps {
-            piece: 'C',
-            ops: &[("kepler_c_q", false), ("kepler_c_s", true)],
-            identity_when_zero: &[],
-        },
-    ],
+    time_ops: KEPLER_TIME,
+    piece_ops: KEPLER_PIECES,
     field_ops: &[("kepler_field", false)],
     methods: &[
         (Method::Rk4, "kepler_rk4"),

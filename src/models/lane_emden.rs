@@ -5,7 +5,7 @@
 #[allow(unused_imports)]
 use super::prelude::*;
 
-use super::spec::{ModelSpec, ParamDef, PieceOps, TimeDependence};
+use super::spec::{ModelSpec, ParamDef, TimeDependence};
 use super::Method;
 
 /// Largest index `powi_small` handles.
@@ -99,6 +99,14 @@ pub fn exact(index: u32, t: f64) -> Option<(f64, f64)> {
     }
 }
 
+crate::pieces! {
+    LANE_EMDEN_PIECES, LANE_EMDEN_TIME, LaneEmdenPieces;
+    time [lane_emden_time];
+    'A' [mech1_a_p, mech1_a_s(opt)] identity_when_zero [];
+    'B' [lane_emden_b_p, lane_emden_b_s(opt)] identity_when_zero [];
+    'C' [mech1_c_q, mech1_c_s(opt)] identity_when_zero [];
+}
+
 pub const SPEC: ModelSpec = ModelSpec {
     name: "lane_emden",
     summary: "q'' + (2/t) q' + q^index = 0, from t0 = 0, q = 1, p = 0",
@@ -111,24 +119,8 @@ pub const SPEC: ModelSpec = ModelSpec {
     pieces: "ABC",
     default_order: "CBABC",
     time: TimeDependence::Always,
-    time_ops: &["lane_emden_time"],
-    piece_ops: &[
-        PieceOps {
-            piece: 'A',
-            ops: &[("mech1_a_p", false), ("mech1_a_s", true)],
-            identity_when_zero: &[],
-        },
-        PieceOps {
-            piece: 'B',
-            ops: &[("lane_emden_b_p", false), ("lane_emden_b_s", true)],
-            identity_when_zero: &[],
-        },
-        PieceOps {
-            piece: 'C',
-            ops: &[("mech1_c_q", false), ("mech1_c_s", true)],
-            identity_when_zero: &[],
-        },
-    ],
+    time_ops: LANE_EMDEN_TIME,
+    piece_ops: LANE_EMDEN_PIECES,
     field_ops: &[("lane_emden_field", false)],
     methods: &[
         (Method::Rk4, "lane_emden_rk4"),

@@ -66,6 +66,22 @@ macro_rules! define_lanes {
         }
 
         impl<R: Real> Lane<R> {
+            /// Trajectory `i` of a block (loads the compiler finds unused are dropped).
+            #[inline(always)]
+            pub fn gather(l: &Lanes<R>, i: usize) -> Lane<R> {
+                Lane { $( $f: l.$f[i], )* }
+            }
+            /// Writes the state variables back into lane `i` of a block.
+            #[inline(always)]
+            pub fn scatter_state(&self, l: &mut Lanes<R>, i: usize) {
+                l.q[i] = self.q;
+                l.p[i] = self.p;
+                l.s[i] = self.s;
+                l.q1[i] = self.q1;
+                l.q2[i] = self.q2;
+                l.p1[i] = self.p1;
+                l.p2[i] = self.p2;
+            }
             /// The scalar named `name`.
             pub fn get(&self, name: &str) -> Option<R> {
                 match name {

@@ -6,7 +6,7 @@
 #[allow(unused_imports)]
 use super::prelude::*;
 
-use super::spec::{ModelSpec, ParamDef, PieceOps, TimeDependence};
+use super::spec::{ModelSpec, ParamDef, TimeDependence};
 use super::Method;
 
 /// Coefficients a polynomial f or g of the general Liénard model may have
@@ -220,6 +220,14 @@ crate::lienard_methods! {
     params [f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, g0, g1, g2, g3, g4, g5, g6, g7, g8, g9]
 }
 
+crate::pieces! {
+    VAN_DER_POL_PIECES, VAN_DER_POL_TIME, VanDerPolPieces;
+    time [van_der_pol_time];
+    'A' [van_der_pol_a_p(opt), van_der_pol_a_s] identity_when_zero [epsilon];
+    'B' [van_der_pol_b_s, van_der_pol_b_p(opt)] identity_when_zero [];
+    'C' [lienard_c_q, lienard_c_p(opt)] identity_when_zero [];
+}
+
 pub const VAN_DER_POL: ModelSpec = ModelSpec {
     name: "van_der_pol",
     summary: "q'' - epsilon (1 - q^2) q' + q = forcing_amplitude cos(forcing_frequency t)",
@@ -236,24 +244,8 @@ pub const VAN_DER_POL: ModelSpec = ModelSpec {
     pieces: "ABC",
     default_order: "CBABC",
     time: TimeDependence::WhenNonzero(&["forcing_amplitude"]),
-    time_ops: &["van_der_pol_time"],
-    piece_ops: &[
-        PieceOps {
-            piece: 'A',
-            ops: &[("van_der_pol_a_p", true), ("van_der_pol_a_s", false)],
-            identity_when_zero: &["epsilon"],
-        },
-        PieceOps {
-            piece: 'B',
-            ops: &[("van_der_pol_b_s", false), ("van_der_pol_b_p", true)],
-            identity_when_zero: &[],
-        },
-        PieceOps {
-            piece: 'C',
-            ops: &[("lienard_c_q", false), ("lienard_c_p", true)],
-            identity_when_zero: &[],
-        },
-    ],
+    time_ops: VAN_DER_POL_TIME,
+    piece_ops: VAN_DER_POL_PIECES,
     field_ops: &[("van_der_pol_field", false), ("van_der_pol_field_p", true)],
     methods: &[
         (Method::Rk4, "van_der_pol_rk4"),
@@ -266,6 +258,14 @@ pub const VAN_DER_POL: ModelSpec = ModelSpec {
     ],
 };
 
+crate::pieces! {
+    LIENARD_PIECES, LIENARD_TIME, LienardPieces;
+    time [];
+    'A' [lienard_a_p(opt), lienard_a_s] identity_when_zero [f0, f1, f2, f3, f4, f5, f6, f7, f8, f9];
+    'B' [lienard_b_s, lienard_b_p(opt)] identity_when_zero [];
+    'C' [lienard_c_q, lienard_c_p(opt)] identity_when_zero [];
+}
+
 pub const LIENARD: ModelSpec = ModelSpec {
     name: "lienard",
     summary: "q'' + f(q) q' + g(q) = 0, f and g polynomials given by ascending coefficients",
@@ -275,24 +275,8 @@ pub const LIENARD: ModelSpec = ModelSpec {
     pieces: "ABC",
     default_order: "CBABC",
     time: TimeDependence::Never,
-    time_ops: &[],
-    piece_ops: &[
-        PieceOps {
-            piece: 'A',
-            ops: &[("lienard_a_p", true), ("lienard_a_s", false)],
-            identity_when_zero: &["f0", "f1", "f2", "f3", "f4", "f5", "f6", "f7", "f8", "f9"],
-        },
-        PieceOps {
-            piece: 'B',
-            ops: &[("lienard_b_s", false), ("lienard_b_p", true)],
-            identity_when_zero: &[],
-        },
-        PieceOps {
-            piece: 'C',
-            ops: &[("lienard_c_q", false), ("lienard_c_p", true)],
-            identity_when_zero: &[],
-        },
-    ],
+    time_ops: LIENARD_TIME,
+    piece_ops: LIENARD_PIECES,
     field_ops: &[("lienard_field", false), ("lienard_field_p", true)],
     methods: &[
         (Method::Rk4, "lienard_rk4"),

@@ -7,6 +7,7 @@ pub mod lane_emden;
 pub mod lanes;
 pub mod lienard;
 pub mod mechanical;
+pub mod pieces;
 pub mod quadratic_s;
 pub mod spec;
 pub mod spin_orbit;
@@ -67,6 +68,18 @@ impl<T> Flows for T where
         + LienardMethods
         + ObserveFlows
 {
+}
+
+/// Every scalar op (one trajectory) by name, for [`pieces!`](crate::pieces).
+#[allow(ambiguous_glob_reexports)]
+pub mod scalar_ops {
+    pub use super::damped_oscillator::damped_oscillator_lanes::scalar::*;
+    pub use super::kepler::kepler_lanes::scalar::*;
+    pub use super::lane_emden::lane_emden_lanes::scalar::*;
+    pub use super::lienard::lienard_lanes::scalar::*;
+    pub use super::mechanical::mechanical_1d_lanes::scalar::*;
+    pub use super::quadratic_s::quadratic_s_lanes::scalar::*;
+    pub use super::spin_orbit::spin_orbit_lanes::scalar::*;
 }
 
 /// Every trait a shared function may call through `R::name(..)`.
@@ -252,6 +265,29 @@ impl Model {
             Model::Kepler => Some("theta"),
             Model::SpinOrbit => Some(""),
             _ => None,
+        }
+    }
+
+    /// The CPU's fused S2 stage for this model, piece order (outermost
+    /// first), optional variable and time; AVX2/FMA build when `v3`.
+    pub fn stage_fn<R: Real>(
+        &self,
+        order: [char; 3],
+        opt: bool,
+        time: bool,
+        v3: bool,
+    ) -> Option<pieces::StageFn<R>> {
+        use pieces::stage_fn;
+        match self {
+            Model::DampedOscillator => {
+                stage_fn::<R, damped_oscillator::DampedOscillatorPieces>(order, opt, time, v3)
+            }
+            Model::VanDerPol => stage_fn::<R, lienard::VanDerPolPieces>(order, opt, time, v3),
+            Model::Lienard { .. } => stage_fn::<R, lienard::LienardPieces>(order, opt, time, v3),
+            Model::Kepler => stage_fn::<R, kepler::KeplerPieces>(order, opt, time, v3),
+            Model::LaneEmden => stage_fn::<R, lane_emden::LaneEmdenPieces>(order, opt, time, v3),
+            Model::SpinOrbit => stage_fn::<R, spin_orbit::SpinOrbitPieces>(order, opt, time, v3),
+            Model::QuadraticS => stage_fn::<R, quadratic_s::QuadraticSPieces>(order, opt, time, v3),
         }
     }
 

@@ -5,7 +5,7 @@
 #[allow(unused_imports)]
 use super::prelude::*;
 
-use super::spec::{ModelSpec, ParamDef, PieceOps, TimeDependence};
+use super::spec::{ModelSpec, ParamDef, TimeDependence};
 use super::Method;
 
 crate::shared_fns! {
@@ -55,6 +55,14 @@ crate::shared_fns! {
     }
 }
 
+crate::pieces! {
+    QUADRATIC_S_PIECES, QUADRATIC_S_TIME, QuadraticSPieces;
+    time [];
+    'A' [quadratic_s_a] identity_when_zero [gamma];
+    'B' [quadratic_s_b] identity_when_zero [];
+    'C' [mech1_c_q, mech1_c_s] identity_when_zero [];
+}
+
 pub const SPEC: ModelSpec = ModelSpec {
     name: "quadratic_s",
     summary: "q'' = -q - gamma s q', H = p^2/2 + q^2/2 + gamma s^2/2 - r",
@@ -67,24 +75,8 @@ pub const SPEC: ModelSpec = ModelSpec {
     pieces: "ABC",
     default_order: "CBABC",
     time: TimeDependence::Never,
-    time_ops: &[],
-    piece_ops: &[
-        PieceOps {
-            piece: 'A',
-            ops: &[("quadratic_s_a", false)],
-            identity_when_zero: &["gamma"],
-        },
-        PieceOps {
-            piece: 'B',
-            ops: &[("quadratic_s_b", false)],
-            identity_when_zero: &[],
-        },
-        PieceOps {
-            piece: 'C',
-            ops: &[("mech1_c_q", false), ("mech1_c_s", false)],
-            identity_when_zero: &[],
-        },
-    ],
+    time_ops: QUADRATIC_S_TIME,
+    piece_ops: QUADRATIC_S_PIECES,
     field_ops: &[("quadratic_s_field", false)],
     methods: &[(Method::Rk4, "quadratic_s_rk4")],
     wgsl: &[QUADRATIC_S_WGSL],

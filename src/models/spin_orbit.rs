@@ -12,7 +12,7 @@
 #[allow(unused_imports)]
 use super::prelude::*;
 
-use super::spec::{ModelSpec, ParamDef, PieceOps, TimeDependence};
+use super::spec::{ModelSpec, ParamDef, TimeDependence};
 use super::Method;
 
 /// Cayley coefficients of `(a/r)³ cos(2θ − 2f)` to e⁷ (SPEC §2.1):
@@ -174,6 +174,14 @@ crate::mechanical_1d_methods! {
             epsilon, lambda, omega, tidal_k, tidal_eta]
 }
 
+crate::pieces! {
+    SPIN_ORBIT_PIECES, SPIN_ORBIT_TIME, SpinOrbitPieces;
+    time [spin_orbit_time];
+    'A' [mech1_a_p, mech1_a_s(opt)] identity_when_zero [lambda, tidal_k];
+    'B' [spin_orbit_b_p, spin_orbit_b_s(opt)] identity_when_zero [];
+    'C' [mech1_c_q, mech1_c_s(opt)] identity_when_zero [];
+}
+
 pub const SPEC: ModelSpec = ModelSpec {
     name: "spin_orbit",
     summary: "theta'' + epsilon pref sum W_m(e) sin(2 theta - m t) = -tidal_k (theta' - tidal_eta) + lambda omega sin(omega t) pref theta'",
@@ -190,12 +198,8 @@ pub const SPEC: ModelSpec = ModelSpec {
     pieces: "ABC",
     default_order: "CBABC",
     time: TimeDependence::Always,
-    time_ops: &["spin_orbit_time"],
-    piece_ops: &[
-        PieceOps { piece: 'A', ops: &[("mech1_a_p", false), ("mech1_a_s", true)], identity_when_zero: &["lambda", "tidal_k"] },
-        PieceOps { piece: 'B', ops: &[("spin_orbit_b_p", false), ("spin_orbit_b_s", true)], identity_when_zero: &[] },
-        PieceOps { piece: 'C', ops: &[("mech1_c_q", false), ("mech1_c_s", true)], identity_when_zero: &[] },
-    ],
+    time_ops: SPIN_ORBIT_TIME,
+    piece_ops: SPIN_ORBIT_PIECES,
     field_ops: &[("spin_orbit_field", false)],
     methods: &[
         (Method::Rk4, "spin_orbit_rk4"),

@@ -1,0 +1,205 @@
+//! A model's pieces, declared once by [`pieces!`]: the data the plan and the
+//! GPU code generator read (which ops apply each piece, in order), and a
+//! [`Pieces`] implementation that applies them to one trajectory, from which
+//! [`fused_stage`] builds the CPU's fused S2 stage: the whole stage in one
+//! loop over a block, which the compiler vectorises.
+
+use super::lanes::{Lane, Lanes, LANES};
+use crate::real::Real;
+
+/// Applies a model's pieces and time terms to one trajectory.
+pub trait Pieces {
+    /// The time terms at `x.t`.
+    fn time<R: Real>(x: &mut Lane<R>);
+    /// Piece `piece` over `x.tau`; `OPT`: also on the optional variable.
+    fn piece<R: Real, const OPT: bool>(piece: char, x: &mut Lane<R>);
+}
+
+/// Declares a model's pieces: `pieces! { PIECES_CONST, TIME_CONST, Type;
+/// time [ops]; 'A' [op, op(opt)] identity_when_zero [params]; … }` defines
+/// the `PieceOps` table, the time-op list and `Type: Pieces`.
+#[macro_export]
+macro_rules! pieces {
+    (
+        $pieces:ident, $time:ident, $ty:ident;
+        time [$($top:ident),* $(,)?];
+        $( $letter:literal [$($op:ident $(($opt:ident))?),* $(,)?] identity_when_zero [$($zero:ident),* $(,)?]; )*
+    ) => {
+        /// Ops that evaluate the time terms.
+        pub const $time: &[&str] = &[$(stringify!($top)),*];
+        /// Ops of each piece, in order (`true`: on the optional variable).
+        pub const $pieces: &[$crate::models::spec::PieceOps] = &[
+            $( $crate::models::spec::PieceOps {
+                piece: $letter,
+                ops: &[$( (stringify!($op), false $(|| { let _ = stringify!($opt); true })?) ),*],
+                identity_when_zero: &[$(stringify!($zero)),*],
+            }, )*
+        ];
+        /// The pieces applied to one trajectory (for the fused CPU kernels).
+        pub struct $ty;
+        impl $crate::models::pieces::Pieces for $ty {
+            #[inline(always)]
+            fn time<R: $crate::real::Real>(x: &mut $crate::models::lanes::Lane<R>) {
+                $( $crate::models::scalar_ops::$top(x); )*
+                let _ = x;
+            }
+            #[inline(always)]
+            fn piece<R: $crate::real::Real, const OPT: bool>(piece: char, x: &mut $crate::models::lanes::Lane<R>) {
+                match piece {
+                    $( $letter => {
+                        $(
+                            let optional = false $(|| { let _ = stringify!($opt); true })?;
+                            if !optional || OPT {
+                                $crate::models::scalar_ops::$op(x);
+                            }
+                        )*
+                    } )*
+                    _ => {}
+                }
+            }
+        }
+    };
+}
+
+/// One fused S2 stage over a block: `(lanes, half, full, time offset, step)`.
+/// Unsafe to call: the variant compiled for AVX2/FMA needs those features.
+pub type StageFn<R> = unsafe fn(&mut Lanes<R>, R, R, R, R);
+
+/// One stage `D½ P1½ P2½ P3 P2½ P1½ D½` of weight w on every lane:
+/// `half = w/2`, `full = w` (times dt), time terms at `t0 + (n + c) dt`.
+#[inline(always)]
+pub fn fused_stage_body<
+    R: Real,
+    P: Pieces,
+    const P1: char,
+    const P2: char,
+    const P3: char,
+    const OPT: bool,
+    const TIME: bool,
+>(
+    l: &mut Lanes<R>,
+    half: R,
+    full: R,
+    c: R,
+    nf: R,
+) {
+    for i in 0..LANES {
+        let mut x = Lane::gather(l, i);
+        if TIME {
+            x.t = x.t0 + nf * x.dt + c * x.dt;
+            P::time(&mut x);
+        }
+        x.tau = half * x.dt;
+        P::piece::<R, OPT>(P1, &mut x);
+        P::piece::<R, OPT>(P2, &mut x);
+        x.tau = full * x.dt;
+        P::piece::<R, OPT>(P3, &mut x);
+        x.tau = half * x.dt;
+        P::piece::<R, OPT>(P2, &mut x);
+        P::piece::<R, OPT>(P1, &mut x);
+        x.scatter_state(l, i);
+    }
+}
+
+/// [`fused_stage_body`] for any x86-64 (or other) CPU.
+///
+/// # Safety
+/// None required; `unsafe` only to share [`StageFn`] with the AVX2 variant.
+pub unsafe fn fused_stage<
+    R: Real,
+    P: Pieces,
+    const P1: char,
+    const P2: char,
+    const P3: char,
+    const OPT: bool,
+    const TIME: bool,
+>(
+    l: &mut Lanes<R>,
+    half: R,
+    full: R,
+    c: R,
+    nf: R,
+) {
+    fused_stage_body::<R, P, P1, P2, P3, OPT, TIME>(l, half, full, c, nf)
+}
+
+/// [`fused_stage_body`] compiled for AVX2 and FMA (x86-64-v3).
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+pub unsafe fn fused_stage_v3<
+    R: Real,
+    P: Pieces,
+    const P1: char,
+    const P2: char,
+    const P3: char,
+    const OPT: bool,
+    const TIME: bool,
+>(
+    l: &mut Lanes<R>,
+    half: R,
+    full: R,
+    c: R,
+    nf: R,
+) {
+    fused_stage_body::<R, P, P1, P2, P3, OPT, TIME>(l, half, full, c, nf)
+}
+
+/// Does this CPU run the AVX2/FMA kernels? (`REEB_CPU_ISA=baseline` forces
+/// the portable ones, e.g. to compare.)
+pub fn has_v3() -> bool {
+    if std::env::var("REEB_CPU_ISA").is_ok_and(|v| v == "baseline") {
+        return false;
+    }
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// The fused stage for a piece order, optional variable and time, or `None`
+/// for an order that is not a permutation of A, B, C.
+pub fn stage_fn<R: Real, P: Pieces>(
+    order: [char; 3],
+    opt: bool,
+    time: bool,
+    v3: bool,
+) -> Option<StageFn<R>> {
+    macro_rules! pick {
+        ($($a:literal $b:literal $c:literal),*) => {
+            match (order, opt, time) {
+                $(
+                    ([$a, $b, $c], false, false) => Some(variant!($a, $b, $c, false, false)),
+                    ([$a, $b, $c], true, false) => Some(variant!($a, $b, $c, true, false)),
+                    ([$a, $b, $c], false, true) => Some(variant!($a, $b, $c, false, true)),
+                    ([$a, $b, $c], true, true) => Some(variant!($a, $b, $c, true, true)),
+                )*
+                _ => None,
+            }
+        };
+    }
+    macro_rules! variant {
+        ($a:literal, $b:literal, $c:literal, $o:literal, $t:literal) => {{
+            #[cfg(target_arch = "x86_64")]
+            {
+                if v3 {
+                    fused_stage_v3::<R, P, $a, $b, $c, $o, $t> as StageFn<R>
+                } else {
+                    fused_stage::<R, P, $a, $b, $c, $o, $t> as StageFn<R>
+                }
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            {
+                let _ = v3;
+                fused_stage::<R, P, $a, $b, $c, $o, $t> as StageFn<R>
+            }
+        }};
+    }
+    pick!('A' 'B' 'C', 'A' 'C' 'B', 'B' 'A' 'C', 'B' 'C' 'A', 'C' 'A' 'B', 'C' 'B' 'A')
+}
