@@ -20,6 +20,9 @@ pub trait Prims: Sized {
     fn from_i32(n: i32) -> Self;
     /// Positive infinity.
     fn inf() -> Self;
+    /// `a·b + c` with one rounding (WGSL's `fma`): the polynomials use it,
+    /// so the AVX2/FMA kernels and GPUs evaluate them in fused steps.
+    fn fma(a: Self, b: Self, c: Self) -> Self;
 }
 
 impl Prims for f32 {
@@ -56,6 +59,10 @@ impl Prims for f32 {
     fn inf() -> f32 {
         f32::INFINITY
     }
+    #[inline(always)]
+    fn fma(a: f32, b: f32, c: f32) -> f32 {
+        a.mul_add(b, c)
+    }
 }
 
 impl Prims for f64 {
@@ -89,6 +96,10 @@ impl Prims for f64 {
     #[inline(always)]
     fn inf() -> f64 {
         f64::INFINITY
+    }
+    #[inline(always)]
+    fn fma(a: f64, b: f64, c: f64) -> f64 {
+        a.mul_add(b, c)
     }
 }
 

@@ -230,3 +230,36 @@ fn kepler_orbit_closes() {
     assert!((o.final_of("q1").unwrap()[0] - q1).abs() < 1e-9);
     assert!(o.final_of("q2").unwrap()[0].abs() < 1e-9);
 }
+
+#[test]
+fn every_instruction_set_level_agrees() {
+    use reeb::backend::cpu::{isa, run_isa, Isa};
+    let levels: Vec<Isa> = [Isa::Baseline, Isa::V3, Isa::V4]
+        .into_iter()
+        .filter(|l| match (l, isa()) {
+            (Isa::Baseline, _) => true,
+            (Isa::V3, Isa::V3 | Isa::V4) => true,
+            (Isa::V4, Isa::V4) => true,
+            _ => false,
+        })
+        .collect();
+    eprintln!("levels on this CPU: {levels:?}");
+    for plan in [
+        reeb::bench::Scenario::VdpS2.plan(1000, 300),
+        reeb::bench::Scenario::SpinOrbitS2.plan(1000, 300),
+        reeb::bench::Scenario::KeplerS2.plan(1000, 300),
+    ] {
+        let base = run_isa::<f64>(&plan, None, Isa::Baseline);
+        for l in &levels[1..] {
+            let o = run_isa::<f64>(&plan, None, *l);
+            for ((_, a), (_, b)) in o.final_values.iter().zip(&base.final_values) {
+                for (x, y) in a.iter().zip(b) {
+                    assert!(
+                        (x - y).abs() <= 1e-10 * y.abs().max(1.0),
+                        "{l:?}: {x} vs {y}"
+                    );
+                }
+            }
+        }
+    }
+}

@@ -12,7 +12,8 @@ use rayon::prelude::*;
 
 use crate::models::lane_fn;
 use crate::models::lanes::{index_of, LaneFn, Lanes, LANES};
-use crate::models::pieces::{has_v3, StageFn};
+use crate::models::pieces::StageFn;
+pub use crate::models::pieces::{isa, Isa};
 use crate::observations::{stroboscopic, Observations};
 use crate::observe::{Direction, Section};
 use crate::plan::{ObsVar, Op, Plan, Source};
@@ -80,8 +81,18 @@ struct Sink<R> {
 /// Integrates `plan` on the CPU in precision `R`. `progress`, if given, is
 /// advanced by trajectory-steps as blocks go.
 pub fn run<R: Real>(plan: &Plan, progress: Option<&AtomicU64>) -> Observations<R> {
+    run_isa(plan, progress, isa())
+}
+
+/// [`run`] with the fused kernels of a given instruction-set level (which
+/// must not exceed the CPU's, see [`isa`]).
+pub fn run_isa<R: Real>(plan: &Plan, progress: Option<&AtomicU64>, isa: Isa) -> Observations<R> {
+    assert!(
+        isa_rank(isa) <= isa_rank(self::isa()),
+        "the CPU lacks {isa:?}"
+    );
     let mut out = Observations::<R>::for_plan(plan);
-    let c = compile::<R>(plan);
+    let c = compile::<R>(plan, isa);
     {
         let sink = Sink {
             final_values: out
@@ -110,7 +121,15 @@ pub fn run<R: Real>(plan: &Plan, progress: Option<&AtomicU64>) -> Observations<R
     out
 }
 
-fn compile<R: Real>(plan: &Plan) -> Compiled<'_, R> {
+fn isa_rank(i: Isa) -> u8 {
+    match i {
+        Isa::Baseline => 0,
+        Isa::V3 => 1,
+        Isa::V4 => 2,
+    }
+}
+
+fn compile<R: Real>(plan: &Plan, isa: Isa) -> Compiled<'_, R> {
     let call =
         |name: &str| lane_fn::<R>(name).unwrap_or_else(|| panic!("plan names unknown op {name}"));
     let ops = plan
@@ -123,11 +142,10 @@ fn compile<R: Real>(plan: &Plan) -> Compiled<'_, R> {
         })
         .collect();
     let idx = |name: &str| index_of(name).unwrap_or_else(|| panic!("{name} is not a lane field"));
-    let v3 = has_v3();
     let stages = plan.stages.as_ref().and_then(|st| {
         let f = plan
             .model
-            .stage_fn::<R>(st.order, st.with_optional, plan.time, v3)?;
+            .stage_fn::<R>(st.order, st.with_optional, plan.time, isa)?;
         Some(
             st.stages
                 .iter()
@@ -227,10 +245,13 @@ fn run_block<R: Real>(
             }
         }
         let nf = R::from_f64(n as f64);
+        // Fused stages report non-finite lanes themselves (the last stage's
+        // answer is the step's); the op interpreter needs a separate pass.
+        let mut any = false;
         if let Some(stages) = &c.stages {
             for (f, half, full, tc) in stages {
-                // SAFETY: `has_v3` chose the AVX2/FMA kernels only where the CPU has them.
-                unsafe { f(l, *half, *full, *tc, nf) };
+                // SAFETY: `isa()` chose wide kernels only where the CPU has the features.
+                any = unsafe { f(l, *half, *full, *tc, nf) };
             }
         }
         for op in c.ops.iter().filter(|_| c.stages.is_none()) {
@@ -252,13 +273,21 @@ fn run_block<R: Real>(
         // One vectorised pass per variable with an OR-reduction; lanes are
         // examined one by one only in the rare step where one went bad.
         let mut bad = [false; LANES];
-        let mut any = false;
-        for &k in &c.var {
-            let x = l.at(k);
-            for i in 0..LANES {
-                let b = !x[i].finite();
-                bad[i] |= b;
-                any |= b;
+        if c.stages.is_none() {
+            for &k in &c.var {
+                let x = l.at(k);
+                for i in 0..LANES {
+                    let b = !x[i].finite();
+                    bad[i] |= b;
+                    any |= b;
+                }
+            }
+        } else if any {
+            for &k in &c.var {
+                let x = l.at(k);
+                for i in 0..LANES {
+                    bad[i] |= !x[i].finite();
+                }
             }
         }
         if any {

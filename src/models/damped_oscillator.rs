@@ -58,6 +58,7 @@ crate::mechanical_1d_methods! {
 
 crate::pieces! {
     DAMPED_OSCILLATOR_PIECES, DAMPED_OSCILLATOR_TIME, DampedOscillatorPieces;
+    vars [q, p, s];
     time [damped_oscillator_time];
     'A' [damped_oscillator_a_p, damped_oscillator_a_s(opt)] identity_when_zero [alpha];
     'B' [damped_oscillator_b_p, damped_oscillator_b_s(opt)] identity_when_zero [];

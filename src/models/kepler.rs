@@ -199,6 +199,7 @@ pub fn perihelion(e: f64) -> ([f64; 2], [f64; 2]) {
 
 crate::pieces! {
     KEPLER_PIECES, KEPLER_TIME, KeplerPieces;
+    vars [q1, q2, p1, p2, s];
     time [kepler_time];
     'A' [kepler_a_p, mech1_a_s(opt)] identity_when_zero [alpha];
     'B' [kepler_b_p, kepler_b_s(opt)] identity_when_zero [];

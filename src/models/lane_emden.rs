@@ -101,6 +101,7 @@ pub fn exact(index: u32, t: f64) -> Option<(f64, f64)> {
 
 crate::pieces! {
     LANE_EMDEN_PIECES, LANE_EMDEN_TIME, LaneEmdenPieces;
+    vars [q, p, s];
     time [lane_emden_time];
     'A' [mech1_a_p, mech1_a_s(opt)] identity_when_zero [];
     'B' [lane_emden_b_p, lane_emden_b_s(opt)] identity_when_zero [];

@@ -222,6 +222,7 @@ crate::lienard_methods! {
 
 crate::pieces! {
     VAN_DER_POL_PIECES, VAN_DER_POL_TIME, VanDerPolPieces;
+    vars [q, s, p];
     time [van_der_pol_time];
     'A' [van_der_pol_a_p(opt), van_der_pol_a_s] identity_when_zero [epsilon];
     'B' [van_der_pol_b_s, van_der_pol_b_p(opt)] identity_when_zero [];
@@ -260,6 +261,7 @@ pub const VAN_DER_POL: ModelSpec = ModelSpec {
 
 crate::pieces! {
     LIENARD_PIECES, LIENARD_TIME, LienardPieces;
+    vars [q, s, p];
     time [];
     'A' [lienard_a_p(opt), lienard_a_s] identity_when_zero [f0, f1, f2, f3, f4, f5, f6, f7, f8, f9];
     'B' [lienard_b_s, lienard_b_p(opt)] identity_when_zero [];

@@ -269,25 +269,27 @@ impl Model {
     }
 
     /// The CPU's fused S2 stage for this model, piece order (outermost
-    /// first), optional variable and time; AVX2/FMA build when `v3`.
+    /// first), optional variable and time, built for the instruction set `isa`.
     pub fn stage_fn<R: Real>(
         &self,
         order: [char; 3],
         opt: bool,
         time: bool,
-        v3: bool,
+        isa: pieces::Isa,
     ) -> Option<pieces::StageFn<R>> {
         use pieces::stage_fn;
         match self {
             Model::DampedOscillator => {
-                stage_fn::<R, damped_oscillator::DampedOscillatorPieces>(order, opt, time, v3)
+                stage_fn::<R, damped_oscillator::DampedOscillatorPieces>(order, opt, time, isa)
             }
-            Model::VanDerPol => stage_fn::<R, lienard::VanDerPolPieces>(order, opt, time, v3),
-            Model::Lienard { .. } => stage_fn::<R, lienard::LienardPieces>(order, opt, time, v3),
-            Model::Kepler => stage_fn::<R, kepler::KeplerPieces>(order, opt, time, v3),
-            Model::LaneEmden => stage_fn::<R, lane_emden::LaneEmdenPieces>(order, opt, time, v3),
-            Model::SpinOrbit => stage_fn::<R, spin_orbit::SpinOrbitPieces>(order, opt, time, v3),
-            Model::QuadraticS => stage_fn::<R, quadratic_s::QuadraticSPieces>(order, opt, time, v3),
+            Model::VanDerPol => stage_fn::<R, lienard::VanDerPolPieces>(order, opt, time, isa),
+            Model::Lienard { .. } => stage_fn::<R, lienard::LienardPieces>(order, opt, time, isa),
+            Model::Kepler => stage_fn::<R, kepler::KeplerPieces>(order, opt, time, isa),
+            Model::LaneEmden => stage_fn::<R, lane_emden::LaneEmdenPieces>(order, opt, time, isa),
+            Model::SpinOrbit => stage_fn::<R, spin_orbit::SpinOrbitPieces>(order, opt, time, isa),
+            Model::QuadraticS => {
+                stage_fn::<R, quadratic_s::QuadraticSPieces>(order, opt, time, isa)
+            }
         }
     }
 

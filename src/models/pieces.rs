@@ -13,6 +13,8 @@ pub trait Pieces {
     fn time<R: Real>(x: &mut Lane<R>);
     /// Piece `piece` over `x.tau`; `OPT`: also on the optional variable.
     fn piece<R: Real, const OPT: bool>(piece: char, x: &mut Lane<R>);
+    /// Are the model's state variables finite?
+    fn finite<R: Real>(x: &Lane<R>) -> bool;
 }
 
 /// Declares a model's pieces: `pieces! { PIECES_CONST, TIME_CONST, Type;
@@ -22,6 +24,7 @@ pub trait Pieces {
 macro_rules! pieces {
     (
         $pieces:ident, $time:ident, $ty:ident;
+        vars [$($var:ident),* $(,)?];
         time [$($top:ident),* $(,)?];
         $( $letter:literal [$($op:ident $(($opt:ident))?),* $(,)?] identity_when_zero [$($zero:ident),* $(,)?]; )*
     ) => {
@@ -57,13 +60,18 @@ macro_rules! pieces {
                     _ => {}
                 }
             }
+            #[inline(always)]
+            fn finite<R: $crate::real::Real>(x: &$crate::models::lanes::Lane<R>) -> bool {
+                true $(&& x.$var.finite())*
+            }
         }
     };
 }
 
-/// One fused S2 stage over a block: `(lanes, half, full, time offset, step)`.
+/// One fused S2 stage over a block: `(lanes, half, full, time offset, step)`;
+/// returns whether any state variable of any lane is non-finite after it.
 /// Unsafe to call: the variant compiled for AVX2/FMA needs those features.
-pub type StageFn<R> = unsafe fn(&mut Lanes<R>, R, R, R, R);
+pub type StageFn<R> = unsafe fn(&mut Lanes<R>, R, R, R, R) -> bool;
 
 /// One stage `D½ P1½ P2½ P3 P2½ P1½ D½` of weight w on every lane:
 /// `half = w/2`, `full = w` (times dt), time terms at `t0 + (n + c) dt`.
@@ -82,7 +90,8 @@ pub fn fused_stage_body<
     full: R,
     c: R,
     nf: R,
-) {
+) -> bool {
+    let mut bad = false;
     for i in 0..LANES {
         let mut x = Lane::gather(l, i);
         if TIME {
@@ -97,8 +106,10 @@ pub fn fused_stage_body<
         x.tau = half * x.dt;
         P::piece::<R, OPT>(P2, &mut x);
         P::piece::<R, OPT>(P1, &mut x);
+        bad |= !P::finite(&x);
         x.scatter_state(l, i);
     }
+    bad
 }
 
 /// [`fused_stage_body`] for any x86-64 (or other) CPU.
@@ -119,7 +130,7 @@ pub unsafe fn fused_stage<
     full: R,
     c: R,
     nf: R,
-) {
+) -> bool {
     fused_stage_body::<R, P, P1, P2, P3, OPT, TIME>(l, half, full, c, nf)
 }
 
@@ -143,23 +154,68 @@ pub unsafe fn fused_stage_v3<
     full: R,
     c: R,
     nf: R,
-) {
+) -> bool {
     fused_stage_body::<R, P, P1, P2, P3, OPT, TIME>(l, half, full, c, nf)
 }
 
-/// Does this CPU run the AVX2/FMA kernels? (`REEB_CPU_ISA=baseline` forces
-/// the portable ones, e.g. to compare.)
-pub fn has_v3() -> bool {
-    if std::env::var("REEB_CPU_ISA").is_ok_and(|v| v == "baseline") {
-        return false;
+/// [`fused_stage_body`] compiled for AVX-512 (x86-64-v4): twice the lanes per
+/// instruction and 32 vector registers, so constants stay in registers.
+///
+/// # Safety
+/// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
+pub unsafe fn fused_stage_v4<
+    R: Real,
+    P: Pieces,
+    const P1: char,
+    const P2: char,
+    const P3: char,
+    const OPT: bool,
+    const TIME: bool,
+>(
+    l: &mut Lanes<R>,
+    half: R,
+    full: R,
+    c: R,
+    nf: R,
+) -> bool {
+    fused_stage_body::<R, P, P1, P2, P3, OPT, TIME>(l, half, full, c, nf)
+}
+
+/// The instruction-set level of the fused kernels on this CPU.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Isa {
+    /// Any x86-64 (or other architecture).
+    Baseline,
+    /// AVX2 + FMA.
+    V3,
+    /// AVX-512.
+    V4,
+}
+
+/// The best kernel level this CPU runs; `REEB_CPU_ISA=baseline|v3|v4` caps it.
+pub fn isa() -> Isa {
+    let cap = std::env::var("REEB_CPU_ISA").unwrap_or_default();
+    if cap == "baseline" {
+        return Isa::Baseline;
     }
     #[cfg(target_arch = "x86_64")]
     {
-        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        use std::arch::is_x86_feature_detected as has;
+        let v3 = has!("avx2") && has!("fma");
+        let v4 = v3 && has!("avx512f") && has!("avx512vl") && has!("avx512dq") && has!("avx512bw");
+        if v4 && cap != "v3" {
+            Isa::V4
+        } else if v3 {
+            Isa::V3
+        } else {
+            Isa::Baseline
+        }
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        false
+        Isa::Baseline
     }
 }
 
@@ -169,7 +225,7 @@ pub fn stage_fn<R: Real, P: Pieces>(
     order: [char; 3],
     opt: bool,
     time: bool,
-    v3: bool,
+    isa: Isa,
 ) -> Option<StageFn<R>> {
     macro_rules! pick {
         ($($a:literal $b:literal $c:literal),*) => {
@@ -188,15 +244,15 @@ pub fn stage_fn<R: Real, P: Pieces>(
         ($a:literal, $b:literal, $c:literal, $o:literal, $t:literal) => {{
             #[cfg(target_arch = "x86_64")]
             {
-                if v3 {
-                    fused_stage_v3::<R, P, $a, $b, $c, $o, $t> as StageFn<R>
-                } else {
-                    fused_stage::<R, P, $a, $b, $c, $o, $t> as StageFn<R>
+                match isa {
+                    Isa::V4 => fused_stage_v4::<R, P, $a, $b, $c, $o, $t> as StageFn<R>,
+                    Isa::V3 => fused_stage_v3::<R, P, $a, $b, $c, $o, $t> as StageFn<R>,
+                    Isa::Baseline => fused_stage::<R, P, $a, $b, $c, $o, $t> as StageFn<R>,
                 }
             }
             #[cfg(not(target_arch = "x86_64"))]
             {
-                let _ = v3;
+                let _ = isa;
                 fused_stage::<R, P, $a, $b, $c, $o, $t> as StageFn<R>
             }
         }};

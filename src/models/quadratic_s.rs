@@ -57,6 +57,7 @@ crate::shared_fns! {
 
 crate::pieces! {
     QUADRATIC_S_PIECES, QUADRATIC_S_TIME, QuadraticSPieces;
+    vars [q, p, s];
     time [];
     'A' [quadratic_s_a] identity_when_zero [gamma];
     'B' [quadratic_s_b] identity_when_zero [];

@@ -176,6 +176,7 @@ crate::mechanical_1d_methods! {
 
 crate::pieces! {
     SPIN_ORBIT_PIECES, SPIN_ORBIT_TIME, SpinOrbitPieces;
+    vars [q, p, s];
     time [spin_orbit_time];
     'A' [mech1_a_p, mech1_a_s(opt)] identity_when_zero [lambda, tidal_k];
     'B' [spin_orbit_b_p, spin_orbit_b_s(opt)] identity_when_zero [];
