@@ -236,11 +236,11 @@ fn every_instruction_set_level_agrees() {
     use reeb::backend::cpu::{isa, run_isa, Isa};
     let levels: Vec<Isa> = [Isa::Baseline, Isa::V3, Isa::V4]
         .into_iter()
-        .filter(|l| match (l, isa()) {
-            (Isa::Baseline, _) => true,
-            (Isa::V3, Isa::V3 | Isa::V4) => true,
-            (Isa::V4, Isa::V4) => true,
-            _ => false,
+        .filter(|l| {
+            matches!(
+                (l, isa()),
+                (Isa::Baseline, _) | (Isa::V3, Isa::V3 | Isa::V4) | (Isa::V4, Isa::V4)
+            )
         })
         .collect();
     eprintln!("levels on this CPU: {levels:?}");
