@@ -37,7 +37,7 @@ pub struct Observations<R> {
     /// Mean time between upward crossings of the cycle level in the window (NaN if fewer than two).
     pub cycle_period: Vec<R>,
     /// 0: ok; k > 0: non-finite at step k.
-    pub nonfinite_step: Vec<u64>,
+    pub nonfinite_step: Vec<u32>,
 }
 
 fn var_name(plan: &Plan, v: ObsVar) -> String {
@@ -88,7 +88,7 @@ impl<R: Real> Observations<R> {
     pub fn status(&self, i: usize) -> Status {
         match self.nonfinite_step[i] {
             0 => Status::Ok,
-            step => Status::NonFinite { step },
+            step => Status::NonFinite { step: step.into() },
         }
     }
 

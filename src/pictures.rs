@@ -25,6 +25,36 @@ fn f64s<R: Real>(v: &[R]) -> Vec<f64> {
     v.iter().map(|x| x.to_f64()).collect()
 }
 
+/// A curve of at most ~2·10⁵ points: longer ones are reduced to the minimum
+/// and maximum of each bin (their envelope), which is all a picture shows.
+fn envelope(x: &[f64], y: impl Fn(usize) -> f64) -> (Vec<f64>, Vec<f64>) {
+    const BINS: usize = 100_000;
+    let n = x.len();
+    if n <= 2 * BINS {
+        return (x.to_vec(), (0..n).map(y).collect());
+    }
+    let (mut xs, mut ys) = (Vec::with_capacity(2 * BINS), Vec::with_capacity(2 * BINS));
+    for b in 0..BINS {
+        let (lo, hi) = (b * n / BINS, (b + 1) * n / BINS);
+        let (mut mn, mut mx) = ((f64::INFINITY, lo), (f64::NEG_INFINITY, lo));
+        for i in lo..hi {
+            let v = y(i);
+            if v < mn.0 {
+                mn = (v, i);
+            }
+            if v > mx.0 {
+                mx = (v, i);
+            }
+        }
+        let (a, b) = if mn.1 <= mx.1 { (mn, mx) } else { (mx, mn) };
+        for (v, i) in [a, b] {
+            xs.push(x[i]);
+            ys.push(if v.is_finite() { v } else { f64::NAN });
+        }
+    }
+    (xs, ys)
+}
+
 /// Draws the pictures into `dir`; returns the file names written.
 pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &PictureData<R>) -> Result<Vec<String>> {
     let mut files = vec![];
@@ -41,30 +71,40 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &PictureData<R>) -> Result<Ve
     for k in (0..shape.len().saturating_sub(1)).rev() {
         strides[k] = strides[k + 1] * shape[k + 1];
     }
-    let mut stats: Vec<(String, String, Vec<f64>)> = vec![];
+    // Statistics as accessors on the run's arrays: the pictures read only
+    // the slice they draw, never a copy of a whole (possibly 10⁷-long) array.
+    type Stat<'a> = (String, String, Box<dyn Fn(usize) -> f64 + 'a>);
+    let mut stats: Vec<Stat> = vec![];
     for (name, v) in d.final_values {
-        stats.push((format!("final_{name}"), format!("final {name}"), f64s(v)));
+        stats.push((
+            format!("final_{name}"),
+            format!("final {name}"),
+            Box::new(move |i| v[i].to_f64()),
+        ));
     }
     if !d.cycle_amplitude.is_empty() {
         stats.push((
             "cycle_amplitude".into(),
             "cycle amplitude".into(),
-            f64s(d.cycle_amplitude),
+            Box::new(|i| d.cycle_amplitude[i].to_f64()),
         ));
         stats.push((
             "cycle_period".into(),
             "cycle period".into(),
-            f64s(d.cycle_period),
+            Box::new(|i| d.cycle_period[i].to_f64()),
         ));
     }
     if d.nonfinite_step.iter().any(|s| *s != 0) {
         stats.push((
             "status_step".into(),
             "step at which it stopped (NaN: ran to the end)".into(),
-            d.nonfinite_step
-                .iter()
-                .map(|s| if *s == 0 { f64::NAN } else { *s as f64 })
-                .collect(),
+            Box::new(|i| {
+                if d.nonfinite_step[i] == 0 {
+                    f64::NAN
+                } else {
+                    d.nonfinite_step[i] as f64
+                }
+            }),
         ));
     }
     match varying.len() {
@@ -73,7 +113,7 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &PictureData<R>) -> Result<Ve
             let k = varying[0];
             let ax = &scene.axes[k];
             for (file, label, v) in &stats {
-                let y: Vec<f64> = (0..shape[k]).map(|i| v[i * strides[k]]).collect();
+                let (x, y) = envelope(&ax.values, |i| v(i * strides[k]));
                 let fig = Figure {
                     title: &title,
                     x_label: &ax.name,
@@ -86,7 +126,7 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &PictureData<R>) -> Result<Ve
                     &fig,
                     &[Series {
                         name: label,
-                        x: &ax.values,
+                        x: &x,
                         y: &y,
                         color: None,
                     }],
@@ -103,7 +143,7 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &PictureData<R>) -> Result<Ve
                 let mut grid = vec![f64::NAN; shape[kx] * shape[ky]];
                 for ix in 0..shape[kx] {
                     for iy in 0..shape[ky] {
-                        grid[ix * shape[ky] + iy] = v[ix * strides[kx] + iy * strides[ky]];
+                        grid[ix * shape[ky] + iy] = v(ix * strides[kx] + iy * strides[ky]);
                     }
                 }
                 // Values far outside the bulk (a method blowing up, yet still

@@ -371,6 +371,12 @@ impl Plan {
         if problem.steps == 0 {
             return Err(err("integrator.steps", "must be at least 1"));
         }
+        if problem.steps >= u32::MAX as u64 {
+            return Err(err(
+                "integrator.steps",
+                format!("{} steps: at most {} per run", problem.steps, u32::MAX - 1),
+            ));
+        }
 
         let mut bindings: Vec<(&'static str, Source)> = params;
         for d in problem.model.derived() {

@@ -815,7 +815,7 @@ pub fn stability(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
                 };
                 class[g] = c as u8;
                 error[g] = e;
-                rowsv.push((g, a, per, ra, rp, st));
+                rowsv.push((g, a, per, ra, rp, st.into()));
             }
         }
         rowsv.sort_by_key(|r| r.0);

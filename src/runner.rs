@@ -140,8 +140,8 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
         eprintln!("{n}");
     }
     match precision {
-        Precision::F32 => run_typed::<f32>(scene, opts, &engine, precision),
-        Precision::F64 => run_typed::<f64>(scene, opts, &engine, precision),
+        Precision::F32 => run_typed::<f32>(scene, subs, opts, &engine, precision),
+        Precision::F64 => run_typed::<f64>(scene, subs, opts, &engine, precision),
     }
 }
 
@@ -175,16 +175,16 @@ struct Assembled<R> {
     poincare_count: Vec<u32>,
     cycle_amplitude: Vec<R>,
     cycle_period: Vec<R>,
-    nonfinite_step: Vec<u64>,
+    nonfinite_step: Vec<u32>,
 }
 
 fn run_typed<R: Real>(
     scene: &Scene,
+    subs: Vec<crate::scene::SubRun>,
     opts: &RunOptions,
     engine: &Engine,
     precision: Precision,
 ) -> Result<RunReport> {
-    let subs = scene.sub_runs()?;
     let n = scene.ensemble_size();
     let total: u64 = subs.iter().map(|s| s.plan.traj_steps()).sum();
     let done = AtomicU64::new(0);
@@ -537,7 +537,7 @@ pub struct PictureData<'a, R> {
     pub poincare_count: &'a [u32],
     pub cycle_amplitude: &'a [R],
     pub cycle_period: &'a [R],
-    pub nonfinite_step: &'a [u64],
+    pub nonfinite_step: &'a [u32],
 }
 
 fn partial_dir(out: &Path) -> PathBuf {

@@ -75,7 +75,7 @@ struct Sink<R> {
     poincare_count: Rows<u32>,
     cycle_amplitude: Rows<R>,
     cycle_period: Rows<R>,
-    nonfinite_step: Rows<u64>,
+    nonfinite_step: Rows<u32>,
 }
 
 /// Integrates `plan` on the CPU in precision `R`. `progress`, if given, is
@@ -371,7 +371,8 @@ fn run_block<R: Real>(
         }
     }
     for (i, s) in status.iter().enumerate().take(count) {
-        sink.nonfinite_step.set(base + i, *s);
+        // Plans have fewer than 2³² steps.
+        sink.nonfinite_step.set(base + i, *s as u32);
     }
 }
 

@@ -516,7 +516,7 @@ fn collect<R: Real>(
         let g = (base + i) as usize;
         let ix = i as usize;
         let st = status[ix] as u64;
-        out.nonfinite_step[g] = st;
+        out.nonfinite_step[g] = st as u32;
         for (j, v) in plan.final_vars.iter().enumerate() {
             out.final_values[j].1[g] = if st != 0 {
                 R::nan()
