@@ -16,7 +16,17 @@ fn sizes() -> Vec<usize> {
     if std::env::var_os("REEB_BENCH_QUICK").is_some() {
         vec![10_000]
     } else {
-        vec![10_000, 100_000, 1_000_000]
+        vec![10_000, 100_000, 1_000_000, 10_000_000]
+    }
+}
+
+/// 1 thread and all of them.
+fn thread_counts() -> Vec<usize> {
+    let all = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if all > 1 {
+        vec![1, all]
+    } else {
+        vec![1]
     }
 }
 
@@ -29,13 +39,25 @@ fn cpu(c: &mut Criterion) {
             let plan = s.plan(n, steps);
             g.throughput(Throughput::Elements(plan.traj_steps()));
             for p in [Precision::F32, Precision::F64] {
-                g.bench_with_input(BenchmarkId::new(p.name(), n), &plan, |b, plan| {
-                    b.iter_custom(|iters| {
-                        (0..iters)
-                            .map(|_| Duration::from_secs_f64(time_cpu(plan, p)))
-                            .sum()
-                    })
-                });
+                for threads in thread_counts() {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .expect("thread pool");
+                    g.bench_with_input(
+                        BenchmarkId::new(format!("{}/{threads}t", p.name()), n),
+                        &plan,
+                        |b, plan| {
+                            b.iter_custom(|iters| {
+                                pool.install(|| {
+                                    (0..iters)
+                                        .map(|_| Duration::from_secs_f64(time_cpu(plan, p)))
+                                        .sum()
+                                })
+                            })
+                        },
+                    );
+                }
             }
         }
         g.finish();
