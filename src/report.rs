@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
+use crate::observations::Observations;
 use crate::observe::CycleObs;
 use crate::plan::Plan;
 use crate::plot::{self, Figure, Series, Slope};
@@ -98,6 +99,25 @@ fn finite_or_inf(x: f64) -> f64 {
     } else {
         f64::INFINITY
     }
+}
+
+/// Integrates `plan` in `precision` and widens the observations to f64 for
+/// analysis; returns them with the integration time.
+fn integrate_f64(
+    engine: &Engine,
+    plan: &Plan,
+    precision: Precision,
+) -> Result<(Observations<f64>, f64)> {
+    Ok(match precision {
+        Precision::F32 => {
+            let (o, s, _) = integrate::<f32>(engine, plan, None)?;
+            (o.convert::<f64>(), s)
+        }
+        Precision::F64 => {
+            let (o, s, _) = integrate::<f64>(engine, plan, None)?;
+            (o, s)
+        }
+    })
 }
 
 /// Runs the work–precision report of `scene`; returns the path of report.md.
@@ -202,13 +222,7 @@ pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
                         .div_ceil(n0)
                         .max(1);
                     let plan = sub.plan.replicated(copies);
-                    let (obs, seconds, _) = match p {
-                        Precision::F32 => {
-                            let (o, s, h) = integrate::<f32>(engine, &plan, None)?;
-                            (o.convert::<f64>(), s, h)
-                        }
-                        Precision::F64 => integrate::<f64>(engine, &plan, None)?,
-                    };
+                    let (obs, seconds) = integrate_f64(engine, &plan, *p)?;
                     let (mut emax, mut erel) = (0.0f64, 0.0f64);
                     let mut per_time: Vec<f64> = vec![];
                     for j in 0..n0 {
@@ -766,13 +780,7 @@ pub fn stability(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
         let mut error = vec![f64::NAN; n];
         let mut rowsv: Vec<(usize, f64, f64, f64, f64, u64)> = vec![];
         for sub in &subs {
-            let (obs, _, _) = match p {
-                Precision::F32 => {
-                    let (o, s, h) = integrate::<f32>(&engine, &sub.plan, None)?;
-                    (o.convert::<f64>(), s, h)
-                }
-                Precision::F64 => integrate::<f64>(&engine, &sub.plan, None)?,
-            };
+            let (obs, _) = integrate_f64(&engine, &sub.plan, *p)?;
             let free: Vec<usize> = (0..shape.len())
                 .filter(|k| !sub.fixed.iter().any(|(f, _)| f == k))
                 .collect();

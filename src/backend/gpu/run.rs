@@ -93,25 +93,7 @@ fn read<T: bytemuck::Pod>(
     let mut enc = ctx.device.create_command_encoder(&Default::default());
     enc.copy_buffer_to_buffer(src, 0, staging, 0, bytes);
     ctx.queue.submit([enc.finish()]);
-    let slice = staging.slice(..bytes);
-    let (tx, rx) = std::sync::mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    ctx.device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::Runtime(e.to_string()))?;
-    rx.recv()
-        .map_err(|e| GpuError::Runtime(e.to_string()))?
-        .map_err(|e| GpuError::Runtime(e.to_string()))?;
-    let out = {
-        let view = slice
-            .get_mapped_range()
-            .map_err(|e| GpuError::Runtime(format!("{e:?}")))?;
-        bytemuck::cast_slice::<u8, T>(&view).to_vec()
-    };
-    staging.unmap();
-    Ok(out)
+    read_mapped(ctx, staging, bytes)
 }
 
 fn check(ctx: &GpuContext) -> Result<(), GpuError> {
