@@ -362,8 +362,13 @@ fn report(kind: ReportKind) -> Result<ExitCode> {
 }
 
 fn info() -> Result<ExitCode> {
+    let isa = match reeb::backend::cpu::isa() {
+        reeb::backend::cpu::Isa::V4 => "AVX-512",
+        reeb::backend::cpu::Isa::V3 => "AVX2 + FMA",
+        reeb::backend::cpu::Isa::Baseline => "portable (no AVX2)",
+    };
     println!(
-        "reeb {}; CPU backend: {} threads (rayon)",
+        "reeb {}; CPU backend: {} threads (rayon), {isa} kernels",
         env!("CARGO_PKG_VERSION"),
         rayon::current_num_threads()
     );
