@@ -118,6 +118,13 @@ enum ReportKind {
 }
 
 fn main() -> ExitCode {
+    // Output piped into `head` and the like: end quietly, as Unix tools do,
+    // instead of panicking on the broken pipe.
+    #[cfg(unix)]
+    // SAFETY: restoring the default action of a signal before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Run {
