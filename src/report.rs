@@ -61,15 +61,10 @@ pub struct ReportOptions {
 }
 
 fn settings(scene: &Scene) -> ReportSettings {
-    scene.report.clone().unwrap_or(ReportSettings {
-        schemes: vec![scene.scheme.clone()],
-        backends: vec![BackendChoice::Cpu],
-        precisions: vec![Precision::F64],
-        error_vars: vec![],
-        reference_rtol: 1e-12,
-        distorted: 0.05,
-        targets: vec![1e-2, 1e-4, 1e-6, 1e-8],
-    })
+    scene
+        .report
+        .clone()
+        .unwrap_or_else(|| ReportSettings::defaults(&scene.scheme))
 }
 
 fn out_dir(scene: &Scene, opts: &ReportOptions, what: &str) -> Result<PathBuf> {
@@ -478,26 +473,7 @@ pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
         let keep = |key: &str| {
             key.starts_with("dop853") || bs.iter().any(|b| key.ends_with(&format!(" {b} {p}")))
         };
-        let st: Vec<Series> = series_t
-            .iter()
-            .filter(|(n, _, _)| keep(n))
-            .map(|(n, x, y)| Series {
-                name: n,
-                x,
-                y,
-                color: None,
-            })
-            .collect();
-        let sd: Vec<Series> = series_dt
-            .iter()
-            .filter(|(n, _, _)| keep(n))
-            .map(|(n, x, y)| Series {
-                name: n,
-                x,
-                y,
-                color: None,
-            })
-            .collect();
+        let (st, sd) = (pick(&series_t, &keep), pick(&series_dt, &keep));
         let t = format!("{title} ({})", suffix.replace('_', " "));
         let wp = format!("work_precision_{suffix}.png");
         let ed = format!("error_vs_dt_{suffix}.png");
@@ -925,4 +901,20 @@ pub fn stability(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
     f.write_all(summary.as_bytes())?;
     print!("{summary}");
     Ok(out.join("stability.csv"))
+}
+
+/// The series of `all` whose legend key passes `keep`, borrowed for plotting.
+fn pick<'a>(
+    all: &'a [(String, Vec<f64>, Vec<f64>)],
+    keep: &dyn Fn(&str) -> bool,
+) -> Vec<Series<'a>> {
+    all.iter()
+        .filter(|(n, _, _)| keep(n))
+        .map(|(n, x, y)| Series {
+            name: n,
+            x,
+            y,
+            color: None,
+        })
+        .collect()
 }

@@ -127,6 +127,22 @@ pub struct ReportSettings {
     pub targets: Vec<f64>,
 }
 
+impl ReportSettings {
+    /// The settings of a scene without a `[report]` table (or before it is read):
+    /// the scene's scheme on the CPU in f64.
+    pub fn defaults(scheme: &str) -> ReportSettings {
+        ReportSettings {
+            schemes: vec![scheme.to_string()],
+            backends: vec![BackendChoice::Cpu],
+            precisions: vec![Precision::F64],
+            error_vars: vec![],
+            reference_rtol: 1e-12,
+            distorted: 0.05,
+            targets: vec![1e-2, 1e-4, 1e-6, 1e-8],
+        }
+    }
+}
+
 /// A validated scene.
 #[derive(Debug, Clone)]
 pub struct Scene {
@@ -1062,15 +1078,7 @@ impl Scene {
         let report = match table(&p, "report")? {
             None => None,
             Some(t) => {
-                let mut r = ReportSettings {
-                    schemes: vec![scheme.clone()],
-                    backends: vec![BackendChoice::Cpu],
-                    precisions: vec![Precision::F64],
-                    error_vars: vec![],
-                    reference_rtol: 1e-12,
-                    distorted: 0.05,
-                    targets: vec![1e-2, 1e-4, 1e-6, 1e-8],
-                };
+                let mut r = ReportSettings::defaults(&scheme);
                 for (k, v) in p.entries(t, "report", Some(REPORT_KEYS))? {
                     let field = format!("report.{}", k.get_ref());
                     match k.get_ref().as_ref() {
