@@ -124,12 +124,7 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &PictureData<R>) -> Result<Ve
                 plot::lines(
                     &dir.join(&name),
                     &fig,
-                    &[Series {
-                        name: label,
-                        x: &x,
-                        y: &y,
-                        color: None,
-                    }],
+                    &[Series::new(label, &x, &y)],
                     is_log_spaced(&ax.values),
                     false,
                 )?;
@@ -258,12 +253,7 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &PictureData<R>) -> Result<Ve
                 .map(|i| trajectory_label(scene, *i, &strides))
                 .collect();
             let series: Vec<Series> = (0..chosen.len())
-                .map(|c| Series {
-                    name: &labels[c],
-                    x: &xs[c],
-                    y: &ys[c],
-                    color: None,
-                })
+                .map(|c| Series::new(&labels[c], &xs[c], &ys[c]))
                 .collect();
             let fig = Figure {
                 title: &title,
@@ -341,12 +331,7 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &PictureData<R>) -> Result<Ve
             })
             .collect();
         let series: Vec<Series> = (0..xs.len())
-            .map(|c| Series {
-                name: &labels[c],
-                x: &xs[c],
-                y: &ys[c],
-                color: None,
-            })
+            .map(|c| Series::new(&labels[c], &xs[c], &ys[c]))
             .collect();
         let x_range = match scene.plot.wrap_x.as_deref() {
             Some("2pi") => Some((0.0, 2.0 * PI)),
@@ -384,12 +369,7 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &PictureData<R>) -> Result<Ve
             plot::point_cloud(
                 &dir.join("bifurcation.png"),
                 &fig,
-                &[Series {
-                    name: var,
-                    x: &xs,
-                    y: &ys,
-                    color: None,
-                }],
+                &[Series::new(var, &xs, &ys)],
                 None,
                 None,
             )?;

@@ -512,12 +512,7 @@ pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
             .iter()
             .filter(|(n, _, _)| n.ends_with(&first_p))
             .take(11)
-            .map(|(n, x, y)| Series {
-                name: n,
-                x,
-                y,
-                color: None,
-            })
+            .map(|(n, x, y)| Series::new(n, x, y))
             .collect();
         plot::lines(
             &out.join("error_vs_time.png"),
@@ -910,11 +905,6 @@ fn pick<'a>(
 ) -> Vec<Series<'a>> {
     all.iter()
         .filter(|(n, _, _)| keep(n))
-        .map(|(n, x, y)| Series {
-            name: n,
-            x,
-            y,
-            color: None,
-        })
+        .map(|(n, x, y)| Series::new(n, x, y))
         .collect()
 }
