@@ -67,10 +67,7 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &PictureData<R>) -> Result<Ve
     // The first two axes with more than one value span the maps; the others
     // are held at their first value.
     let varying: Vec<usize> = (0..shape.len()).filter(|k| shape[*k] > 1).collect();
-    let mut strides = vec![1usize; shape.len()];
-    for k in (0..shape.len().saturating_sub(1)).rev() {
-        strides[k] = strides[k + 1] * shape[k + 1];
-    }
+    let strides = scene.strides();
     // Statistics as accessors on the run's arrays: the pictures read only
     // the slice they draw, never a copy of a whole (possibly 10⁷-long) array.
     type Stat<'a> = (String, String, Box<dyn Fn(usize) -> f64 + 'a>);

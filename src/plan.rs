@@ -230,6 +230,15 @@ pub struct Plan {
     pub cycle_var: Option<usize>,
 }
 
+/// Row-major strides of axes of lengths `lens` (first axis slowest).
+pub fn row_major_strides(lens: &[usize]) -> Vec<usize> {
+    let mut strides = vec![1usize; lens.len()];
+    for k in (0..lens.len().saturating_sub(1)).rev() {
+        strides[k] = strides[k + 1] * lens[k + 1];
+    }
+    strides
+}
+
 /// Name of a lane field with a static lifetime.
 fn lane_name(name: &str) -> Option<&'static str> {
     lanes::NAMES.iter().copied().find(|n| *n == name)
@@ -239,10 +248,8 @@ impl Plan {
     pub fn new(problem: &Problem) -> Result<Plan, PlanError> {
         let spec: &'static ModelSpec = problem.model.spec();
         let n = problem.ensemble_size();
-        let mut strides = vec![1usize; problem.axes.len()];
-        for k in (0..problem.axes.len().saturating_sub(1)).rev() {
-            strides[k] = strides[k + 1] * problem.axes[k + 1].len;
-        }
+        let lens: Vec<usize> = problem.axes.iter().map(|a| a.len).collect();
+        let strides = row_major_strides(&lens);
         check_sources(problem)?;
 
         // Parameters: known names, required ones present, defaults filled in.

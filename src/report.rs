@@ -703,10 +703,7 @@ pub fn stability(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
         .or(set.backends.first().copied())
         .unwrap_or(BackendChoice::Cpu);
     let n = sc.ensemble_size();
-    let mut strides = vec![1usize; shape.len()];
-    for k in (0..shape.len().saturating_sub(1)).rev() {
-        strides[k] = strides[k + 1] * shape[k + 1];
-    }
+    let strides = sc.strides();
     let subs = sc.sub_runs()?;
     // Reference per parameter set: every input but the step.
     let mut references: HashMap<String, (f64, f64)> = HashMap::new();
@@ -752,15 +749,7 @@ pub fn stability(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
         let mut rowsv: Vec<(usize, f64, f64, f64, f64, u64)> = vec![];
         for sub in &subs {
             let (obs, _) = integrate_f64(&engine, &sub.plan, *p)?;
-            let free: Vec<usize> = (0..shape.len())
-                .filter(|k| !sub.fixed.iter().any(|(f, _)| f == k))
-                .collect();
-            let fixed_offset: usize = sub.fixed.iter().map(|(k, i)| i * strides[*k]).sum();
-            for j in 0..sub.plan.n {
-                let mut g = fixed_offset;
-                for (fk, k) in free.iter().enumerate() {
-                    g += (j / sub.plan.strides[fk]) % shape[*k] * strides[*k];
-                }
+            for (j, g) in sub.scene_rows(&shape, &strides).enumerate() {
                 let (ra, rp) = reference_of(&sub.plan, j)?;
                 let (a, per, st) = (
                     obs.cycle_amplitude[j],

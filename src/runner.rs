@@ -218,14 +218,7 @@ fn run_typed<R: Real>(
     let mut seconds = 0.0;
     let mut timing = "wall clock";
     let mut max_steps = 0;
-    let strides: Vec<usize> = {
-        let shape = scene.shape();
-        let mut s = vec![1usize; shape.len()];
-        for k in (0..shape.len().saturating_sub(1)).rev() {
-            s[k] = s[k + 1] * shape[k + 1];
-        }
-        s
-    };
+    let (shape, strides) = (scene.shape(), scene.strides());
     let finished = std::sync::atomic::AtomicBool::new(false);
     std::thread::scope(|scope| -> Result<()> {
         if let Some(b) = &bar {
@@ -295,16 +288,8 @@ fn run_typed<R: Real>(
                         nonfinite_step: vec![0; n],
                     }
                 });
-                // Local row j (over the free axes) → global row.
-                let free: Vec<usize> = (0..scene.axes.len())
-                    .filter(|k| !sub.fixed.iter().any(|(f, _)| f == k))
-                    .collect();
-                let fixed_offset: usize = sub.fixed.iter().map(|(k, i)| i * strides[*k]).sum();
-                for j in 0..sub.plan.n {
-                    let mut g = fixed_offset;
-                    for (fk, k) in free.iter().enumerate() {
-                        g += (j / sub.plan.strides[fk]) % scene.axes[*k].values.len() * strides[*k];
-                    }
+                // Local row j (over the free axes) → global row g.
+                for (j, g) in sub.scene_rows(&shape, &strides).enumerate() {
                     for ((_, dst), (_, src)) in a.final_values.iter_mut().zip(&obs.final_values) {
                         dst[g] = src[j];
                     }

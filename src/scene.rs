@@ -188,6 +188,30 @@ pub struct SubRun {
     pub plan: Plan,
 }
 
+impl SubRun {
+    /// The scene row (index over all axes, row-major `strides` of the scene's
+    /// `shape`) of each trajectory of this plan, whose rows range over the
+    /// free axes only.
+    pub fn scene_rows<'a>(
+        &'a self,
+        shape: &'a [usize],
+        strides: &'a [usize],
+    ) -> impl Iterator<Item = usize> + 'a {
+        let free: Vec<usize> = (0..shape.len())
+            .filter(|k| !self.fixed.iter().any(|(f, _)| f == k))
+            .collect();
+        let fixed_offset: usize = self.fixed.iter().map(|(k, i)| i * strides[*k]).sum();
+        (0..self.plan.n).map(move |j| {
+            let free_offset: usize = free
+                .iter()
+                .enumerate()
+                .map(|(fk, k)| (j / self.plan.strides[fk]) % shape[*k] * strides[*k])
+                .sum();
+            fixed_offset + free_offset
+        })
+    }
+}
+
 const TOP_KEYS: &[&str] = &[
     "model",
     "name",
@@ -1248,6 +1272,12 @@ impl Scene {
         self.axes.iter().map(|a| a.values.len()).collect()
     }
 
+    /// Row-major strides of the axes: trajectory i has index
+    /// (i / strides[k]) % shape[k] on axis k.
+    pub fn strides(&self) -> Vec<usize> {
+        crate::plan::row_major_strides(&self.shape())
+    }
+
     fn t0_input(&self) -> Input {
         self.initial.get("t0").cloned().unwrap_or(Input::Const(0.0))
     }
@@ -1461,6 +1491,31 @@ cycle = true
         assert_eq!(runs[2].plan.steps, 100);
         assert_eq!(runs[1].plan.n, 10);
         assert!((s.axes[2].values[1] - 10f64.powf(-1.5)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn sub_run_rows_cover_the_scene_once() {
+        // dt between two free axes: each plan's rows must land, in order, on
+        // exactly the scene rows that hold dt at the plan's value.
+        let text = VDP.replace("[initial]\nq = [1.0, 2.0]\n", "") + "[initial]\nq = [1.0, 2.0]\n";
+        let s = parse(&text).unwrap();
+        let names: Vec<&str> = s.axes.iter().map(|a| a.name.as_str()).collect();
+        assert_eq!(names, ["epsilon", "dt", "q"]);
+        let (shape, strides) = (s.shape(), s.strides());
+        assert_eq!(strides, [6, 2, 1]);
+        let mut seen = vec![0; s.ensemble_size()];
+        for run in s.sub_runs().unwrap() {
+            let rows: Vec<usize> = run.scene_rows(&shape, &strides).collect();
+            assert_eq!(rows.len(), run.plan.n);
+            assert!(rows.windows(2).all(|w| w[0] < w[1]), "{rows:?}");
+            for g in rows {
+                for (k, i) in &run.fixed {
+                    assert_eq!((g / strides[*k]) % shape[*k], *i);
+                }
+                seen[g] += 1;
+            }
+        }
+        assert!(seen.iter().all(|c| *c == 1), "{seen:?}");
     }
 
     #[test]
