@@ -148,40 +148,29 @@ fn first(o: &Observations<f64>, var: &str) -> f64 {
     o.final_of(var).map_or(f64::NAN, |v| v[0])
 }
 
+/// A group of checks: engine and "is it f32" → rows.
+type CheckGroup = fn(&dyn Engine, bool) -> Vec<Check>;
+
 /// Runs every check on `engine`, calling `each` as rows complete.
 pub fn run_all(engine: &dyn Engine, mut each: impl FnMut(&Check)) -> Vec<Check> {
-    let mut rows = vec![];
-    let mut push = |c: Check| {
-        each(&c);
-        rows.push(c);
-    };
     let f32 = engine.precision() == Precision::F32;
-    for c in harmonic_period(engine, f32) {
-        push(c);
-    }
-    for c in van_der_pol_amplitude(engine, f32) {
-        push(c);
-    }
-    for c in van_der_pol_fixed_point(engine, f32) {
-        push(c);
-    }
-    for c in van_der_pol_frequency(engine, f32) {
-        push(c);
-    }
-    for c in damped_invariant(engine, f32) {
-        push(c);
-    }
-    for c in lane_emden_exact(engine, f32) {
-        push(c);
-    }
-    for c in lienard_slope(engine, f32) {
-        push(c);
-    }
-    for c in damped_exact(engine, f32) {
-        push(c);
-    }
-    for c in convergence_orders(engine, f32) {
-        push(c);
+    let groups: [CheckGroup; 9] = [
+        harmonic_period,
+        van_der_pol_amplitude,
+        van_der_pol_fixed_point,
+        van_der_pol_frequency,
+        damped_invariant,
+        lane_emden_exact,
+        lienard_slope,
+        damped_exact,
+        convergence_orders,
+    ];
+    let mut rows = vec![];
+    for group in groups {
+        for c in group(engine, f32) {
+            each(&c);
+            rows.push(c);
+        }
     }
     rows
 }
