@@ -94,27 +94,21 @@ enum Command {
 #[derive(Subcommand)]
 enum ReportKind {
     /// For every scheme, backend and precision of the scene's [report] table and every dt of its axis: error and time.
-    WorkPrecision {
-        scene: PathBuf,
-        /// Output directory (default: runs/<scene name>-work-precision).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        #[arg(long)]
-        backend: Option<BackendChoice>,
-        #[arg(long)]
-        precision: Option<Precision>,
-    },
+    WorkPrecision(ReportArgs),
     /// Classify every cell of a 2-D grid as accurate, distorted or diverged.
-    Stability {
-        scene: PathBuf,
-        /// Output directory (default: runs/<scene name>-stability).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        #[arg(long)]
-        backend: Option<BackendChoice>,
-        #[arg(long)]
-        precision: Option<Precision>,
-    },
+    Stability(ReportArgs),
+}
+
+#[derive(clap::Args)]
+struct ReportArgs {
+    scene: PathBuf,
+    /// Output directory (default: runs/<scene name>-<report>, e.g. runs/vdp-stability).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[arg(long)]
+    backend: Option<BackendChoice>,
+    #[arg(long)]
+    precision: Option<Precision>,
 }
 
 fn main() -> ExitCode {
@@ -329,42 +323,20 @@ fn bench(
 
 fn report(kind: ReportKind) -> Result<ExitCode> {
     use reeb::report::{stability, work_precision, ReportOptions};
-    match kind {
-        ReportKind::WorkPrecision {
-            scene,
-            out,
-            backend,
-            precision,
-        } => {
-            let scene = Scene::load(&scene)?;
-            let md = work_precision(
-                &scene,
-                &ReportOptions {
-                    out,
-                    backend,
-                    precision,
-                },
-            )?;
-            println!("{}", md.display());
-        }
-        ReportKind::Stability {
-            scene,
-            out,
-            backend,
-            precision,
-        } => {
-            let scene = Scene::load(&scene)?;
-            let csv = stability(
-                &scene,
-                &ReportOptions {
-                    out,
-                    backend,
-                    precision,
-                },
-            )?;
-            println!("{}", csv.display());
-        }
-    }
+    let (args, make): (_, fn(&Scene, &ReportOptions) -> Result<PathBuf>) = match kind {
+        ReportKind::WorkPrecision(args) => (args, work_precision),
+        ReportKind::Stability(args) => (args, stability),
+    };
+    let scene = Scene::load(&args.scene)?;
+    let written = make(
+        &scene,
+        &ReportOptions {
+            out: args.out,
+            backend: args.backend,
+            precision: args.precision,
+        },
+    )?;
+    println!("{}", written.display());
     Ok(ExitCode::SUCCESS)
 }
 
