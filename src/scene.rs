@@ -279,6 +279,15 @@ impl<'a> Parser<'a> {
             .count()
             + 1
     }
+    /// "expected `what`, found <type of v>", at `v`.
+    fn mismatch(&self, field: &str, v: &Spanned<DeValue>, what: &str) -> SceneError {
+        let found = v.get_ref().type_str();
+        self.err(
+            field,
+            Some(&v.span()),
+            format!("expected {what}, found {found}"),
+        )
+    }
     fn err(
         &self,
         field: &str,
@@ -327,13 +336,7 @@ impl<'a> Parser<'a> {
             DeValue::Integer(i) => i64::from_str_radix(i.as_str(), i.radix())
                 .ok()
                 .map(|i| i as f64),
-            other => {
-                return Err(self.err(
-                    field,
-                    Some(&v.span()),
-                    format!("expected a number, found {}", other.type_str()),
-                ))
-            }
+            _ => return Err(self.mismatch(field, v, "a number")),
         };
         match x {
             Some(x) if x.is_finite() => Ok(x),
@@ -344,42 +347,26 @@ impl<'a> Parser<'a> {
         match v.get_ref() {
             DeValue::Integer(i) => u64::from_str_radix(i.as_str(), i.radix())
                 .map_err(|_| self.err(field, Some(&v.span()), "expected a non-negative integer")),
-            other => Err(self.err(
-                field,
-                Some(&v.span()),
-                format!("expected an integer, found {}", other.type_str()),
-            )),
+            _ => Err(self.mismatch(field, v, "an integer")),
         }
     }
     fn string(&self, field: &str, v: &Spanned<DeValue>) -> Result<String, SceneError> {
         match v.get_ref() {
             DeValue::String(s) => Ok(s.to_string()),
-            other => Err(self.err(
-                field,
-                Some(&v.span()),
-                format!("expected a string, found {}", other.type_str()),
-            )),
+            _ => Err(self.mismatch(field, v, "a string")),
         }
     }
     fn strings(&self, field: &str, v: &Spanned<DeValue>) -> Result<Vec<String>, SceneError> {
         match v.get_ref() {
             DeValue::Array(a) => a.iter().map(|x| self.string(field, x)).collect(),
             DeValue::String(s) => Ok(vec![s.to_string()]),
-            other => Err(self.err(
-                field,
-                Some(&v.span()),
-                format!("expected a list of strings, found {}", other.type_str()),
-            )),
+            _ => Err(self.mismatch(field, v, "a list of strings")),
         }
     }
     fn numbers(&self, field: &str, v: &Spanned<DeValue>) -> Result<Vec<f64>, SceneError> {
         match v.get_ref() {
             DeValue::Array(a) => a.iter().map(|x| self.number(field, x)).collect(),
-            other => Err(self.err(
-                field,
-                Some(&v.span()),
-                format!("expected a list of numbers, found {}", other.type_str()),
-            )),
+            _ => Err(self.mismatch(field, v, "a list of numbers")),
         }
     }
     /// A value spec: a constant, or the values of a new axis.
@@ -393,7 +380,11 @@ impl<'a> Parser<'a> {
             DeValue::Float(_) | DeValue::Integer(_) => Ok(Ok(self.number(field, v)?)),
             DeValue::Array(a) => {
                 if a.is_empty() {
-                    return Err(self.err(field, sp.as_ref(), "an empty list is an axis with no values"));
+                    return Err(self.err(
+                        field,
+                        sp.as_ref(),
+                        "an empty list is an axis with no values",
+                    ));
                 }
                 Ok(Err(self.numbers(field, v)?))
             }
@@ -401,7 +392,11 @@ impl<'a> Parser<'a> {
                 let mut e: Vec<_> = t.iter().collect();
                 e.sort_by_key(|(k, _)| k.span().start);
                 if e.len() != 1 {
-                    return Err(self.err(field, sp.as_ref(), "expected exactly one of linspace, logspace, random"));
+                    return Err(self.err(
+                        field,
+                        sp.as_ref(),
+                        "expected exactly one of linspace, logspace, random",
+                    ));
                 }
                 let (k, val) = e[0];
                 let f = format!("{field}.{}", k.get_ref());
@@ -437,7 +432,11 @@ impl<'a> Parser<'a> {
                     other => Err(self.err(&f, Some(&k.span()), format!("unknown value form `{other}`; use a number, a list, linspace, logspace or random"))),
                 }
             }
-            other => Err(self.err(field, sp.as_ref(), format!("expected a number, a list, or {{ linspace | logspace | random = … }}, found {}", other.type_str()))),
+            _ => Err(self.mismatch(
+                field,
+                v,
+                "a number, a list, or { linspace | logspace | random = … }",
+            )),
         }
     }
 }
@@ -509,11 +508,7 @@ impl Scene {
                 None => Ok(None),
                 Some(v) => match v.get_ref() {
                     DeValue::Table(t) => Ok(Some(t)),
-                    other => Err(p.err(
-                        name,
-                        Some(&v.span()),
-                        format!("expected a table, found {}", other.type_str()),
-                    )),
+                    _ => Err(p.mismatch(name, v, "a table")),
                 },
             }
         };
@@ -978,16 +973,7 @@ impl Scene {
                                 }
                                 Some(c)
                             }
-                            other => {
-                                return Err(p.err(
-                                    &field,
-                                    Some(&v.span()),
-                                    format!(
-                                        "expected true or {{ var, level, skip }}, found {}",
-                                        other.type_str()
-                                    ),
-                                ))
-                            }
+                            _ => return Err(p.mismatch(&field, v, "true or { var, level, skip }")),
                         };
                     }
                     _ => unreachable!("checked by entries"),
@@ -1056,13 +1042,7 @@ impl Scene {
                     "lienard_plane" => {
                         plot.lienard_plane = match v.get_ref() {
                             DeValue::Boolean(b) => *b,
-                            other => {
-                                return Err(p.err(
-                                    &field,
-                                    Some(&v.span()),
-                                    format!("expected true or false, found {}", other.type_str()),
-                                ))
-                            }
+                            _ => return Err(p.mismatch(&field, v, "true or false")),
                         };
                         if plot.lienard_plane && !matches!(model, Model::VanDerPol) {
                             return Err(p.err(
