@@ -437,27 +437,19 @@ pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
     // than twelve lines; the first is also `work_precision.png` /
     // `error_vs_dt.png`.
     let mut pictures: Vec<String> = vec![];
-    let precisions_run: Vec<String> = {
+    // The distinct values of one column over the schemes' rows, sorted.
+    let distinct = |column: fn(&Row) -> &String| -> Vec<String> {
         let mut v: Vec<String> = rows
             .iter()
             .filter(|r| !r.scheme.starts_with("dop853"))
-            .map(|r| r.precision.clone())
-            .collect();
-        v.dedup();
-        v.sort();
-        v.dedup();
-        v
-    };
-    let backends_run: Vec<String> = {
-        let mut v: Vec<String> = rows
-            .iter()
-            .filter(|r| !r.scheme.starts_with("dop853"))
-            .map(|r| r.backend.clone())
+            .map(|r| column(r).clone())
             .collect();
         v.sort();
         v.dedup();
         v
     };
+    let precisions_run = distinct(|r| &r.precision);
+    let backends_run = distinct(|r| &r.backend);
     let mut panels: Vec<(String, Vec<String>, String)> = vec![];
     for p in &precisions_run {
         let lines = set.schemes.len() * backends_run.len();
