@@ -10,7 +10,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 
 use reeb::backend::gpu::GpuContext;
 use reeb::bench::{time_cpu, time_gpu, SCENARIOS};
-use reeb::real::Precision;
+use reeb::num::precision::Precision;
 
 fn sizes() -> Vec<usize> {
     if std::env::var_os("REEB_BENCH_QUICK").is_some() {

@@ -8,7 +8,7 @@ use std::time::Instant;
 use crate::backend::{cpu, gpu::GpuContext};
 use crate::models::Model;
 use crate::plan::{Plan, Problem, Source};
-use crate::real::Precision;
+use crate::num::precision::Precision;
 
 /// A benchmark scenario: a plan family parameterised by ensemble size.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

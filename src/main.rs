@@ -8,8 +8,8 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use reeb::backend::gpu::{list_adapters, GpuContext};
-use reeb::real::Precision;
-use reeb::runner::{run_scene, RunOptions};
+use reeb::num::precision::Precision;
+use reeb::output::run::{run_scene, RunOptions};
 use reeb::scene::{BackendChoice, Scene};
 use reeb::verify::{run_all, CpuEngine, Engine, GpuEngine};
 

@@ -4,13 +4,13 @@
 
 use std::f64::consts::PI;
 
-use crate::exact;
+use crate::models::exact;
 use crate::models::{lane_emden, Model};
-use crate::observations::Observations;
-use crate::observe::{CycleObs, TrajectoryObs};
+use crate::plan::observations::Observations;
+use crate::plan::observers::{CycleObs, TrajectoryObs};
 use crate::plan::{Plan, Problem, Source};
-use crate::real::Precision;
-use crate::scheme::{Scheme, SchemeKind, SCHEME_NAMES};
+use crate::num::precision::Precision;
+use crate::plan::scheme::{Scheme, SchemeKind, SCHEME_NAMES};
 
 /// Something that integrates plans: a backend at a precision.
 pub trait Engine {

@@ -2,10 +2,10 @@
 //! exact solutions, and the observers.
 
 use reeb::backend::cpu;
-use reeb::exact;
+use reeb::models::exact;
 use reeb::models::{lane_emden, Model};
-use reeb::observations::Status;
-use reeb::observe::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
+use reeb::plan::observations::Status;
+use reeb::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
 use reeb::plan::{Plan, Problem, Source};
 
 fn vdp(eps: Source, dt: f64, steps: u64) -> Problem {
@@ -28,7 +28,7 @@ fn bitwise_identical_for_1_and_2_threads() {
         );
         let q0 = p.axis("q0", vec![0.5, 1.0, 2.5]);
         p = p.param("epsilon", eps).initial("q", q0);
-        p.scheme = reeb::scheme::Scheme::by_name(scheme).unwrap();
+        p.scheme = reeb::plan::scheme::Scheme::by_name(scheme).unwrap();
         p.observers.trajectory = Some(TrajectoryObs {
             every: 50,
             vars: vec!["q".into()],

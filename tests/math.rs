@@ -1,7 +1,7 @@
 //! reeb's polynomial exp/sin/cos against the platform libm: ≤ 2 ULP over the
 //! documented ranges, and the edges (overflow, underflow, NaN, large arguments).
 
-use reeb::math::{exp_f32, exp_f64, sincos_f32, sincos_f64};
+use reeb::num::math::{exp_f32, exp_f64, sincos_f32, sincos_f64};
 
 /// Distance in ULPs of `x` from the f64 reference `r`, in f32 units.
 fn ulp32(x: f32, r: f64) -> f64 {

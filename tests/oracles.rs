@@ -1,7 +1,7 @@
 //! The whole `reeb verify` suite (SPEC §4 oracles and every scheme's
 //! measured order) on the CPU backend, in both precisions.
 
-use reeb::real::Precision;
+use reeb::num::precision::Precision;
 use reeb::verify::{run_all, CpuEngine};
 
 fn suite(precision: Precision) {

@@ -24,7 +24,7 @@ fn work_precision_measures_the_orders() {
     r.schemes = ["s2", "triple_jump4", "yoshida6a", "yoshida8a"]
         .map(String::from)
         .to_vec();
-    r.precisions = vec![reeb::real::Precision::F64];
+    r.precisions = vec![reeb::num::precision::Precision::F64];
     let out = tmp("wp");
     let md = work_precision(
         &scene,

@@ -4,8 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
-use reeb::real::Precision;
-use reeb::runner::{integrate, run_scene, Engine, RunOptions};
+use reeb::num::precision::Precision;
+use reeb::output::run::{integrate, run_scene, Engine, RunOptions};
 use reeb::scene::{BackendChoice, Scene};
 
 mod common;

@@ -3,10 +3,10 @@
 
 use reeb::backend::gpu::{codegen::generate, validate};
 use reeb::models::{Model, MODEL_NAMES};
-use reeb::observe::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
+use reeb::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
 use reeb::plan::{Plan, Problem, Source};
-use reeb::real::Precision;
-use reeb::scheme::{Scheme, SCHEME_NAMES};
+use reeb::num::precision::Precision;
+use reeb::plan::scheme::{Scheme, SCHEME_NAMES};
 
 mod common;
 use common::{first_var, problem};

@@ -6,9 +6,10 @@ pub mod gpu;
 
 use std::sync::atomic::AtomicU64;
 
-use crate::observations::Observations;
+use crate::models::Flows;
+use crate::plan::observations::Observations;
 use crate::plan::Plan;
-use crate::real::{Precision, Real};
+use crate::num::precision::Precision;
 
 /// Observations in the precision they were computed in.
 #[derive(Debug, Clone)]
@@ -41,9 +42,9 @@ pub fn run_cpu(plan: &Plan, precision: Precision, progress: Option<&AtomicU64>) 
     }
 }
 
-impl<R: Real> Observations<R> {
+impl<R: Flows> Observations<R> {
     /// The same observations in another precision.
-    pub fn convert<S: Real>(&self) -> Observations<S> {
+    pub fn convert<S: Flows>(&self) -> Observations<S> {
         let c = |v: &Vec<R>| {
             v.iter()
                 .map(|x| S::from_f64(x.to_f64()))

@@ -2,10 +2,13 @@
 //! `q'' = −q − α q' + β sin ωt`.
 
 #[allow(unused_imports)]
-use super::prelude::*;
+use crate::num::{math::Math, prims::Prims};
+#[allow(unused_imports)]
+use super::mechanical::{Mechanical1dOps, MechanicalFlows};
+
 
 use super::spec::{ModelSpec, ParamDef, TimeDependence};
-use super::Method;
+use super::spec::Method;
 
 crate::shared_fns! {
     /// Model functions used by the ops (not ops themselves).
@@ -22,9 +25,9 @@ crate::shared_fns! {
     }
 }
 
-crate::shared_fns! {
+crate::model_ops! {
     /// Pieces and time terms of the damped oscillator.
-    ops trait DampedOscillatorOps, wgsl DAMPED_OSCILLATOR_WGSL, lanes damped_oscillator_lanes;
+    trait DampedOscillatorOps, wgsl DAMPED_OSCILLATOR_WGSL, lanes damped_oscillator_lanes;
 
     /// Time term: the forcing `F(t) = β sin ωt`.
     fn damped_oscillator_time(t: R, forcing_amplitude: R, forcing_frequency: R, forcing: &mut R) {
@@ -56,8 +59,14 @@ crate::mechanical_1d_methods! {
     params [alpha, forcing_amplitude, forcing_frequency]
 }
 
+crate::model_lanes! {
+    traits [DampedOscillatorFlows, DampedOscillatorOps, DampedOscillatorMethods, MechanicalFlows, Mechanical1dOps];
+    lanes [damped_oscillator_lanes, damped_oscillator_method_lanes, super::mechanical::mechanical_1d_lanes];
+}
+
 crate::pieces! {
     DAMPED_OSCILLATOR_PIECES, DAMPED_OSCILLATOR_TIME, DampedOscillatorPieces;
+    ops [DampedOscillatorOps in damped_oscillator_lanes, Mechanical1dOps in super::mechanical::mechanical_1d_lanes];
     vars [q, p, s];
     time [damped_oscillator_time];
     'A' [damped_oscillator_a_p, damped_oscillator_a_s(opt)] identity_when_zero [alpha];
@@ -95,4 +104,10 @@ pub const SPEC: ModelSpec = ModelSpec {
         DAMPED_OSCILLATOR_WGSL,
         DAMPED_OSCILLATOR_METHODS_WGSL,
     ],
+    forcing_frequency: Some("forcing_frequency"),
+    derived: &[],
+    initial_defaults: &[],
+    initial_alias: None,
+    methods_carry_optional: true,
+    rules: super::spec::no_rules,
 };

@@ -3,10 +3,13 @@
 //! Singular at q = 0 (the trajectory is then flagged non-finite).
 
 #[allow(unused_imports)]
-use super::prelude::*;
+use crate::num::{math::Math, prims::Prims};
+#[allow(unused_imports)]
+use super::mechanical::{Mechanical1dOps, MechanicalFlows};
 
-use super::spec::{ModelSpec, ParamDef, TimeDependence};
-use super::Method;
+
+use super::spec::{InitialAlias, ModelSpec, ParamDef, TimeDependence};
+use super::spec::Method;
 
 crate::shared_fns! {
     /// Model functions used by the ops (not ops themselves).
@@ -25,9 +28,9 @@ crate::shared_fns! {
     }
 }
 
-crate::shared_fns! {
+crate::model_ops! {
     /// Pieces, vector field and comparison integrators of the Kepler problem.
-    ops trait KeplerOps, wgsl KEPLER_WGSL, lanes kepler_lanes;
+    trait KeplerOps, wgsl KEPLER_WGSL, lanes kepler_lanes;
 
     /// Time term: the damping `f(t) = α sin θt`.
     fn kepler_time(t: R, alpha: R, theta: R, damping: &mut R) {
@@ -197,14 +200,29 @@ pub fn perihelion(e: f64) -> ([f64; 2], [f64; 2]) {
     ([1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()])
 }
 
+crate::model_lanes! {
+    traits [KeplerFlows, KeplerOps, MechanicalFlows, Mechanical1dOps];
+    lanes [kepler_lanes, super::mechanical::mechanical_1d_lanes];
+}
+
 crate::pieces! {
     KEPLER_PIECES, KEPLER_TIME, KeplerPieces;
+    ops [KeplerOps in kepler_lanes, Mechanical1dOps in super::mechanical::mechanical_1d_lanes];
     vars [q1, q2, p1, p2, s];
     time [kepler_time];
     'A' [kepler_a_p, mech1_a_s(opt)] identity_when_zero [alpha];
     'B' [kepler_b_p, kepler_b_s(opt)] identity_when_zero [];
     'C' [kepler_c_q, kepler_c_s(opt)] identity_when_zero [];
 }
+
+/// `initial.eccentricity = e`: the orbit of semi-major axis 1 at perihelion
+/// (sets q1 and p2 unless they are given).
+const PERIHELION: InitialAlias = InitialAlias {
+    key: "eccentricity",
+    range: "[0, 1)",
+    ok: |e| (0.0..1.0).contains(&e),
+    sets: &[("q1", |e| perihelion(e).0[0]), ("p2", |e| perihelion(e).1[1])],
+};
 
 pub const SPEC: ModelSpec = ModelSpec {
     name: "kepler",
@@ -228,4 +246,10 @@ pub const SPEC: ModelSpec = ModelSpec {
         (Method::Variational2, "kepler_variational2"),
     ],
     wgsl: &[KEPLER_FLOWS_WGSL, KEPLER_WGSL],
+    forcing_frequency: Some("theta"),
+    derived: &[],
+    initial_defaults: &[],
+    initial_alias: Some(PERIHELION),
+    methods_carry_optional: true,
+    rules: super::spec::no_rules,
 };

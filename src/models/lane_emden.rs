@@ -3,10 +3,13 @@
 //! The outermost `D½` of S2 means `f = 2/t` is first read at t = τ/2.
 
 #[allow(unused_imports)]
-use super::prelude::*;
+use crate::num::{math::Math, prims::Prims};
+#[allow(unused_imports)]
+use super::mechanical::{Mechanical1dOps, MechanicalFlows};
 
-use super::spec::{ModelSpec, ParamDef, TimeDependence};
-use super::Method;
+
+use super::spec::{each_in, ModelSpec, ParamDef, RuleError, TimeDependence};
+use super::spec::Method;
 
 /// Largest index `powi_small` handles.
 pub const MAX_INDEX: f64 = 15.0;
@@ -50,9 +53,9 @@ crate::shared_fns! {
     }
 }
 
-crate::shared_fns! {
+crate::model_ops! {
     /// Pieces and time terms of the Lane–Emden model.
-    ops trait LaneEmdenOps, wgsl LANE_EMDEN_WGSL, lanes lane_emden_lanes;
+    trait LaneEmdenOps, wgsl LANE_EMDEN_WGSL, lanes lane_emden_lanes;
 
     /// Time term: the damping `f(t) = 2/t`.
     fn lane_emden_time(t: R, damping: &mut R) {
@@ -99,13 +102,33 @@ pub fn exact(index: u32, t: f64) -> Option<(f64, f64)> {
     }
 }
 
+crate::model_lanes! {
+    traits [LaneEmdenFlows, LaneEmdenMechFlows, LaneEmdenOps, LaneEmdenMethods, MechanicalFlows, Mechanical1dOps];
+    lanes [lane_emden_lanes, lane_emden_method_lanes, super::mechanical::mechanical_1d_lanes];
+}
+
 crate::pieces! {
     LANE_EMDEN_PIECES, LANE_EMDEN_TIME, LaneEmdenPieces;
+    ops [LaneEmdenOps in lane_emden_lanes, Mechanical1dOps in super::mechanical::mechanical_1d_lanes];
     vars [q, p, s];
     time [lane_emden_time];
     'A' [mech1_a_p, mech1_a_s(opt)] identity_when_zero [];
     'B' [lane_emden_b_p, lane_emden_b_s(opt)] identity_when_zero [];
     'C' [mech1_c_q, mech1_c_s(opt)] identity_when_zero [];
+}
+
+/// The index is an integer in 0..=15; with time (f = 2/t), t0 ≥ 0.
+fn rules(values: &dyn Fn(&str) -> Vec<f64>, time: bool) -> Result<(), RuleError> {
+    each_in(
+        values,
+        "params.index",
+        |k| k.fract() == 0.0 && (0.0..=MAX_INDEX).contains(&k),
+        |k| format!("{k} is not an integer in 0..=15"),
+    )?;
+    if time {
+        each_in(values, "initial.t0", |t| t >= 0.0, |_| "Lane–Emden starts at t0 ≥ 0 (f = 2/t)".into())?;
+    }
+    Ok(())
 }
 
 pub const SPEC: ModelSpec = ModelSpec {
@@ -135,4 +158,10 @@ pub const SPEC: ModelSpec = ModelSpec {
         LANE_EMDEN_WGSL,
         LANE_EMDEN_METHODS_WGSL,
     ],
+    forcing_frequency: None,
+    derived: &[],
+    initial_defaults: &[("q", 1.0)],
+    initial_alias: None,
+    methods_carry_optional: true,
+    rules: rules,
 };

@@ -6,7 +6,7 @@
 //! name, so the CPU backend needs no hand-written wiring per model, and the GPU
 //! kernel declares locals with the same names.
 
-use crate::real::Real;
+use crate::num::precision::Real;
 
 /// Trajectories per block. Large enough to amortise the per-op dispatch,
 /// small enough that the arrays a step touches stay in L1.
@@ -164,3 +164,93 @@ define_lanes! {
 
 const _: () = assert!(std::mem::size_of::<Lanes<f64>>() == COUNT * LANES * 8);
 const _: () = assert!(std::mem::size_of::<Lanes<f32>>() == COUNT * LANES * 4);
+
+/// Declares a model's ops: shared functions (see [`crate::num::dsl`]) whose
+/// arguments are lane names, plus, for the CPU, a lane loop per op (`lanes`
+/// module) and its one-trajectory twin (`lanes::scalar`), found by name.
+///
+/// `model_ops! { trait Name, wgsl CONST, lanes module; fn ..(..) {..} ... }`
+#[macro_export]
+macro_rules! model_ops {
+    (
+        $(#[$tmeta:meta])*
+        trait $tr:ident, wgsl $wg:ident, lanes $lm:ident;
+        $(
+            $(#[$fmeta:meta])*
+            fn $name:ident ( $($arg:ident : $aty:ty),* $(,)? ) $body:block
+        )*
+    ) => {
+        $crate::shared_fns! {
+            $(#[$tmeta])*
+            trait $tr, wgsl $wg;
+            $( $(#[$fmeta])* fn $name($($arg: $aty),*) $body )*
+        }
+        /// Lane loops, one per op: each applies its shared function to every
+        /// lane of a block, binding every argument to the lane array of the
+        /// same name (the GPU kernel binds them to locals of the same name).
+        pub mod $lm {
+            #[allow(unused_imports)]
+            use super::*;
+            use $crate::models::lanes::{Bind, LaneFn, Lanes, LANES};
+            use $crate::num::precision::Real;
+            $(
+                #[allow(clippy::needless_range_loop)]
+                pub fn $name<R: Real + $tr>(l: &mut Lanes<R>) {
+                    for i in 0..LANES {
+                        <R as $tr>::$name($( Bind::bind(&mut l.$arg[i]) ),*);
+                    }
+                }
+            )*
+            /// The lane loop of the op called `name`.
+            pub fn lookup<R: Real + $tr>(name: &str) -> Option<LaneFn<R>> {
+                match name {
+                    $( stringify!($name) => Some($name::<R> as LaneFn<R>), )*
+                    _ => None,
+                }
+            }
+
+            /// The same ops on one trajectory, binding the fields of a [`Lane`].
+            pub mod scalar {
+                #[allow(unused_imports)]
+                use super::super::*;
+                use $crate::models::lanes::{Bind, Lane, ScalarFn};
+                use $crate::num::precision::Real;
+                $(
+                    #[inline(always)]
+                    pub fn $name<R: Real + super::super::$tr>(x: &mut Lane<R>) {
+                        <R as $tr>::$name($( Bind::bind(&mut x.$arg) ),*);
+                    }
+                )*
+                /// The scalar op called `name`.
+                pub fn lookup<R: Real + super::super::$tr>(name: &str) -> Option<ScalarFn<R>> {
+                    match name {
+                        $( stringify!($name) => Some($name::<R> as ScalarFn<R>), )*
+                        _ => None,
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Declares, in a model's file, everything the registry needs from its
+/// shared functions: `pub trait Ops` (every trait the model's ops call, so
+/// that `R: Ops` can run them) and the lookups of its ops by name.
+///
+/// `model_lanes! { traits [A, B]; lanes [a_lanes, super::other::b_lanes] }`
+#[macro_export]
+macro_rules! model_lanes {
+    (traits [$($tr:path),* $(,)?]; lanes [$($($lm:ident)::+),* $(,)?] $(;)?) => {
+        /// Every shared-function trait this model's ops call.
+        pub trait Ops: $crate::num::precision::Real $(+ $tr)* {}
+        impl<T: $crate::num::precision::Real $(+ $tr)*> Ops for T {}
+        /// The lane loop of this model's op `name`.
+        pub fn lane_fn<R: Ops>(name: &str) -> Option<$crate::models::lanes::LaneFn<R>> {
+            None$(.or_else(|| $($lm)::+::lookup::<R>(name)))*
+        }
+        /// The one-trajectory op `name` of this model.
+        pub fn scalar_fn<R: Ops>(name: &str) -> Option<$crate::models::lanes::ScalarFn<R>> {
+            None$(.or_else(|| $($lm)::+::scalar::lookup::<R>(name)))*
+        }
+    };
+}

@@ -4,10 +4,13 @@
 //! integrated only when a scene asks for it.
 
 #[allow(unused_imports)]
-use super::prelude::*;
+use crate::num::{math::Math, prims::Prims};
+#[allow(unused_imports)]
+use super::mechanical::{Mechanical1dOps, MechanicalFlows};
+
 
 use super::spec::{ModelSpec, ParamDef, TimeDependence};
-use super::Method;
+use super::spec::Method;
 
 /// Coefficients a polynomial f or g of the general Liénard model may have
 /// (degree ≤ 9).
@@ -69,9 +72,9 @@ crate::shared_fns! {
     }
 }
 
-crate::shared_fns! {
+crate::model_ops! {
     /// Pieces of Liénard systems common to van der Pol and the general model.
-    ops trait LienardOps, wgsl LIENARD_WGSL, lanes lienard_lanes;
+    trait LienardOps, wgsl LIENARD_WGSL, lanes lienard_lanes;
 
     /// Piece C (p s) on q: `q ← q + τ s`.
     fn lienard_c_q(q: &mut R, s: R, tau: R) {
@@ -142,9 +145,9 @@ macro_rules! lienard_methods {
         leapfrog $lf:ident;
         params [$($par:ident),* $(,)?]
     ) => {
-        $crate::shared_fns! {
+        $crate::model_ops! {
             /// Vector field and comparison integrators.
-            ops trait $tr, wgsl $wg, lanes $lm;
+            trait $tr, wgsl $wg, lanes $lm;
 
             /// `q' = s`, `s' = −f(q) s − g(q, t)`.
             fn $field(q: R, s: R, t: R, $($par: R,)* dq: &mut R, ds: &mut R) {
@@ -220,8 +223,14 @@ crate::lienard_methods! {
     params [f0, f1, f2, f3, f4, f5, f6, f7, f8, f9, g0, g1, g2, g3, g4, g5, g6, g7, g8, g9]
 }
 
+crate::model_lanes! {
+    traits [LienardFlows, LienardModelFlows, LienardOps, VanDerPolMethods, LienardMethods];
+    lanes [lienard_lanes, van_der_pol_method_lanes, lienard_method_lanes];
+}
+
 crate::pieces! {
     VAN_DER_POL_PIECES, VAN_DER_POL_TIME, VanDerPolPieces;
+    ops [LienardOps in lienard_lanes];
     vars [q, s, p];
     time [van_der_pol_time];
     'A' [van_der_pol_a_p(opt), van_der_pol_a_s] identity_when_zero [epsilon];
@@ -257,10 +266,17 @@ pub const VAN_DER_POL: ModelSpec = ModelSpec {
         LIENARD_WGSL,
         VAN_DER_POL_METHODS_WGSL,
     ],
+    forcing_frequency: Some("forcing_frequency"),
+    derived: &[],
+    initial_defaults: &[],
+    initial_alias: None,
+    methods_carry_optional: false,
+    rules: super::spec::no_rules,
 };
 
 crate::pieces! {
     LIENARD_PIECES, LIENARD_TIME, LienardPieces;
+    ops [LienardOps in lienard_lanes];
     vars [q, s, p];
     time [];
     'A' [lienard_a_p(opt), lienard_a_s] identity_when_zero [f0, f1, f2, f3, f4, f5, f6, f7, f8, f9];
@@ -285,4 +301,10 @@ pub const LIENARD: ModelSpec = ModelSpec {
         (Method::Leapfrog, "lienard_leapfrog"),
     ],
     wgsl: &[LIENARD_MODEL_FLOWS_WGSL, LIENARD_WGSL, LIENARD_METHODS_WGSL],
+    forcing_frequency: None,
+    derived: &[],
+    initial_defaults: &[],
+    initial_alias: None,
+    methods_carry_optional: false,
+    rules: super::spec::no_rules,
 };

@@ -3,7 +3,8 @@
 //! and the comparison integrators built on `V'`, `V` and `f` (SPEC §3).
 
 #[allow(unused_imports)]
-use super::prelude::*;
+use crate::num::{math::Math, prims::Prims};
+
 
 crate::shared_fns! {
     /// Exact flows of the mechanical pieces, per component.
@@ -31,9 +32,9 @@ crate::shared_fns! {
     }
 }
 
-crate::shared_fns! {
+crate::model_ops! {
     /// Ops common to the one-dimensional mechanical models.
-    ops trait Mechanical1dOps, wgsl MECHANICAL_1D_WGSL, lanes mechanical_1d_lanes;
+    trait Mechanical1dOps, wgsl MECHANICAL_1D_WGSL, lanes mechanical_1d_lanes;
 
     /// Piece C on q.
     fn mech1_c_q(q: &mut R, p: R, tau: R) {
@@ -68,9 +69,9 @@ macro_rules! mechanical_1d_methods {
         variational1 $v1:ident, variational2 $v2:ident $(, regular_at_zero $reg:ident)?;
         params [$($par:ident),* $(,)?]
     ) => {
-        $crate::shared_fns! {
+        $crate::model_ops! {
             /// Vector field and comparison integrators.
-            ops trait $tr, wgsl $wg, lanes $lm;
+            trait $tr, wgsl $wg, lanes $lm;
 
             /// The contact vector field at (q, p, s, t).
             fn $field(q: R, p: R, s: R, t: R, $($par: R,)* dq: &mut R, dp: &mut R, ds: &mut R) {

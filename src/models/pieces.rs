@@ -1,29 +1,38 @@
 //! A model's pieces, declared once by [`pieces!`]: the data the plan and the
 //! GPU code generator read (which ops apply each piece, in order), and a
 //! [`Pieces`] implementation that applies them to one trajectory, from which
-//! [`fused_stage`] builds the CPU's fused S2 stage: the whole stage in one
-//! loop over a block, which the compiler vectorises.
+//! the CPU backend builds its fused S2 stages (`backend/cpu/kernels.rs`).
 
-use super::lanes::{Lane, Lanes, LANES};
-use crate::real::Real;
+use super::lanes::Lane;
+use crate::num::precision::Real;
 
-/// Applies a model's pieces and time terms to one trajectory.
-pub trait Pieces {
+/// Applies a model's pieces and time terms to one trajectory in precision `R`.
+pub trait Pieces<R: Real> {
     /// The time terms at `x.t`.
-    fn time<R: Real>(x: &mut Lane<R>);
+    fn time(x: &mut Lane<R>);
     /// Piece `piece` over `x.tau`; `OPT`: also on the optional variable.
-    fn piece<R: Real, const OPT: bool>(piece: char, x: &mut Lane<R>);
+    fn piece<const OPT: bool>(piece: char, x: &mut Lane<R>);
     /// Are the model's state variables finite?
-    fn finite<R: Real>(x: &Lane<R>) -> bool;
+    fn finite(x: &Lane<R>) -> bool;
+}
+
+/// Something done with a model's [`Pieces`] type, e.g. building its CPU
+/// kernels; see `Model::with_pieces`.
+pub trait PiecesVisitor<R: Real> {
+    type Out;
+    fn visit<P: Pieces<R>>(self) -> Self::Out;
 }
 
 /// Declares a model's pieces: `pieces! { PIECES_CONST, TIME_CONST, Type;
-/// time [ops]; 'A' [op, op(opt)] identity_when_zero [params]; … }` defines
-/// the `PieceOps` table, the time-op list and `Type: Pieces`.
+/// ops [OpsTrait in lane_module, …]; vars [..]; time [ops];
+/// 'A' [op, op(opt)] identity_when_zero [params]; … }` defines the
+/// `PieceOps` table, the time-op list and `Type: Pieces<R>` for every `R`
+/// with the ops traits.
 #[macro_export]
 macro_rules! pieces {
     (
         $pieces:ident, $time:ident, $ty:ident;
+        ops [$($optr:ident in $($opmod:ident)::+),* $(,)?];
         vars [$($var:ident),* $(,)?];
         time [$($top:ident),* $(,)?];
         $( $letter:literal [$($op:ident $(($opt:ident))?),* $(,)?] identity_when_zero [$($zero:ident),* $(,)?]; )*
@@ -40,20 +49,22 @@ macro_rules! pieces {
         ];
         /// The pieces applied to one trajectory (for the fused CPU kernels).
         pub struct $ty;
-        impl $crate::models::pieces::Pieces for $ty {
+        impl<R: $crate::num::precision::Real $(+ $optr)*> $crate::models::pieces::Pieces<R> for $ty {
             #[inline(always)]
-            fn time<R: $crate::real::Real>(x: &mut $crate::models::lanes::Lane<R>) {
-                $( $crate::models::scalar_ops::$top(x); )*
+            fn time(x: &mut $crate::models::lanes::Lane<R>) {
+                $( #[allow(unused_imports)] use $($opmod)::+::scalar::*; )*
+                $( $top(x); )*
                 let _ = x;
             }
             #[inline(always)]
-            fn piece<R: $crate::real::Real, const OPT: bool>(piece: char, x: &mut $crate::models::lanes::Lane<R>) {
+            fn piece<const OPT: bool>(piece: char, x: &mut $crate::models::lanes::Lane<R>) {
+                $( #[allow(unused_imports)] use $($opmod)::+::scalar::*; )*
                 match piece {
                     $( $letter => {
                         $(
                             let optional = false $(|| { let _ = stringify!($opt); true })?;
                             if !optional || OPT {
-                                $crate::models::scalar_ops::$op(x);
+                                $op(x);
                             }
                         )*
                     } )*
@@ -61,201 +72,9 @@ macro_rules! pieces {
                 }
             }
             #[inline(always)]
-            fn finite<R: $crate::real::Real>(x: &$crate::models::lanes::Lane<R>) -> bool {
+            fn finite(x: &$crate::models::lanes::Lane<R>) -> bool {
                 true $(&& x.$var.finite())*
             }
         }
     };
-}
-
-/// One fused S2 stage over a block: `(lanes, half, full, time offset, step)`;
-/// returns whether any state variable of any lane is non-finite after it.
-/// Unsafe to call: the variant compiled for AVX2/FMA needs those features.
-pub type StageFn<R> = unsafe fn(&mut Lanes<R>, R, R, R, R) -> bool;
-
-/// One stage `D½ P1½ P2½ P3 P2½ P1½ D½` of weight w on every lane:
-/// `half = w/2`, `full = w` (times dt), time terms at `t0 + (n + c) dt`.
-#[inline(always)]
-pub fn fused_stage_body<
-    R: Real,
-    P: Pieces,
-    const P1: char,
-    const P2: char,
-    const P3: char,
-    const OPT: bool,
-    const TIME: bool,
->(
-    l: &mut Lanes<R>,
-    half: R,
-    full: R,
-    c: R,
-    nf: R,
-) -> bool {
-    let mut bad = false;
-    for i in 0..LANES {
-        let mut x = Lane::gather(l, i);
-        if TIME {
-            x.t = x.t0 + nf * x.dt + c * x.dt;
-            P::time(&mut x);
-        }
-        x.tau = half * x.dt;
-        P::piece::<R, OPT>(P1, &mut x);
-        P::piece::<R, OPT>(P2, &mut x);
-        x.tau = full * x.dt;
-        P::piece::<R, OPT>(P3, &mut x);
-        x.tau = half * x.dt;
-        P::piece::<R, OPT>(P2, &mut x);
-        P::piece::<R, OPT>(P1, &mut x);
-        bad |= !P::finite(&x);
-        x.scatter_state(l, i);
-    }
-    bad
-}
-
-/// [`fused_stage_body`] for any x86-64 (or other) CPU.
-///
-/// # Safety
-/// None required; `unsafe` only to share [`StageFn`] with the AVX2 variant.
-pub unsafe fn fused_stage<
-    R: Real,
-    P: Pieces,
-    const P1: char,
-    const P2: char,
-    const P3: char,
-    const OPT: bool,
-    const TIME: bool,
->(
-    l: &mut Lanes<R>,
-    half: R,
-    full: R,
-    c: R,
-    nf: R,
-) -> bool {
-    fused_stage_body::<R, P, P1, P2, P3, OPT, TIME>(l, half, full, c, nf)
-}
-
-/// [`fused_stage_body`] compiled for AVX2 and FMA (x86-64-v3).
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-pub unsafe fn fused_stage_v3<
-    R: Real,
-    P: Pieces,
-    const P1: char,
-    const P2: char,
-    const P3: char,
-    const OPT: bool,
-    const TIME: bool,
->(
-    l: &mut Lanes<R>,
-    half: R,
-    full: R,
-    c: R,
-    nf: R,
-) -> bool {
-    fused_stage_body::<R, P, P1, P2, P3, OPT, TIME>(l, half, full, c, nf)
-}
-
-/// [`fused_stage_body`] compiled for AVX-512 (x86-64-v4): twice the lanes per
-/// instruction and 32 vector registers, so constants stay in registers.
-///
-/// # Safety
-/// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
-pub unsafe fn fused_stage_v4<
-    R: Real,
-    P: Pieces,
-    const P1: char,
-    const P2: char,
-    const P3: char,
-    const OPT: bool,
-    const TIME: bool,
->(
-    l: &mut Lanes<R>,
-    half: R,
-    full: R,
-    c: R,
-    nf: R,
-) -> bool {
-    fused_stage_body::<R, P, P1, P2, P3, OPT, TIME>(l, half, full, c, nf)
-}
-
-/// The instruction-set level of the fused kernels on this CPU.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Isa {
-    /// Any x86-64 (or other architecture).
-    Baseline,
-    /// AVX2 + FMA.
-    V3,
-    /// AVX-512.
-    V4,
-}
-
-/// The best kernel level this CPU runs; `REEB_CPU_ISA=baseline|v3|v4` caps it.
-pub fn isa() -> Isa {
-    let cap = std::env::var("REEB_CPU_ISA").unwrap_or_default();
-    if cap == "baseline" {
-        return Isa::Baseline;
-    }
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::is_x86_feature_detected as has;
-        let v3 = has!("avx2") && has!("fma");
-        let v4 = v3 && has!("avx512f") && has!("avx512vl") && has!("avx512dq") && has!("avx512bw");
-        if v4 && cap != "v3" {
-            Isa::V4
-        } else if v3 {
-            Isa::V3
-        } else {
-            Isa::Baseline
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        Isa::Baseline
-    }
-}
-
-/// The fused stage for a piece order, optional variable and time, or `None`
-/// for an order that is not a permutation of A, B, C.
-pub fn stage_fn<R: Real, P: Pieces>(
-    order: [char; 3],
-    opt: bool,
-    time: bool,
-    isa: Isa,
-) -> Option<StageFn<R>> {
-    macro_rules! pick {
-        ($($a:literal $b:literal $c:literal),*) => {
-            match (order, opt, time) {
-                $(
-                    ([$a, $b, $c], false, false) => Some(variant!($a, $b, $c, false, false)),
-                    ([$a, $b, $c], true, false) => Some(variant!($a, $b, $c, true, false)),
-                    ([$a, $b, $c], false, true) => Some(variant!($a, $b, $c, false, true)),
-                    ([$a, $b, $c], true, true) => Some(variant!($a, $b, $c, true, true)),
-                )*
-                _ => None,
-            }
-        };
-    }
-    macro_rules! variant {
-        ($a:literal, $b:literal, $c:literal, $o:literal, $t:literal) => {{
-            #[cfg(target_arch = "x86_64")]
-            {
-                match isa {
-                    Isa::V4 => fused_stage_v4::<R, P, $a, $b, $c, $o, $t> as StageFn<R>,
-                    Isa::V3 => fused_stage_v3::<R, P, $a, $b, $c, $o, $t> as StageFn<R>,
-                    Isa::Baseline => fused_stage::<R, P, $a, $b, $c, $o, $t> as StageFn<R>,
-                }
-            }
-            #[cfg(not(target_arch = "x86_64"))]
-            {
-                let _ = isa;
-                fused_stage::<R, P, $a, $b, $c, $o, $t> as StageFn<R>
-            }
-        }};
-    }
-    pick!('A' 'B' 'C', 'A' 'C' 'B', 'B' 'A' 'C', 'B' 'C' 'A', 'C' 'A' 'B', 'C' 'B' 'A')
 }

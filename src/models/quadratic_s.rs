@@ -3,14 +3,17 @@
 //! `q'' = −q − γ s q'`: the damping depends on the action itself.
 
 #[allow(unused_imports)]
-use super::prelude::*;
+use crate::num::{math::Math, prims::Prims};
+#[allow(unused_imports)]
+use super::mechanical::{Mechanical1dOps, MechanicalFlows};
+
 
 use super::spec::{ModelSpec, ParamDef, TimeDependence};
-use super::Method;
+use super::spec::Method;
 
-crate::shared_fns! {
+crate::model_ops! {
     /// Pieces, vector field and RK4 of the quadratic-s oscillator.
-    ops trait QuadraticSOps, wgsl QUADRATIC_S_WGSL, lanes quadratic_s_lanes;
+    trait QuadraticSOps, wgsl QUADRATIC_S_WGSL, lanes quadratic_s_lanes;
 
     /// Piece A (γ s²/2) over τ: with `u = 1 + γ s τ/2`, `s ← s/u`, `p ← p/u²`
     /// (singular when u = 0: the trajectory is then flagged non-finite).
@@ -55,8 +58,14 @@ crate::shared_fns! {
     }
 }
 
+crate::model_lanes! {
+    traits [QuadraticSOps, MechanicalFlows, Mechanical1dOps];
+    lanes [quadratic_s_lanes, super::mechanical::mechanical_1d_lanes];
+}
+
 crate::pieces! {
     QUADRATIC_S_PIECES, QUADRATIC_S_TIME, QuadraticSPieces;
+    ops [QuadraticSOps in quadratic_s_lanes, Mechanical1dOps in super::mechanical::mechanical_1d_lanes];
     vars [q, p, s];
     time [];
     'A' [quadratic_s_a] identity_when_zero [gamma];
@@ -81,4 +90,10 @@ pub const SPEC: ModelSpec = ModelSpec {
     field_ops: &[("quadratic_s_field", false)],
     methods: &[(Method::Rk4, "quadratic_s_rk4")],
     wgsl: &[QUADRATIC_S_WGSL],
+    forcing_frequency: None,
+    derived: &[],
+    initial_defaults: &[],
+    initial_alias: None,
+    methods_carry_optional: true,
+    rules: super::spec::no_rules,
 };

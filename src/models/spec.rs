@@ -1,7 +1,41 @@
 //! What a model declares: variables, parameters, pieces and the shared
 //! functions (ops) that implement each piece, time term and method.
 
-use super::Method;
+
+/// A comparison integrator (SPEC §3), as opposed to a splitting scheme.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Method {
+    Rk4,
+    Leapfrog,
+    Variational1,
+    Variational2,
+}
+
+impl Method {
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Rk4 => "rk4",
+            Method::Leapfrog => "leapfrog",
+            Method::Variational1 => "variational1",
+            Method::Variational2 => "variational2",
+        }
+    }
+    /// Nominal order of accuracy.
+    pub fn order(self) -> u32 {
+        match self {
+            Method::Rk4 => 4,
+            Method::Leapfrog | Method::Variational2 => 2,
+            Method::Variational1 => 1,
+        }
+    }
+    /// Right-hand-side (force) evaluations per step, for cost comparisons.
+    pub fn evaluations(self) -> u32 {
+        match self {
+            Method::Rk4 => 4,
+            Method::Leapfrog | Method::Variational1 | Method::Variational2 => 1,
+        }
+    }
+}
 
 /// A scene parameter of a model.
 #[derive(Debug, Clone, Copy)]
@@ -80,6 +114,69 @@ pub struct ModelSpec {
     pub methods: &'static [(Method, &'static str)],
     /// Shared-function texts the GPU kernel needs beyond the common ones.
     pub wgsl: &'static [&'static str],
+    /// The parameter whose value ω sets the forcing period 2π/ω, or `None`
+    /// without forcing (`Some("")`: a fixed period 2π, mean motion 1).
+    pub forcing_frequency: Option<&'static str>,
+    /// Lane parameters computed from scene parameters (model-level data such
+    /// as Liénard coefficients come from `Model::derived`).
+    pub derived: &'static [Derived],
+    /// Initial values other than 0 when the scene gives none.
+    pub initial_defaults: &'static [(&'static str, f64)],
+    /// An initial key that stands for several initial values (Kepler's
+    /// `eccentricity`: the orbit's perihelion).
+    pub initial_alias: Option<InitialAlias>,
+    /// Do the comparison integrators carry the optional variable along
+    /// (mechanical models: s) or integrate without it (Liénard: no p)?
+    pub methods_carry_optional: bool,
+    /// Model rules on parameter and initial values (beyond finiteness);
+    /// `values("params.index")` lists every value a field takes.
+    pub rules: fn(values: &dyn Fn(&str) -> Vec<f64>, time: bool) -> Result<(), RuleError>,
+}
+
+/// A broken model rule: the field and what is wrong.
+pub type RuleError = (String, String);
+
+/// Rules of a model that has none.
+pub fn no_rules(_: &dyn Fn(&str) -> Vec<f64>, _: bool) -> Result<(), RuleError> {
+    Ok(())
+}
+
+/// Every value of `field` lies in `range`, else `message(value)`.
+pub fn each_in(
+    values: &dyn Fn(&str) -> Vec<f64>,
+    field: &str,
+    ok: impl Fn(f64) -> bool,
+    message: impl Fn(f64) -> String,
+) -> Result<(), RuleError> {
+    match values(field).into_iter().find(|v| !ok(*v)) {
+        Some(v) => Err((field.to_string(), message(v))),
+        None => Ok(()),
+    }
+}
+
+/// Map from a scene parameter's value to a derived lane parameter.
+pub type DeriveFn = fn(f64) -> f64;
+
+/// A lane parameter computed from a scene parameter (or a constant).
+#[derive(Debug, Clone, Copy)]
+pub struct Derived {
+    /// Lane field it fills.
+    pub name: &'static str,
+    /// The scene parameter it depends on, with the map; `None`: a constant.
+    pub from: Option<(&'static str, DeriveFn)>,
+    /// Value when `from` is `None`.
+    pub value: f64,
+}
+
+/// An initial key that sets other initial values (unless they are given).
+#[derive(Debug, Clone, Copy)]
+pub struct InitialAlias {
+    pub key: &'static str,
+    /// Accepted values, for the message: e.g. "[0, 1)".
+    pub range: &'static str,
+    pub ok: fn(f64) -> bool,
+    /// The initial values it sets, each from the key's value.
+    pub sets: &'static [(&'static str, DeriveFn)],
 }
 
 impl ModelSpec {

@@ -10,10 +10,13 @@
 //! B piece costs one sincos of 2q instead of fourteen.
 
 #[allow(unused_imports)]
-use super::prelude::*;
+use crate::num::{math::Math, prims::Prims};
+#[allow(unused_imports)]
+use super::mechanical::{Mechanical1dOps, MechanicalFlows};
 
-use super::spec::{ModelSpec, ParamDef, TimeDependence};
-use super::Method;
+
+use super::spec::{each_in, Derived, ModelSpec, ParamDef, RuleError, TimeDependence};
+use super::spec::Method;
 
 /// Cayley coefficients of `(a/r)³ cos(2θ − 2f)` to e⁷ (SPEC §2.1):
 /// `(m, [(k, c)])` with `W_m(e) = Σ c e^k`.
@@ -109,9 +112,9 @@ crate::shared_fns! {
     }
 }
 
-crate::shared_fns! {
+crate::model_ops! {
     /// Pieces and time terms of the spin–orbit model.
-    ops trait SpinOrbitOps, wgsl SPIN_ORBIT_WGSL, lanes spin_orbit_lanes;
+    trait SpinOrbitOps, wgsl SPIN_ORBIT_WGSL, lanes spin_orbit_lanes;
 
     /// Time terms at t: `pref`, the damping `f(t) = K − λΩ sin(Ωt) pref`, and
     /// the sums `cw = Σ a_m cos mt`, `sw = Σ b_m sin mt`.
@@ -174,13 +177,47 @@ crate::mechanical_1d_methods! {
             epsilon, lambda, omega, tidal_k, tidal_eta]
 }
 
+crate::model_lanes! {
+    traits [SpinOrbitFlows, SpinOrbitOps, SpinOrbitMethods, MechanicalFlows, Mechanical1dOps];
+    lanes [spin_orbit_lanes, spin_orbit_method_lanes, super::mechanical::mechanical_1d_lanes];
+}
+
 crate::pieces! {
     SPIN_ORBIT_PIECES, SPIN_ORBIT_TIME, SpinOrbitPieces;
+    ops [SpinOrbitOps in spin_orbit_lanes, Mechanical1dOps in super::mechanical::mechanical_1d_lanes];
     vars [q, p, s];
     time [spin_orbit_time];
     'A' [mech1_a_p, mech1_a_s(opt)] identity_when_zero [lambda, tidal_k];
     'B' [spin_orbit_b_p, spin_orbit_b_s(opt)] identity_when_zero [];
     'C' [mech1_c_q, mech1_c_s(opt)] identity_when_zero [];
+}
+
+/// The Fourier weights of the Cayley sums, from the eccentricity.
+#[rustfmt::skip]
+const WEIGHTS: &[Derived] = &[
+    Derived { name: "a1", from: Some(("eccentricity", |e| weight_a(1, e))), value: 0.0 },
+    Derived { name: "b1", from: Some(("eccentricity", |e| weight_b(1, e))), value: 0.0 },
+    Derived { name: "a2", from: Some(("eccentricity", |e| weight_a(2, e))), value: 0.0 },
+    Derived { name: "b2", from: Some(("eccentricity", |e| weight_b(2, e))), value: 0.0 },
+    Derived { name: "a3", from: Some(("eccentricity", |e| weight_a(3, e))), value: 0.0 },
+    Derived { name: "b3", from: Some(("eccentricity", |e| weight_b(3, e))), value: 0.0 },
+    Derived { name: "a4", from: Some(("eccentricity", |e| weight_a(4, e))), value: 0.0 },
+    Derived { name: "b4", from: Some(("eccentricity", |e| weight_b(4, e))), value: 0.0 },
+    Derived { name: "a5", from: Some(("eccentricity", |e| weight_a(5, e))), value: 0.0 },
+    Derived { name: "b5", from: Some(("eccentricity", |e| weight_b(5, e))), value: 0.0 },
+    Derived { name: "a6", from: Some(("eccentricity", |e| weight_a(6, e))), value: 0.0 },
+    Derived { name: "b6", from: Some(("eccentricity", |e| weight_b(6, e))), value: 0.0 },
+    Derived { name: "a7", from: Some(("eccentricity", |e| weight_a(7, e))), value: 0.0 },
+    Derived { name: "b7", from: Some(("eccentricity", |e| weight_b(7, e))), value: 0.0 },
+    Derived { name: "a8", from: Some(("eccentricity", |e| weight_a(8, e))), value: 0.0 },
+    Derived { name: "b8", from: Some(("eccentricity", |e| weight_b(8, e))), value: 0.0 },
+    Derived { name: "a9", from: Some(("eccentricity", |e| weight_a(9, e))), value: 0.0 },
+    Derived { name: "b9", from: Some(("eccentricity", |e| weight_b(9, e))), value: 0.0 },
+];
+
+/// The eccentricity lies in [0, 1).
+fn rules(values: &dyn Fn(&str) -> Vec<f64>, _time: bool) -> Result<(), RuleError> {
+    each_in(values, "params.eccentricity", |e| (0.0..1.0).contains(&e), |e| format!("{e} is not in [0, 1)"))
 }
 
 pub const SPEC: ModelSpec = ModelSpec {
@@ -209,6 +246,12 @@ pub const SPEC: ModelSpec = ModelSpec {
         (Method::Variational2, "spin_orbit_variational2"),
     ],
     wgsl: &[SPIN_ORBIT_FLOWS_WGSL, SPIN_ORBIT_WGSL, SPIN_ORBIT_METHODS_WGSL],
+    forcing_frequency: Some(""),
+    derived: WEIGHTS,
+    initial_defaults: &[],
+    initial_alias: None,
+    methods_carry_optional: true,
+    rules: rules,
 };
 
 #[cfg(test)]

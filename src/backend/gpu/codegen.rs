@@ -1,5 +1,5 @@
 //! WGSL for a plan: `shaders/prelude_*.wgsl`, the shared functions (translated
-//! from their single Rust source by [`crate::dsl::to_wgsl`]) and
+//! from their single Rust source by [`crate::num::dsl::to_wgsl`]) and
 //! `shaders/driver.wgsl`, with the plan's code spliced in.
 //!
 //! The kernel is specialised: it declares only the variables the plan's ops
@@ -10,13 +10,12 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write;
 
-use crate::dsl::to_wgsl;
-use crate::math::{MATH_F32_WGSL, MATH_F64_WGSL};
+use crate::num::dsl::to_wgsl;
+use crate::num::math::{MATH_F32_WGSL, MATH_F64_WGSL};
 use crate::models::COMMON_WGSL;
-use crate::observations::stroboscopic;
-use crate::observe::{Direction, Section};
+use crate::plan::observers::{Direction, Section};
 use crate::plan::{ObsVar, Op, Plan, Source};
-use crate::real::Precision;
+use crate::num::precision::Precision;
 
 const PRELUDE_F32: &str = include_str!("../../../shaders/prelude_f32.wgsl");
 const PRELUDE_F64: &str = include_str!("../../../shaders/prelude_f64.wgsl");
@@ -40,7 +39,7 @@ pub struct Kernel {
 #[derive(Debug, thiserror::Error)]
 pub enum CodegenError {
     #[error(transparent)]
-    Dsl(#[from] crate::dsl::DslError),
+    Dsl(#[from] crate::num::dsl::DslError),
     #[error("{0}")]
     Plan(String),
 }
@@ -141,7 +140,7 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
     }
     names.insert("dt".into());
     names.insert("t0".into());
-    if stroboscopic(plan) {
+    if plan.observers.stroboscopic() {
         names.insert("strobe_period".into());
         names.insert("strobe_phase".into());
     }
@@ -243,7 +242,7 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
     };
 
     // Observers.
-    let strobe_exact = stroboscopic(plan) && !plan.strobe_interpolated();
+    let strobe_exact = plan.observers.stroboscopic() && !plan.strobe_interpolated();
     let mut begin = String::new();
     let mut observe = String::new();
     let uses_aux = plan.observers.poincare.is_some() || plan.cycle_var.is_some();

@@ -11,9 +11,10 @@ use wgpu::util::DeviceExt;
 
 use super::codegen::{generate, AUX_R, AUX_U};
 use super::{GpuContext, GpuError};
-use crate::observations::Observations;
+use crate::models::Flows;
+use crate::plan::observations::Observations;
 use crate::plan::{ObsVar, Plan};
-use crate::real::{Precision, Real};
+use crate::num::precision::Precision;
 
 /// Wall time one dispatch aims at.
 pub const TARGET_DISPATCH_SECONDS: f64 = 0.1;
@@ -106,7 +107,7 @@ fn check(ctx: &GpuContext) -> Result<(), GpuError> {
 }
 
 /// Runs `plan` on the GPU in precision `R`.
-pub fn run<R: Real>(
+pub fn run<R: Flows>(
     ctx: &GpuContext,
     plan: &Plan,
     progress: Option<&AtomicU64>,
@@ -116,7 +117,7 @@ pub fn run<R: Real>(
 
 /// [`run`] with explicit chunk and window limits (tests use small ones to
 /// exercise every boundary).
-pub fn run_with<R: Real>(
+pub fn run_with<R: Flows>(
     ctx: &GpuContext,
     plan: &Plan,
     progress: Option<&AtomicU64>,
@@ -453,7 +454,7 @@ fn read_mapped<T: bytemuck::Pod>(
 
 /// Reads a finished chunk back into the observations (rows `base..base+count`).
 #[allow(clippy::too_many_arguments)]
-fn collect<R: Real>(
+fn collect<R: Flows>(
     ctx: &GpuContext,
     plan: &Plan,
     bufs: &Buffers,

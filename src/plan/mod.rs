@@ -9,12 +9,16 @@
 //! for `(q, s)`, no `t` for an autonomous one), which ops make one step, and
 //! where every lane input comes from. The ensemble is never materialised.
 
+pub mod observations;
+pub mod observers;
+pub mod scheme;
+
 use std::collections::BTreeMap;
 
 use crate::models::spec::{ModelSpec, TimeDependence};
 use crate::models::{lanes, Model};
-use crate::observe::{Observers, Section};
-use crate::scheme::{parse_order, Scheme, SchemeKind};
+use observers::{Observers, Section};
+use scheme::{parse_order, Scheme, SchemeKind};
 
 /// One axis of the ensemble.
 #[derive(Debug, Clone, PartialEq)]
@@ -111,7 +115,7 @@ impl Problem {
                 "integrator.scheme",
                 format!(
                     "unknown scheme `{scheme}`; known: {}",
-                    crate::scheme::SCHEME_NAMES.join(", ")
+                    crate::plan::scheme::SCHEME_NAMES.join(", ")
                 ),
             )
         })?;
@@ -284,7 +288,7 @@ impl Plan {
             };
             params.push((p.name, src));
         }
-        validate_params(&problem.model, &params)?;
+        check_coefficients(&problem.model)?;
         let nonzero = |name: &str| {
             params
                 .iter()
@@ -310,7 +314,7 @@ impl Plan {
             SchemeKind::Method(m) => Some(*m),
             SchemeKind::Splitting { .. } => None,
         };
-        let lienard_like = matches!(problem.model, Model::VanDerPol | Model::Lienard { .. });
+        let lienard_like = !spec.methods_carry_optional;
         let want_optional = spec
             .optional_var
             .is_some_and(|o| observed.iter().any(|v| v == o));
@@ -343,27 +347,19 @@ impl Plan {
             TimeDependence::WhenNonzero(ps) => ps.iter().any(|p| nonzero(p)),
         };
 
-        for name in problem.initial.keys() {
-            if name != "t0" && !spec.vars.contains(&name.as_str()) {
-                return Err(err(
-                    format!("initial.{name}"),
-                    format!(
-                        "model `{}` has no variable `{name}`; initial conditions are: {}, t0",
-                        spec.name,
-                        spec.vars.join(", ")
-                    ),
-                ));
-            }
-        }
-        let t0 = problem
-            .initial
-            .get("t0")
-            .cloned()
-            .unwrap_or(Source::Const(0.0));
-        if time && matches!(problem.model, Model::LaneEmden) && t0.values().iter().any(|v| *v < 0.0)
-        {
-            return Err(err("initial.t0", "Lane–Emden starts at t0 ≥ 0 (f = 2/t)"));
-        }
+        let initial = resolve_initial(spec, &problem.initial)?;
+        let t0 = initial.get("t0").cloned().unwrap_or(Source::Const(0.0));
+        let values = |field: &str| -> Vec<f64> {
+            let (table, key) = field.split_once('.').unwrap_or(("", field));
+            let found = match table {
+                "params" => params.iter().find(|(p, _)| *p == key).map(|(_, s)| s),
+                "initial" if key == "t0" => Some(&t0),
+                "initial" => initial.get(key),
+                _ => None,
+            };
+            found.map(Source::values).unwrap_or_default()
+        };
+        (spec.rules)(&values, time).map_err(|(f, m)| err(f, m))?;
         if problem
             .dt
             .values()
@@ -398,15 +394,14 @@ impl Plan {
             bindings.push((d.name, src));
         }
         for v in &vars {
-            let default = if matches!(problem.model, Model::LaneEmden) && *v == "q" {
-                1.0
-            } else {
-                0.0
-            };
+            let default = spec
+                .initial_defaults
+                .iter()
+                .find(|(d, _)| d == v)
+                .map_or(0.0, |(_, x)| *x);
             bindings.push((
                 v,
-                problem
-                    .initial
+                initial
                     .get(*v)
                     .cloned()
                     .unwrap_or(Source::Const(default)),
@@ -605,7 +600,7 @@ impl Plan {
     /// Does some trajectory's stroboscopic sample fall inside a step (period
     /// or phase not a whole number of steps), so that it is interpolated?
     pub fn strobe_interpolated(&self) -> bool {
-        if !crate::observations::stroboscopic(self) {
+        if !self.observers.stroboscopic() {
             return false;
         }
         let dts = self.binding("dt").values();
@@ -619,7 +614,7 @@ impl Plan {
         !dts.iter().all(|dt| {
             pairs
                 .iter()
-                .all(|(pe, ph)| crate::observations::strobe_steps(*pe, *ph, *dt).is_some())
+                .all(|(pe, ph)| observers::strobe_steps(*pe, *ph, *dt).is_some())
         })
     }
 
@@ -690,6 +685,39 @@ impl Plan {
     }
 }
 
+/// Initial values by variable name (and `t0`): known keys only, and a
+/// model's alias (Kepler's `eccentricity`) replaced by what it stands for.
+fn resolve_initial(
+    spec: &ModelSpec,
+    given: &BTreeMap<String, Source>,
+) -> Result<BTreeMap<String, Source>, PlanError> {
+    let mut initial = given.clone();
+    if let Some(alias) = &spec.initial_alias {
+        if let Some(e) = initial.remove(alias.key) {
+            let field = format!("initial.{}", alias.key);
+            if let Some(v) = e.values().into_iter().find(|v| !(alias.ok)(*v)) {
+                return Err(err(field, format!("{v} is not in {}", alias.range)));
+            }
+            for (var, f) in alias.sets {
+                initial.entry(var.to_string()).or_insert_with(|| e.map(f));
+            }
+        }
+    }
+    for name in initial.keys() {
+        if name != "t0" && !spec.vars.contains(&name.as_str()) {
+            return Err(err(
+                format!("initial.{name}"),
+                format!(
+                    "model `{}` has no variable `{name}`; initial conditions are: {}, t0",
+                    spec.name,
+                    spec.vars.join(", ")
+                ),
+            ));
+        }
+    }
+    Ok(initial)
+}
+
 /// Axis references in range and of the axis's length.
 fn check_sources(problem: &Problem) -> Result<(), PlanError> {
     let all = problem
@@ -737,54 +765,27 @@ fn check_sources(problem: &Problem) -> Result<(), PlanError> {
     Ok(())
 }
 
-/// Model-specific parameter checks.
-fn validate_params(model: &Model, params: &[(&'static str, Source)]) -> Result<(), PlanError> {
-    let get = |n: &str| {
-        params
-            .iter()
-            .find(|(p, _)| *p == n)
-            .map(|(_, s)| s.values())
-            .unwrap_or_default()
-    };
-    match model {
-        Model::LaneEmden => {
-            for k in get("index") {
-                if k.fract() != 0.0 || !(0.0..=crate::models::lane_emden::MAX_INDEX).contains(&k) {
-                    return Err(err(
-                        "params.index",
-                        format!("{k} is not an integer in 0..=15"),
-                    ));
-                }
+/// The Liénard model's coefficient lists (model-level data, not parameters).
+fn check_coefficients(model: &Model) -> Result<(), PlanError> {
+    if let Model::Lienard { f, g } = model {
+        for (name, c) in [("f", f), ("g", g)] {
+            if c.len() > crate::models::lienard::MAX_COEFFICIENTS {
+                return Err(err(
+                    format!("params.{name}"),
+                    format!(
+                        "{} coefficients given; at most {} (degree 9)",
+                        c.len(),
+                        crate::models::lienard::MAX_COEFFICIENTS
+                    ),
+                ));
+            }
+            if c.iter().any(|v| !v.is_finite()) {
+                return Err(err(
+                    format!("params.{name}"),
+                    "contains a value that is not a finite number",
+                ));
             }
         }
-        Model::SpinOrbit => {
-            for e in get("eccentricity") {
-                if !(0.0..1.0).contains(&e) {
-                    return Err(err("params.eccentricity", format!("{e} is not in [0, 1)")));
-                }
-            }
-        }
-        Model::Lienard { f, g } => {
-            for (name, c) in [("f", f), ("g", g)] {
-                if c.len() > crate::models::lienard::MAX_COEFFICIENTS {
-                    return Err(err(
-                        format!("params.{name}"),
-                        format!(
-                            "{} coefficients given; at most {} (degree 9)",
-                            c.len(),
-                            crate::models::lienard::MAX_COEFFICIENTS
-                        ),
-                    ));
-                }
-                if c.iter().any(|v| !v.is_finite()) {
-                    return Err(err(
-                        format!("params.{name}"),
-                        "contains a value that is not a finite number",
-                    ));
-                }
-            }
-        }
-        _ => {}
     }
     Ok(())
 }

@@ -13,7 +13,7 @@
 //! arithmetic, comparisons, `&`, `>>`, `<<` on `i32`; calls to other shared
 //! functions and to the primitives as `R::name(..)`: `sqrt`, `floor`, `abs`,
 //! `min`, `max` (inherent on `f32`/`f64`, builtins in WGSL), `select`,
-//! `pow2i`, `to_i32`, `from_i32`, `inf` ([`crate::real::Prims`] on the CPU,
+//! `pow2i`, `to_i32`, `from_i32`, `inf` ([`crate::num::precision::Prims`] on the CPU,
 //! `shaders/prelude_*.wgsl` on the GPU). Every function ends in `return`.
 //! The naga test in `tests/shaders.rs` rejects anything outside this subset.
 
@@ -24,65 +24,6 @@
 /// `pub const CONST: &str` with the Rust text of the functions.
 #[macro_export]
 macro_rules! shared_fns {
-    (
-        $(#[$tmeta:meta])*
-        ops trait $tr:ident, wgsl $wg:ident, lanes $lm:ident;
-        $(
-            $(#[$fmeta:meta])*
-            fn $name:ident ( $($arg:ident : $aty:ty),* $(,)? ) $body:block
-        )*
-    ) => {
-        $crate::shared_fns! {
-            $(#[$tmeta])*
-            trait $tr, wgsl $wg;
-            $( $(#[$fmeta])* fn $name($($arg: $aty),*) $body )*
-        }
-        /// Lane loops, one per op: each applies its shared function to every
-        /// lane of a block, binding every argument to the lane array of the
-        /// same name (the GPU kernel binds them to locals of the same name).
-        pub mod $lm {
-            #[allow(unused_imports)]
-            use super::*;
-            use $crate::models::lanes::{Bind, LaneFn, Lanes, LANES};
-            use $crate::real::Real;
-            $(
-                #[allow(clippy::needless_range_loop)]
-                pub fn $name<R: Real>(l: &mut Lanes<R>) {
-                    for i in 0..LANES {
-                        <R as $tr>::$name($( Bind::bind(&mut l.$arg[i]) ),*);
-                    }
-                }
-            )*
-            /// The lane loop of the op called `name`.
-            pub fn lookup<R: Real>(name: &str) -> Option<LaneFn<R>> {
-                match name {
-                    $( stringify!($name) => Some($name::<R> as LaneFn<R>), )*
-                    _ => None,
-                }
-            }
-
-            /// The same ops on one trajectory, binding the fields of a [`Lane`].
-            pub mod scalar {
-                #[allow(unused_imports)]
-                use super::super::*;
-                use $crate::models::lanes::{Bind, Lane, ScalarFn};
-                use $crate::real::Real;
-                $(
-                    #[inline(always)]
-                    pub fn $name<R: Real>(x: &mut Lane<R>) {
-                        <R as $tr>::$name($( Bind::bind(&mut x.$arg) ),*);
-                    }
-                )*
-                /// The scalar op called `name`.
-                pub fn lookup<R: Real>(name: &str) -> Option<ScalarFn<R>> {
-                    match name {
-                        $( stringify!($name) => Some($name::<R> as ScalarFn<R>), )*
-                        _ => None,
-                    }
-                }
-            }
-        }
-    };
     (
         concrete, wgsl $wg:ident;
         $(
@@ -96,7 +37,7 @@ macro_rules! shared_fns {
             #[allow(unused_mut, unused_variables, clippy::needless_return, clippy::excessive_precision, clippy::too_many_arguments, clippy::approx_constant, clippy::assign_op_pattern)]
             pub fn $name($($arg: $aty),*) $(-> $ret)? $body
         )*
-        /// Rust text of the shared functions; [`crate::dsl::to_wgsl`] makes it WGSL.
+        /// Rust text of the shared functions; [`crate::num::dsl::to_wgsl`] makes it WGSL.
         pub const $wg: &str = concat!($( stringify!(fn $name($($arg: $aty),*) $(-> $ret)? $body), "\n", )*);
     };
     (
@@ -131,7 +72,7 @@ macro_rules! shared_fns {
                 )*
             }
         };
-        /// Rust text of the shared functions; [`crate::dsl::to_wgsl`] makes it WGSL.
+        /// Rust text of the shared functions; [`crate::num::dsl::to_wgsl`] makes it WGSL.
         pub const $wg: &str = concat!($( stringify!(fn $name($($arg: $aty),*) $(-> $ret)? $body), "\n", )*);
     };
 }

@@ -13,10 +13,11 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 use npyz::WriterBuilder;
 
+use crate::models::Flows;
 use crate::backend::cpu;
 use crate::backend::gpu::{self, GpuContext};
-use crate::observations::{estimate_bytes, Observations};
-use crate::real::{Precision, Real};
+use crate::plan::observations::{estimate_bytes, Observations};
+use crate::num::precision::Precision;
 use crate::scene::{BackendChoice, OutVar, Scene};
 
 /// The backend a run ends up on.
@@ -147,7 +148,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
 
 /// Integrates one plan on the chosen engine; returns the observations and
 /// the integration time (and how it was measured).
-pub fn integrate<R: Real>(
+pub fn integrate<R: Flows>(
     engine: &Engine,
     plan: &crate::plan::Plan,
     progress: Option<&AtomicU64>,
@@ -165,20 +166,7 @@ pub fn integrate<R: Real>(
     })
 }
 
-/// Global arrays of a scene: rows in the scene's axis order.
-struct Assembled<R> {
-    final_values: Vec<(String, Vec<R>)>,
-    frames: usize,
-    trajectory: Vec<(String, Vec<R>)>,
-    max_points: usize,
-    poincare: Vec<(String, Vec<R>)>,
-    poincare_count: Vec<u32>,
-    cycle_amplitude: Vec<R>,
-    cycle_period: Vec<R>,
-    nonfinite_step: Vec<u32>,
-}
-
-fn run_typed<R: Real>(
+fn run_typed<R: Flows>(
     scene: &Scene,
     subs: Vec<crate::scene::SubRun>,
     opts: &RunOptions,
@@ -203,18 +191,9 @@ fn run_typed<R: Real>(
         b.set_message(format!("{} on {}", scene.name, engine.name()));
         b
     });
-    let frames = subs
-        .iter()
-        .map(|s| {
-            s.plan
-                .observers
-                .trajectory
-                .as_ref()
-                .map_or(0, |t| (s.plan.steps / t.every) as usize + 1)
-        })
-        .max()
-        .unwrap_or(0);
-    let mut asm: Option<Assembled<R>> = None;
+    // The scene's arrays, rows in the scene's axis order; sub-runs of fewer
+    // steps fill the leading frames of their rows.
+    let mut asm: Option<Observations<R>> = None;
     let mut seconds = 0.0;
     let mut timing = "wall clock";
     let mut max_steps = 0;
@@ -237,56 +216,14 @@ fn run_typed<R: Real>(
                 timing = how;
                 max_steps = max_steps.max(sub.plan.steps);
                 if subs.len() == 1 {
-                    asm = Some(Assembled {
-                        frames: obs.frames,
-                        final_values: obs.final_values,
-                        trajectory: obs.trajectory,
-                        max_points: obs.max_points,
-                        poincare: obs.poincare,
-                        poincare_count: obs.poincare_count,
-                        cycle_amplitude: obs.cycle_amplitude,
-                        cycle_period: obs.cycle_period,
-                        nonfinite_step: obs.nonfinite_step,
-                    });
+                    asm = Some(obs);
                     continue;
                 }
                 let a = asm.get_or_insert_with(|| {
-                    let nan = |len: usize| vec![R::nan(); len];
-                    Assembled {
-                        frames,
-                        final_values: obs
-                            .final_values
-                            .iter()
-                            .map(|(v, _)| (v.clone(), nan(n)))
-                            .collect(),
-                        trajectory: obs
-                            .trajectory
-                            .iter()
-                            .map(|(v, _)| (v.clone(), nan(n * frames)))
-                            .collect(),
-                        max_points: obs.max_points,
-                        poincare: obs
-                            .poincare
-                            .iter()
-                            .map(|(v, _)| (v.clone(), nan(n * obs.max_points)))
-                            .collect(),
-                        poincare_count: if obs.max_points > 0 {
-                            vec![0; n]
-                        } else {
-                            vec![]
-                        },
-                        cycle_amplitude: if obs.cycle_amplitude.is_empty() {
-                            vec![]
-                        } else {
-                            nan(n)
-                        },
-                        cycle_period: if obs.cycle_period.is_empty() {
-                            vec![]
-                        } else {
-                            nan(n)
-                        },
-                        nonfinite_step: vec![0; n],
-                    }
+                    let longest = subs.iter().max_by_key(|s| s.plan.steps).unwrap_or(sub);
+                    let mut whole = longest.plan.clone();
+                    whole.n = n;
+                    Observations::for_plan(&whole)
                 });
                 // Local row j (over the free axes) → global row g.
                 for (j, g) in sub.scene_rows(&shape, &strides).enumerate() {
@@ -294,7 +231,7 @@ fn run_typed<R: Real>(
                         dst[g] = src[j];
                     }
                     for ((_, dst), (_, src)) in a.trajectory.iter_mut().zip(&obs.trajectory) {
-                        dst[g * frames..g * frames + obs.frames]
+                        dst[g * a.frames..g * a.frames + obs.frames]
                             .copy_from_slice(&src[j * obs.frames..(j + 1) * obs.frames]);
                     }
                     let mp = obs.max_points;
@@ -427,21 +364,7 @@ fn run_typed<R: Real>(
     )?;
     files.extend(["status.npy".to_string(), "status_step.npy".to_string()]);
 
-    let pictures = crate::pictures::draw(
-        scene,
-        &partial,
-        &PictureData {
-            final_values: &a.final_values,
-            frames: a.frames,
-            trajectory: &a.trajectory,
-            max_points: a.max_points,
-            poincare: &a.poincare,
-            poincare_count: &a.poincare_count,
-            cycle_amplitude: &a.cycle_amplitude,
-            cycle_period: &a.cycle_period,
-            nonfinite_step: &a.nonfinite_step,
-        },
-    );
+    let pictures = crate::output::pictures::draw(scene, &partial, &a);
     let pictures = match pictures {
         Ok(p) => p,
         Err(e) => {
@@ -451,7 +374,7 @@ fn run_typed<R: Real>(
     };
     files.extend(pictures);
 
-    let ok = a.nonfinite_step.iter().filter(|s| **s == 0).count();
+    let ok = a.count_ok();
     let rate = if seconds > 0.0 {
         total as f64 / seconds
     } else {
@@ -481,7 +404,7 @@ fn run_typed<R: Real>(
         "integration_seconds": seconds,
         "timing": timing,
         "traj_steps_per_s": rate,
-        "evaluations_per_step": crate::scheme::Scheme::by_name(&scene.scheme).map(|s| s.evaluations()),
+        "evaluations_per_step": crate::plan::scheme::Scheme::by_name(&scene.scheme).map(|s| s.evaluations()),
         "status": {"ok": ok, "non_finite": n - ok},
         "files": files,
     });
@@ -510,19 +433,6 @@ fn run_typed<R: Real>(
         out.display()
     );
     Ok(RunReport { out, summary, line })
-}
-
-/// The observations the pictures are drawn from.
-pub struct PictureData<'a, R> {
-    pub final_values: &'a [(String, Vec<R>)],
-    pub frames: usize,
-    pub trajectory: &'a [(String, Vec<R>)],
-    pub max_points: usize,
-    pub poincare: &'a [(String, Vec<R>)],
-    pub poincare_count: &'a [u32],
-    pub cycle_amplitude: &'a [R],
-    pub cycle_period: &'a [R],
-    pub nonfinite_step: &'a [u32],
 }
 
 fn partial_dir(out: &Path) -> PathBuf {

@@ -8,9 +8,9 @@ use std::path::Path;
 
 use anyhow::Result;
 
-use crate::plot::{self, Figure, Series};
-use crate::real::Real;
-use crate::runner::PictureData;
+use crate::plan::observations::Observations;
+use crate::output::plot::{self, Figure, Series};
+use crate::num::precision::Real;
 use crate::scene::Scene;
 
 /// Is the grid geometric (so a log axis shows it evenly)?
@@ -56,7 +56,7 @@ fn envelope(x: &[f64], y: impl Fn(usize) -> f64) -> (Vec<f64>, Vec<f64>) {
 }
 
 /// Draws the pictures into `dir`; returns the file names written.
-pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &PictureData<R>) -> Result<Vec<String>> {
+pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &Observations<R>) -> Result<Vec<String>> {
     let mut files = vec![];
     let title = scene
         .title
@@ -72,7 +72,7 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &PictureData<R>) -> Result<Ve
     // the slice they draw, never a copy of a whole (possibly 10⁷-long) array.
     type Stat<'a> = (String, String, Box<dyn Fn(usize) -> f64 + 'a>);
     let mut stats: Vec<Stat> = vec![];
-    for (name, v) in d.final_values {
+    for (name, v) in &d.final_values {
         stats.push((
             format!("final_{name}"),
             format!("final {name}"),

@@ -16,15 +16,15 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use crate::observations::Observations;
-use crate::observe::CycleObs;
+use crate::plan::observations::Observations;
+use crate::plan::observers::CycleObs;
 use crate::plan::Plan;
-use crate::plot::{self, Figure, Series, Slope};
-use crate::real::Precision;
-use crate::runner::{integrate, resolve_backend, Engine};
+use crate::output::plot::{self, Figure, Series, Slope};
+use crate::num::precision::Precision;
+use crate::output::run::{integrate, resolve_backend, Engine};
 use crate::scene::{BackendChoice, Horizon, OutVar, ReportSettings, Scene};
-use crate::scheme::Scheme;
-use crate::truth::{dop853_of, lane_of, truth, Truth};
+use crate::plan::scheme::Scheme;
+use crate::reference::truth::{dop853_of, lane_of, truth, Truth};
 
 /// One measured point of a work–precision diagram.
 #[derive(Debug, Clone)]

@@ -10,14 +10,15 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
 
-use crate::models::lane_fn;
+pub mod kernels;
+
 use crate::models::lanes::{index_of, LaneFn, Lanes, LANES};
-use crate::models::pieces::StageFn;
-pub use crate::models::pieces::{isa, Isa};
-use crate::observations::{stroboscopic, Observations};
-use crate::observe::{Direction, Section};
+use crate::models::{lane_fn, Flows};
+use crate::plan::observations::Observations;
+use crate::plan::observers::{Direction, Section};
 use crate::plan::{ObsVar, Op, Plan, Source};
-use crate::real::Real;
+pub use kernels::{isa, Isa};
+use kernels::{StageBuilder, StageFn};
 
 /// A plan resolved for the CPU: ops as lane loops, names as lane indices.
 struct Compiled<'p, R> {
@@ -80,13 +81,13 @@ struct Sink<R> {
 
 /// Integrates `plan` on the CPU in precision `R`. `progress`, if given, is
 /// advanced by trajectory-steps as blocks go.
-pub fn run<R: Real>(plan: &Plan, progress: Option<&AtomicU64>) -> Observations<R> {
+pub fn run<R: Flows>(plan: &Plan, progress: Option<&AtomicU64>) -> Observations<R> {
     run_isa(plan, progress, isa())
 }
 
 /// [`run`] with the fused kernels of a given instruction-set level (which
 /// must not exceed the CPU's, see [`isa`]).
-pub fn run_isa<R: Real>(plan: &Plan, progress: Option<&AtomicU64>, isa: Isa) -> Observations<R> {
+pub fn run_isa<R: Flows>(plan: &Plan, progress: Option<&AtomicU64>, isa: Isa) -> Observations<R> {
     assert!(
         isa_rank(isa) <= isa_rank(self::isa()),
         "the CPU lacks {isa:?}"
@@ -129,7 +130,7 @@ fn isa_rank(i: Isa) -> u8 {
     }
 }
 
-fn compile<R: Real>(plan: &Plan, isa: Isa) -> Compiled<'_, R> {
+fn compile<R: Flows>(plan: &Plan, isa: Isa) -> Compiled<'_, R> {
     let call =
         |name: &str| lane_fn::<R>(name).unwrap_or_else(|| panic!("plan names unknown op {name}"));
     let ops = plan
@@ -143,9 +144,12 @@ fn compile<R: Real>(plan: &Plan, isa: Isa) -> Compiled<'_, R> {
         .collect();
     let idx = |name: &str| index_of(name).unwrap_or_else(|| panic!("{name} is not a lane field"));
     let stages = plan.stages.as_ref().and_then(|st| {
-        let f = plan
-            .model
-            .stage_fn::<R>(st.order, st.with_optional, plan.time, isa)?;
+        let f = plan.model.with_pieces::<R, _>(StageBuilder {
+            order: st.order,
+            opt: st.with_optional,
+            time: plan.time,
+            isa,
+        })?;
         Some(
             st.stages
                 .iter()
@@ -182,7 +186,7 @@ struct BlockObservers<R> {
     cycle_comoment: [R; LANES],
 }
 
-fn run_block<R: Real>(
+fn run_block<R: Flows>(
     c: &Compiled<R>,
     block: usize,
     l: &mut Lanes<R>,
@@ -213,7 +217,7 @@ fn run_block<R: Real>(
         cycle_mean_t: [R::default(); LANES],
         cycle_comoment: [R::default(); LANES],
     };
-    if stroboscopic(plan) && !plan.strobe_interpolated() {
+    if plan.observers.stroboscopic() && !plan.strobe_interpolated() {
         // Every step divides the period: sample by step count, in R as the GPU does.
         let (mut every, mut first) = ([1u64; LANES], [0u64; LANES]);
         let half = R::from_f64(0.5);
@@ -377,7 +381,7 @@ fn run_block<R: Real>(
 }
 
 /// Vector field at the end of step `n` (time `t0 + n dt`) into the `d<var>` lanes.
-fn eval_field<R: Real>(c: &Compiled<R>, l: &mut Lanes<R>, n: u64) {
+fn eval_field<R: Flows>(c: &Compiled<R>, l: &mut Lanes<R>, n: u64) {
     let nf = R::from_f64(n as f64);
     for i in 0..LANES {
         l.t[i] = l.t0[i] + nf * l.dt[i];
@@ -390,7 +394,7 @@ fn eval_field<R: Real>(c: &Compiled<R>, l: &mut Lanes<R>, n: u64) {
 /// Value of an observed variable at θ inside step `n → n+1` (θ = 1: the end).
 #[inline]
 #[allow(clippy::too_many_arguments)]
-fn value_at<R: Real>(
+fn value_at<R: Flows>(
     c: &Compiled<R>,
     l: &Lanes<R>,
     v: ObsVar,
@@ -423,7 +427,7 @@ fn value_at<R: Real>(
 
 /// Trajectory frames and Poincaré points after step `n1` (0: the initial state).
 #[allow(clippy::too_many_arguments)]
-fn observe<R: Real>(
+fn observe<R: Flows>(
     c: &Compiled<R>,
     l: &Lanes<R>,
     obs: &mut BlockObservers<R>,
@@ -533,7 +537,7 @@ fn observe<R: Real>(
 
 /// `x` clamped to [0, 1] (WGSL's `clamp(x, 0.0, 1.0)`).
 #[inline]
-fn clamp01<R: Real>(x: R) -> R {
+fn clamp01<R: Flows>(x: R) -> R {
     let (zero, one) = (R::default(), R::from_f64(1.0));
     if x < zero {
         zero
@@ -546,7 +550,7 @@ fn clamp01<R: Real>(x: R) -> R {
 
 /// Cycle statistics over step `n → n+1` (inside the measuring window).
 #[allow(clippy::too_many_arguments)]
-fn cycle_update<R: Real>(
+fn cycle_update<R: Flows>(
     c: &Compiled<R>,
     l: &Lanes<R>,
     obs: &mut BlockObservers<R>,

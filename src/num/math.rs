@@ -13,7 +13,7 @@
 //! |x| ≤ 10⁶ (f64), where the Cody–Waite reduction by π/2 is exact enough;
 //! beyond that accuracy degrades gradually, and the result stays in [−1, 1].
 
-use crate::real::Prims;
+use crate::num::prims::Prims;
 
 crate::shared_fns! {
     concrete, wgsl MATH_F32_WGSL;
@@ -123,6 +123,54 @@ crate::shared_fns! {
         *cs = f64::select(f64::select(c2, 1.0, c2 > 1.0), -1.0, c2 < -1.0);
     }
 }
+
+/// Elementary functions of the working precision. Both backends use reeb's
+/// own range-reduced polynomials ([`crate::math`]), never the platform's.
+pub trait Math: Sized {
+    fn exp_r(x: Self) -> Self;
+    fn sincos_r(x: Self, s: &mut Self, c: &mut Self);
+    #[inline(always)]
+    fn sin_r(x: Self) -> Self
+    where
+        Self: Copy + Default,
+    {
+        let (mut s, mut c) = (Self::default(), Self::default());
+        Self::sincos_r(x, &mut s, &mut c);
+        s
+    }
+    #[inline(always)]
+    fn cos_r(x: Self) -> Self
+    where
+        Self: Copy + Default,
+    {
+        let (mut s, mut c) = (Self::default(), Self::default());
+        Self::sincos_r(x, &mut s, &mut c);
+        c
+    }
+}
+
+impl Math for f32 {
+    #[inline(always)]
+    fn exp_r(x: f32) -> f32 {
+        exp_f32(x)
+    }
+    #[inline(always)]
+    fn sincos_r(x: f32, s: &mut f32, c: &mut f32) {
+        sincos_f32(x, s, c)
+    }
+}
+
+impl Math for f64 {
+    #[inline(always)]
+    fn exp_r(x: f64) -> f64 {
+        exp_f64(x)
+    }
+    #[inline(always)]
+    fn sincos_r(x: f64, s: &mut f64, c: &mut f64) {
+        sincos_f64(x, s, c)
+    }
+}
+
 
 #[cfg(test)]
 mod tests {

@@ -30,10 +30,10 @@ use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
 use crate::models::{lienard, Model, MODEL_NAMES};
-use crate::observe::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
+use crate::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
 use crate::plan::{Plan, Problem, Source};
-use crate::real::Precision;
-use crate::scheme::{Scheme, SCHEME_NAMES};
+use crate::num::precision::Precision;
+use crate::plan::scheme::{Scheme, SCHEME_NAMES};
 
 /// A scene error: file, line, field and what is wrong.
 #[derive(Debug, Clone, thiserror::Error)]
@@ -619,9 +619,9 @@ impl Scene {
         let mut initial = BTreeMap::new();
         let mut known_initial: Vec<&str> = spec.vars.to_vec();
         known_initial.push("t0");
-        if matches!(model, Model::Kepler) {
-            // An orbit of semi-major axis 1 at perihelion (SPEC §2.1).
-            known_initial.push("eccentricity");
+        if let Some(alias) = &spec.initial_alias {
+            // e.g. Kepler's eccentricity: an orbit at perihelion (SPEC §2.1).
+            known_initial.push(alias.key);
         }
         if let Some(t) = table(&p, "initial")? {
             for (k, v) in p.entries(t, "initial", Some(&known_initial))? {
@@ -1344,28 +1344,6 @@ impl Scene {
         }
         for (k, v) in &self.initial {
             problem.initial.insert(k.clone(), source(v));
-        }
-        if let Some(e) = problem.initial.remove("eccentricity") {
-            for v in e.values() {
-                if !(0.0..1.0).contains(&v) {
-                    return Err(self.error("initial.eccentricity", format!("{v} is not in [0, 1)")));
-                }
-            }
-            let derive = |f: fn(f64) -> f64| match &e {
-                Source::Const(v) => Source::Const(f(*v)),
-                Source::Axis { axis, values } => Source::Axis {
-                    axis: *axis,
-                    values: values.iter().map(|v| f(*v)).collect(),
-                },
-            };
-            problem
-                .initial
-                .entry("q1".into())
-                .or_insert_with(|| derive(|e| crate::models::kepler::perihelion(e).0[0]));
-            problem
-                .initial
-                .entry("p2".into())
-                .or_insert_with(|| derive(|e| crate::models::kepler::perihelion(e).1[1]));
         }
         problem.dt = source(&self.dt);
         problem.steps = match self.horizon {

@@ -1,8 +1,7 @@
 //! What a run produces, per trajectory, in the run's precision.
 
-use crate::observe::Section;
 use crate::plan::{ObsVar, Plan};
-use crate::real::{Precision, Real};
+use crate::num::precision::{Precision, Real};
 
 /// Status of a trajectory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -142,23 +141,3 @@ pub fn estimate_bytes(plan: &Plan, precision: Precision) -> u64 {
     n * per_traj
 }
 
-/// Is the stroboscopic section of `plan` sampled exactly (period and phase
-/// whole multiples of every trajectory's step)? Then no interpolation is needed.
-pub fn strobe_steps(period: f64, phase: f64, dt: f64) -> Option<(u64, u64)> {
-    let whole = |x: f64| {
-        let r = (x / dt).round();
-        (r >= 0.0 && ((x / dt) - r).abs() <= 1e-9 * r.max(1.0)).then_some(r as u64)
-    };
-    match (whole(period), whole(phase)) {
-        (Some(n), Some(k)) if n > 0 => Some((n, k)),
-        _ => None,
-    }
-}
-
-/// Is the plan's section stroboscopic (fixed or forcing period)?
-pub fn stroboscopic(plan: &Plan) -> bool {
-    matches!(
-        plan.observers.poincare.as_ref().map(|p| &p.section),
-        Some(Section::Stroboscopic { .. } | Section::Forced { .. })
-    )
-}

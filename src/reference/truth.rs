@@ -1,7 +1,7 @@
 //! Reference solutions of a plan's trajectory: the closed form where the
 //! model has one (damped oscillator, Lane–Emden k = 0, 1, 5, the harmonic
 //! limit of van der Pol), otherwise the adaptive DOP853 of
-//! [`crate::reference`] on the model's own vector field (the same shared
+//! [`crate::reference::dop853`] on the model's own vector field (the same shared
 //! functions both backends use), at tight tolerance, with dense output at the
 //! comparison times.
 
@@ -9,11 +9,11 @@ use std::time::Instant;
 
 use anyhow::{anyhow, bail, Result};
 
-use crate::exact;
+use crate::models::exact;
 use crate::models::lanes::Lane;
 use crate::models::{lane_emden, scalar_fn, Model};
 use crate::plan::Plan;
-use crate::reference::{dop853, Dop853Options};
+use crate::reference::dop853::{dop853, Dop853Options};
 
 /// A reference trajectory.
 #[derive(Debug, Clone)]

@@ -2,7 +2,7 @@
 //! piece order, its symmetric compositions given by weight lists, and the
 //! comparison integrators.
 
-use crate::models::Method;
+use crate::models::spec::Method;
 
 /// Triple-jump pair `(γ1, γ0)` raising an order-2k method to order 2k+2:
 /// `γ1 = 1/(2 − 2^{1/(2k+1)})`, `γ0 = −2^{1/(2k+1)}/(2 − 2^{1/(2k+1)})`.

@@ -1,0 +1,101 @@
+//! Primitives with one exact meaning on both backends: the operations that
+//! shared functions (see [`crate::num::dsl`]) may call besides arithmetic,
+//! written by hand here and in `shaders/prelude_*.wgsl`.
+
+/// Primitives with one exact meaning, written by hand on each backend
+/// (here and in `shaders/prelude_*.wgsl`). Everything numerical is built
+/// from these in shared functions.
+pub trait Prims: Sized {
+    /// `t` where `c`, else `f` (argument order of WGSL's `select`).
+    fn select(f: Self, t: Self, c: bool) -> Self;
+    /// `2^n`, exact, for `n` in the normal exponent range of the type.
+    fn pow2i(n: i32) -> Self;
+    /// Truncation toward zero; callers keep `x` well inside the `i32` range.
+    fn to_i32(x: Self) -> i32;
+    /// Exact conversion of small integers.
+    fn from_i32(n: i32) -> Self;
+    /// Positive infinity.
+    fn inf() -> Self;
+    /// `a·b + c` with one rounding (WGSL's `fma`): the polynomials use it,
+    /// so the AVX2/FMA kernels and GPUs evaluate them in fused steps.
+    fn fma(a: Self, b: Self, c: Self) -> Self;
+}
+
+impl Prims for f32 {
+    #[inline(always)]
+    fn select(f: f32, t: f32, c: bool) -> f32 {
+        if c {
+            t
+        } else {
+            f
+        }
+    }
+    #[inline(always)]
+    fn pow2i(n: i32) -> f32 {
+        f32::from_bits(((n + 127) as u32) << 23)
+    }
+    #[inline(always)]
+    fn to_i32(x: f32) -> i32 {
+        // `as` saturates lane by lane, which LLVM scalarises inside the lane
+        // loops; this is the same for every input (NaN → 0, clamped) and
+        // compiles to vector compares, blends and one truncating conversion.
+        let y = if x.is_nan() {
+            0.0
+        } else {
+            x.clamp(-2.0e9, 2.0e9)
+        };
+        // SAFETY: y is finite and within the range of i32.
+        unsafe { y.to_int_unchecked::<i32>() }
+    }
+    #[inline(always)]
+    fn from_i32(n: i32) -> f32 {
+        n as f32
+    }
+    #[inline(always)]
+    fn inf() -> f32 {
+        f32::INFINITY
+    }
+    #[inline(always)]
+    fn fma(a: f32, b: f32, c: f32) -> f32 {
+        a.mul_add(b, c)
+    }
+}
+
+impl Prims for f64 {
+    #[inline(always)]
+    fn select(f: f64, t: f64, c: bool) -> f64 {
+        if c {
+            t
+        } else {
+            f
+        }
+    }
+    #[inline(always)]
+    fn pow2i(n: i32) -> f64 {
+        f64::from_bits(((n + 1023) as u64) << 52)
+    }
+    #[inline(always)]
+    fn to_i32(x: f64) -> i32 {
+        // As for f32: vectorisable, the same values as a saturating `as`.
+        let y = if x.is_nan() {
+            0.0
+        } else {
+            x.clamp(-2.0e9, 2.0e9)
+        };
+        // SAFETY: y is finite and within the range of i32.
+        unsafe { y.to_int_unchecked::<i32>() }
+    }
+    #[inline(always)]
+    fn from_i32(n: i32) -> f64 {
+        n as f64
+    }
+    #[inline(always)]
+    fn inf() -> f64 {
+        f64::INFINITY
+    }
+    #[inline(always)]
+    fn fma(a: f64, b: f64, c: f64) -> f64 {
+        a.mul_add(b, c)
+    }
+}
+
