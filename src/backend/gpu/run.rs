@@ -10,7 +10,7 @@ use std::time::Instant;
 use wgpu::util::DeviceExt;
 
 use super::codegen::{generate, AUX_R, AUX_U};
-use super::{GpuContext, GpuError};
+use super::context::{GpuContext, GpuError};
 use crate::models::Flows;
 use crate::plan::observations::Observations;
 use crate::plan::{ObsVar, Plan};

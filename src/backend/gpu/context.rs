@@ -1,0 +1,284 @@
+//! The GPU context: the adapter chosen once (honouring `WGPU_BACKEND` and
+//! `WGPU_ADAPTER_NAME`), its device and queue, and the pipeline cache.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+
+/// Why the GPU backend cannot run.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error("no GPU adapter found (wgpu backends: {0}); install a Vulkan driver, e.g. `apt-get install mesa-vulkan-drivers libvulkan1` for the software one")]
+    NoAdapter(String),
+    #[error("WGPU_ADAPTER_NAME={0:?} matches none of the adapters: {1}")]
+    NoMatchingAdapter(String, String),
+    #[error("the adapter {0} has no SHADER_F64: run with --precision f32, or on the CPU backend")]
+    NoF64(String),
+    #[error("requesting the device failed: {0}")]
+    Device(String),
+    #[error("the generated kernel was rejected: {0}")]
+    Shader(String),
+    #[error("{0}")]
+    Codegen(#[from] super::codegen::CodegenError),
+    #[error("the GPU reported an error: {0}")]
+    Runtime(String),
+    #[error("{0}")]
+    TooLarge(String),
+}
+
+/// What `reeb info` shows about an adapter.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct AdapterSummary {
+    pub name: String,
+    pub backend: String,
+    pub device_type: String,
+    pub driver: String,
+    pub shader_f64: bool,
+    pub timestamps: bool,
+    pub max_storage_buffer_binding_size: u64,
+    pub max_buffer_size: u64,
+    pub max_compute_workgroups_per_dimension: u32,
+    pub max_storage_buffers_per_shader_stage: u32,
+}
+
+fn summary(a: &wgpu::Adapter) -> AdapterSummary {
+    let info = a.get_info();
+    let f = a.features();
+    let l = a.limits();
+    AdapterSummary {
+        name: info.name,
+        backend: format!("{:?}", info.backend),
+        device_type: format!("{:?}", info.device_type),
+        driver: format!("{} {}", info.driver, info.driver_info)
+            .trim()
+            .to_string(),
+        shader_f64: f.contains(wgpu::Features::SHADER_F64),
+        timestamps: f.contains(wgpu::Features::TIMESTAMP_QUERY),
+        max_storage_buffer_binding_size: l.max_storage_buffer_binding_size,
+        max_buffer_size: l.max_buffer_size,
+        max_compute_workgroups_per_dimension: l.max_compute_workgroups_per_dimension,
+        max_storage_buffers_per_shader_stage: l.max_storage_buffers_per_shader_stage,
+    }
+}
+
+fn instance() -> wgpu::Instance {
+    // Mesa's Vulkan loader prints an error per adapter when XDG_RUNTIME_DIR is
+    // unset (headless machines, CI); it only needs a writable directory.
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir());
+    }
+    // Respects WGPU_BACKEND (and the other WGPU_* instance variables).
+    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+}
+
+/// Every adapter wgpu can see (respecting `WGPU_BACKEND`).
+pub fn list_adapters() -> Vec<AdapterSummary> {
+    let inst = instance();
+    pollster::block_on(inst.enumerate_adapters(wgpu::Backends::all()))
+        .iter()
+        .map(summary)
+        .collect()
+}
+
+/// Picks the adapter: the one whose name contains `WGPU_ADAPTER_NAME` (case
+/// insensitive) if that is set, else a discrete GPU, else an integrated or
+/// virtual one, else a software one (lavapipe).
+fn choose_adapter(inst: &wgpu::Instance) -> Result<wgpu::Adapter, GpuError> {
+    let adapters = pollster::block_on(inst.enumerate_adapters(wgpu::Backends::all()));
+    let names = || {
+        adapters
+            .iter()
+            .map(|a| a.get_info().name)
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    if let Ok(want) = std::env::var("WGPU_ADAPTER_NAME") {
+        let w = want.to_lowercase();
+        return adapters
+            .iter()
+            .find(|a| a.get_info().name.to_lowercase().contains(&w))
+            .cloned()
+            .ok_or_else(|| GpuError::NoMatchingAdapter(want, names()));
+    }
+    let rank = |a: &wgpu::Adapter| match a.get_info().device_type {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    };
+    adapters
+        .iter()
+        .filter(|a| a.get_info().backend != wgpu::Backend::Gl || adapters.len() == 1)
+        .min_by_key(|a| rank(a))
+        .cloned()
+        .ok_or_else(|| {
+            GpuError::NoAdapter(format!(
+                "{:?}",
+                wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all())
+            ))
+        })
+}
+
+/// Is the adapter a software rasteriser (lavapipe, llvmpipe, WARP)?
+pub fn is_software(info: &wgpu::AdapterInfo) -> bool {
+    info.device_type == wgpu::DeviceType::Cpu
+}
+
+/// A device ready to run reeb kernels.
+pub struct GpuContext {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    pub limits: wgpu::Limits,
+    pub shader_f64: bool,
+    pub timestamps: bool,
+    layout: wgpu::BindGroupLayout,
+    pipeline_layout: wgpu::PipelineLayout,
+    pipelines: Mutex<HashMap<String, Arc<wgpu::ComputePipeline>>>,
+    /// Errors the device reported outside an error scope.
+    errors: Arc<Mutex<Vec<String>>>,
+}
+
+impl GpuContext {
+    /// Opens the adapter chosen by [`choose_adapter`] with its own limits, and
+    /// SHADER_F64 and TIMESTAMP_QUERY where it has them.
+    pub fn new() -> Result<GpuContext, GpuError> {
+        let inst = instance();
+        let adapter = choose_adapter(&inst)?;
+        let info = adapter.get_info();
+        let features =
+            adapter.features() & (wgpu::Features::SHADER_F64 | wgpu::Features::TIMESTAMP_QUERY);
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("reeb"),
+            required_features: features,
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::Device(e.to_string()))?;
+        let errors: Arc<Mutex<Vec<String>>> = Arc::default();
+        let sink = errors.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            if let Ok(mut v) = sink.lock() {
+                v.push(e.to_string());
+            }
+        }));
+        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("reeb kernel"),
+            entries: &[
+                entry(0, wgpu::BufferBindingType::Uniform),
+                entry(1, rw),
+                entry(2, wgpu::BufferBindingType::Storage { read_only: true }),
+                entry(3, rw),
+                entry(4, rw),
+                entry(5, rw),
+                entry(6, rw),
+                entry(7, rw),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("reeb kernel"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        Ok(GpuContext {
+            device,
+            queue,
+            shader_f64: features.contains(wgpu::Features::SHADER_F64),
+            timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
+            info,
+            limits,
+            layout,
+            pipeline_layout,
+            pipelines: Mutex::default(),
+            errors,
+        })
+    }
+
+    /// One line naming the adapter.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({:?}, {:?})",
+            self.info.name, self.info.backend, self.info.device_type
+        )
+    }
+
+    pub fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
+        &self.layout
+    }
+
+    /// The compute pipeline for `source`, compiled once per context.
+    pub fn pipeline(&self, source: &str) -> Result<Arc<wgpu::ComputePipeline>, GpuError> {
+        if let Some(p) = self
+            .pipelines
+            .lock()
+            .map_err(|e| GpuError::Runtime(e.to_string()))?
+            .get(source)
+        {
+            return Ok(p.clone());
+        }
+        // Validate with naga first: its messages point into the source.
+        validate(source, true).map_err(GpuError::Shader)?;
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = self
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("reeb kernel"),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            });
+        let pipeline = self
+            .device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("reeb kernel"),
+                layout: Some(&self.pipeline_layout),
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::Shader(e.to_string()));
+        }
+        let p = Arc::new(pipeline);
+        self.pipelines
+            .lock()
+            .map_err(|e| GpuError::Runtime(e.to_string()))?
+            .insert(source.to_string(), p.clone());
+        Ok(p)
+    }
+
+    /// Errors the device reported since the last call.
+    pub fn take_errors(&self) -> Vec<String> {
+        self.errors
+            .lock()
+            .map(|mut v| std::mem::take(&mut *v))
+            .unwrap_or_default()
+    }
+}
+
+/// Validates WGSL with naga (no GPU needed): parse, then validate with or
+/// without the f64 capability. Returns naga's report on failure.
+pub fn validate(source: &str, f64: bool) -> Result<(), String> {
+    let module = naga::front::wgsl::parse_str(source).map_err(|e| e.emit_to_string(source))?;
+    let caps = if f64 {
+        naga::valid::Capabilities::FLOAT64
+    } else {
+        naga::valid::Capabilities::empty()
+    };
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), caps)
+        .validate(&module)
+        .map_err(|e| e.emit_to_string(source))?;
+    Ok(())
+}
