@@ -9,7 +9,8 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 
 use reeb::backend::gpu::GpuContext;
-use reeb::bench::{time_cpu, time_gpu, SCENARIOS};
+use reeb::backend::Engine;
+use reeb::bench::{seconds, SCENARIOS};
 use reeb::num::precision::Precision;
 
 fn sizes() -> Vec<usize> {
@@ -51,7 +52,11 @@ fn cpu(c: &mut Criterion) {
                             b.iter_custom(|iters| {
                                 pool.install(|| {
                                     (0..iters)
-                                        .map(|_| Duration::from_secs_f64(time_cpu(plan, p)))
+                                        .map(|_| {
+                                            Duration::from_secs_f64(
+                                                seconds(&Engine::Cpu, plan, p).expect("cpu run"),
+                                            )
+                                        })
                                         .sum()
                                 })
                             })
@@ -69,6 +74,8 @@ fn gpu(c: &mut Criterion) {
         eprintln!("SKIP gpu benches: no adapter");
         return;
     };
+    let f64_shaders = ctx.shader_f64;
+    let engine = Engine::Gpu(Box::new(ctx));
     let steps = 200;
     for s in SCENARIOS {
         let mut g = c.benchmark_group(format!("gpu/{}", s.label()));
@@ -77,16 +84,16 @@ fn gpu(c: &mut Criterion) {
             let plan = s.plan(n, steps);
             g.throughput(Throughput::Elements(plan.traj_steps()));
             for p in [Precision::F32, Precision::F64] {
-                if p == Precision::F64 && !ctx.shader_f64 {
+                if p == Precision::F64 && !f64_shaders {
                     continue;
                 }
                 // Compile and cache the kernel outside the measurement.
-                time_gpu(&ctx, &plan, p).expect("gpu run");
+                seconds(&engine, &plan, p).expect("gpu run");
                 g.bench_with_input(BenchmarkId::new(p.name(), n), &plan, |b, plan| {
                     b.iter_custom(|iters| {
                         (0..iters)
                             .map(|_| {
-                                Duration::from_secs_f64(time_gpu(&ctx, plan, p).expect("gpu run"))
+                                Duration::from_secs_f64(seconds(&engine, plan, p).expect("gpu run"))
                             })
                             .sum()
                     })

@@ -3,12 +3,11 @@
 //! alone (no kernel compilation, no upload: the GPU timing is the dispatches'),
 //! as the median of several repeats.
 
-use std::time::Instant;
-
-use crate::backend::{cpu, gpu::GpuContext};
+use crate::backend::gpu::GpuError;
+use crate::backend::Engine;
 use crate::models::Model;
-use crate::plan::{Plan, Problem, Source};
 use crate::num::precision::Precision;
+use crate::plan::{Plan, Problem, Source};
 
 /// A benchmark scenario: a plan family parameterised by ensemble size.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -121,26 +120,13 @@ pub fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-/// Seconds of one CPU integration of `plan`.
-pub fn time_cpu(plan: &Plan, precision: Precision) -> f64 {
-    let t = Instant::now();
-    match precision {
-        Precision::F32 => drop(std::hint::black_box(cpu::run::<f32>(plan, None))),
-        Precision::F64 => drop(std::hint::black_box(cpu::run::<f64>(plan, None))),
-    }
-    t.elapsed().as_secs_f64()
-}
-
-/// Seconds of the dispatches of one GPU integration of `plan` (the kernel
-/// is compiled, and cached, by the first call).
-pub fn time_gpu(
-    ctx: &GpuContext,
-    plan: &Plan,
-    precision: Precision,
-) -> Result<f64, crate::backend::gpu::GpuError> {
+/// Seconds of one integration of `plan` on `engine`, as the backend times it
+/// (wall clock on the CPU; timestamp queries on a GPU that has them, after
+/// the first call has compiled and cached the kernel).
+pub fn seconds(engine: &Engine, plan: &Plan, precision: Precision) -> Result<f64, GpuError> {
     Ok(match precision {
-        Precision::F32 => crate::backend::gpu::run::<f32>(ctx, plan, None)?.seconds,
-        Precision::F64 => crate::backend::gpu::run::<f64>(ctx, plan, None)?.seconds,
+        Precision::F32 => engine.run::<f32>(plan, None)?.seconds,
+        Precision::F64 => engine.run::<f64>(plan, None)?.seconds,
     })
 }
 

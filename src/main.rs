@@ -8,10 +8,11 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use reeb::backend::gpu::{list_adapters, GpuContext};
+use reeb::backend::Engine;
 use reeb::num::precision::Precision;
 use reeb::output::run::{run_scene, RunOptions};
 use reeb::scene::{BackendChoice, Scene};
-use reeb::verify::{run_all, CpuEngine, Engine, GpuEngine};
+use reeb::verify::{run_all, Target};
 
 #[derive(Parser)]
 #[command(
@@ -158,16 +159,14 @@ fn main() -> ExitCode {
             backend, scenario, precision, n, steps, threads, repeats, json,
         ),
         Command::Verify { backend, precision } => {
-            if backend == "gpu" {
-                GpuContext::new().map_err(anyhow::Error::from).map(|ctx| {
-                    verify(&GpuEngine {
-                        ctx: &ctx,
-                        precision,
-                    })
-                })
+            let engine = if backend == "gpu" {
+                GpuContext::new().map(|ctx| Engine::Gpu(Box::new(ctx)))
             } else {
-                Ok(verify(&CpuEngine(precision)))
-            }
+                Ok(Engine::Cpu)
+            };
+            engine
+                .map_err(anyhow::Error::from)
+                .map(|engine| verify(&Target { engine, precision }))
         }
     };
     match result {
@@ -213,7 +212,7 @@ fn bench(
     repeats: usize,
     json: Option<PathBuf>,
 ) -> Result<ExitCode> {
-    use reeb::bench::{rate, time_cpu, time_gpu, Scenario, SCENARIOS};
+    use reeb::bench::{rate, seconds, Scenario, SCENARIOS};
     use std::io::Write;
     let scenarios: Vec<Scenario> = if scenarios.is_empty() {
         SCENARIOS.to_vec()
@@ -233,9 +232,9 @@ fn bench(
     } else {
         threads
     };
-    let ctx = GpuContext::new().ok();
+    let gpu = GpuContext::new().ok().map(|c| Engine::Gpu(Box::new(c)));
     let backends = if backends.is_empty() {
-        if ctx.is_some() {
+        if gpu.is_some() {
             vec!["cpu".to_string(), "gpu".to_string()]
         } else {
             vec!["cpu".to_string()]
@@ -268,18 +267,24 @@ fn bench(
                                 (
                                     "cpu".to_string(),
                                     *t,
-                                    pool.install(|| rate(&plan, repeats, |pl| time_cpu(pl, *p))),
+                                    pool.install(|| {
+                                        rate(&plan, repeats, |pl| {
+                                            seconds(&Engine::Cpu, pl, *p).unwrap_or(f64::NAN)
+                                        })
+                                    }),
                                 )
                             })
                             .collect(),
-                        "gpu" => match &ctx {
-                            Some(c) if *p == Precision::F32 || c.shader_f64 => {
+                        "gpu" => match &gpu {
+                            Some(Engine::Gpu(c)) if *p == Precision::F32 || c.shader_f64 => {
                                 let mut err = None;
                                 let r = rate(&plan, repeats, |pl| {
-                                    time_gpu(c, pl, *p).unwrap_or_else(|e| {
-                                        err = Some(e.to_string());
-                                        f64::NAN
-                                    })
+                                    seconds(gpu.as_ref().expect("matched"), pl, *p).unwrap_or_else(
+                                        |e| {
+                                            err = Some(e.to_string());
+                                            f64::NAN
+                                        },
+                                    )
                                 });
                                 if let Some(e) = err {
                                     anyhow::bail!("gpu {}: {e}", s.label());
@@ -389,11 +394,11 @@ fn info() -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn verify(engine: &dyn Engine) -> ExitCode {
+fn verify(engine: &Target) -> ExitCode {
     println!(
         "reeb verify: backend {}, precision {}",
         engine.describe(),
-        engine.precision()
+        engine.precision
     );
     println!(
         "{:<4} {:<92} {:>16} {:>16} {:>12}",

@@ -4,63 +4,35 @@
 
 use std::f64::consts::PI;
 
+use crate::backend::Engine;
 use crate::models::exact;
 use crate::models::{lane_emden, Model};
+use crate::num::precision::Precision;
 use crate::plan::observations::Observations;
 use crate::plan::observers::{CycleObs, TrajectoryObs};
-use crate::plan::{Plan, Problem, Source};
-use crate::num::precision::Precision;
 use crate::plan::scheme::{Scheme, SchemeKind, SCHEME_NAMES};
+use crate::plan::{Plan, Problem, Source};
 
-/// Something that integrates plans: a backend at a precision.
-pub trait Engine {
-    fn run(&self, plan: &Plan) -> Result<Observations<f64>, String>;
-    fn precision(&self) -> Precision;
-    /// e.g. "cpu" or "gpu (llvmpipe)".
-    fn describe(&self) -> String;
-}
-
-/// The CPU backend as an [`Engine`].
-pub struct CpuEngine(pub Precision);
-
-impl Engine for CpuEngine {
-    fn run(&self, plan: &Plan) -> Result<Observations<f64>, String> {
-        Ok(crate::backend::run_cpu(plan, self.0, None).to_f64())
-    }
-    fn precision(&self) -> Precision {
-        self.0
-    }
-    fn describe(&self) -> String {
-        "cpu".into()
-    }
-}
-
-/// The GPU backend as an [`Engine`].
-pub struct GpuEngine<'a> {
-    pub ctx: &'a crate::backend::gpu::GpuContext,
+/// What `reeb verify` checks: a backend at a precision.
+pub struct Target {
+    pub engine: Engine,
     pub precision: Precision,
 }
 
-impl Engine for GpuEngine<'_> {
+impl Target {
+    /// Integrates `plan`, observations widened to f64.
     fn run(&self, plan: &Plan) -> Result<Observations<f64>, String> {
-        use crate::backend::gpu::run;
-        Ok(match self.precision {
-            Precision::F32 => run::<f32>(self.ctx, plan, None)
-                .map_err(|e| e.to_string())?
-                .observations
-                .convert(),
-            Precision::F64 => {
-                run::<f64>(self.ctx, plan, None)
-                    .map_err(|e| e.to_string())?
-                    .observations
-            }
-        })
+        self.engine
+            .run_f64(plan, self.precision)
+            .map(|(o, _)| o)
+            .map_err(|e| e.to_string())
     }
     fn precision(&self) -> Precision {
         self.precision
     }
-    fn describe(&self) -> String {
-        format!("gpu: {}", self.ctx.describe())
+    /// e.g. "cpu (2 threads)" or "gpu: llvmpipe …".
+    pub fn describe(&self) -> String {
+        self.engine.describe()
     }
 }
 
@@ -149,10 +121,10 @@ fn first(o: &Observations<f64>, var: &str) -> f64 {
 }
 
 /// A group of checks: engine and "is it f32" → rows.
-type CheckGroup = fn(&dyn Engine, bool) -> Vec<Check>;
+type CheckGroup = fn(&Target, bool) -> Vec<Check>;
 
 /// Runs every check on `engine`, calling `each` as rows complete.
-pub fn run_all(engine: &dyn Engine, mut each: impl FnMut(&Check)) -> Vec<Check> {
+pub fn run_all(engine: &Target, mut each: impl FnMut(&Check)) -> Vec<Check> {
     let f32 = engine.precision() == Precision::F32;
     let groups: [CheckGroup; 9] = [
         harmonic_period,
@@ -187,7 +159,7 @@ fn van_der_pol(eps: f64, q0: f64, s0: f64, tau: f64, steps: u64) -> Problem {
 }
 
 /// SPEC §4.1: the period of the S2 harmonic orbit from q zero crossings.
-fn harmonic_period(engine: &dyn Engine, f32: bool) -> Vec<Check> {
+fn harmonic_period(engine: &Target, f32: bool) -> Vec<Check> {
     let mut out = vec![];
     for (tau, spec) in [(0.1, 6.2805655), (0.5, 6.2165381)] {
         let mut p = van_der_pol(0.0, 1.0, 0.0, tau, (2000.0 / tau) as u64);
@@ -209,7 +181,7 @@ fn harmonic_period(engine: &dyn Engine, f32: bool) -> Vec<Check> {
 }
 
 /// SPEC §4.2: amplitude of the van der Pol cycle for small ε under S2.
-fn van_der_pol_amplitude(engine: &dyn Engine, f32: bool) -> Vec<Check> {
+fn van_der_pol_amplitude(engine: &Target, f32: bool) -> Vec<Check> {
     let tau = 0.3;
     let mut p = van_der_pol(0.01, 2.0, 0.0, tau, (3000.0 / tau) as u64);
     p.observers.cycle = Some(CycleObs {
@@ -233,7 +205,7 @@ fn van_der_pol_amplitude(engine: &dyn Engine, f32: bool) -> Vec<Check> {
 /// SPEC §4.3: the S2 map of van der Pol at its fixed point (0, 0): the
 /// Jacobian by central differences of one step, against `det = e^{ετ}` and
 /// the spectral radius `(α + sqrt β)/4` (or `e^{ετ/2}` for complex pairs).
-fn van_der_pol_fixed_point(engine: &dyn Engine, f32: bool) -> Vec<Check> {
+fn van_der_pol_fixed_point(engine: &Target, f32: bool) -> Vec<Check> {
     let mut out = vec![];
     let h = if f32 { 1e-3 } else { 1e-6 };
     for (eps, tau) in [(1.0, 0.1), (5.0, 0.3), (0.5, 1.9)] {
@@ -305,7 +277,7 @@ fn van_der_pol_fixed_point(engine: &dyn Engine, f32: bool) -> Vec<Check> {
 }
 
 /// SPEC §4.4: the cycle frequency of S2 against the Poincaré–Lindstedt series.
-fn van_der_pol_frequency(engine: &dyn Engine, f32: bool) -> Vec<Check> {
+fn van_der_pol_frequency(engine: &Target, f32: bool) -> Vec<Check> {
     let mut out = vec![];
     for (eps, tau) in [(0.2, 0.2), (0.3, 0.4)] {
         let mut p = van_der_pol(eps, 2.0, 0.0, tau, (1500.0 / tau) as u64);
@@ -335,7 +307,7 @@ fn van_der_pol_frequency(engine: &dyn Engine, f32: bool) -> Vec<Check> {
 /// SPEC §4.6: `H(t) e^{αt}` of the damped oscillator stays bounded, without
 /// drift, over 10⁴ periods with S2 (10³ in f32, where rounding the constant
 /// e^{−τα} alone drifts by N·u over N steps: 4% after 10⁴ periods).
-fn damped_invariant(engine: &dyn Engine, f32: bool) -> Vec<Check> {
+fn damped_invariant(engine: &Target, f32: bool) -> Vec<Check> {
     let (alpha, tau) = (1e-3, 0.1);
     let periods = if f32 { 1e3 } else { 1e4 };
     let steps = (periods * 2.0 * PI / tau) as u64;
@@ -390,7 +362,7 @@ fn damped_invariant(engine: &dyn Engine, f32: bool) -> Vec<Check> {
 
 /// SPEC §4.7: Lane–Emden k = 0, 1, 5 against the exact solutions (S2,
 /// τ = 0.01, the paper's horizons), and the convergence between τ and τ/2.
-fn lane_emden_exact(engine: &dyn Engine, f32: bool) -> Vec<Check> {
+fn lane_emden_exact(engine: &Target, f32: bool) -> Vec<Check> {
     let mut out = vec![];
     for (k, t_end) in [(0u32, 2.7), (1, 3.5), (5, 30.0)] {
         let mut errs = vec![];
@@ -441,7 +413,7 @@ fn lane_emden_exact(engine: &dyn Engine, f32: bool) -> Vec<Check> {
 
 /// SPEC §4.8: p of a Liénard system is the slope ds/dq of the orbit:
 /// `p − (−f(q) − g(q)/s) → 0` as τ → 0, at second order.
-fn lienard_slope(engine: &dyn Engine, f32: bool) -> Vec<Check> {
+fn lienard_slope(engine: &Target, f32: bool) -> Vec<Check> {
     let eps = 1.0;
     let (q0, s0) = (1.0, 1.0);
     let p0 = eps * (1.0 - q0 * q0) - q0 / s0;
@@ -478,7 +450,7 @@ fn lienard_slope(engine: &dyn Engine, f32: bool) -> Vec<Check> {
 
 /// The damped oscillator against its closed form (SPEC §2.1), small,
 /// critical and large damping.
-fn damped_exact(engine: &dyn Engine, _f32: bool) -> Vec<Check> {
+fn damped_exact(engine: &Target, _f32: bool) -> Vec<Check> {
     let mut out = vec![];
     for alpha in [0.1, 2.0, 5.0] {
         let tau = 0.01;
@@ -547,12 +519,10 @@ fn order_problems() -> Vec<OrderProblem> {
     let vdp_t = 3.0;
     let mut rp = van_der_pol(1.0, 2.0, 0.0, vdp_t / 40000.0, 40000);
     rp.scheme = Scheme::by_name("rk4").expect("rk4");
-    let o = crate::backend::run_cpu(
-        &Plan::new(&rp).expect("reference plan"),
-        Precision::F64,
-        None,
-    )
-    .to_f64();
+    let o = Engine::Cpu
+        .run::<f64>(&Plan::new(&rp).expect("reference plan"), None)
+        .expect("the CPU backend does not fail")
+        .observations;
     let vdp = OrderProblem {
         label: "van der Pol ε = 1",
         model: Model::VanDerPol,
@@ -567,7 +537,7 @@ fn order_problems() -> Vec<OrderProblem> {
 
 /// Error of `scheme` on `op` with `steps` steps.
 fn order_error(
-    engine: &dyn Engine,
+    engine: &Target,
     op: &OrderProblem,
     scheme: &str,
     steps: u64,
@@ -595,7 +565,7 @@ fn order_error(
 /// until roundoff (`floor`) is reached; the last four points at or below
 /// `ceiling` (the most asymptotic ones) are fitted by least squares in log–log.
 fn measure_order(
-    engine: &dyn Engine,
+    engine: &Target,
     op: &OrderProblem,
     scheme: &str,
     f32: bool,
@@ -653,7 +623,7 @@ fn measure_order(
 
 /// SPEC §4.5: the measured order of every scheme, on one mechanical and one
 /// Liénard problem.
-fn convergence_orders(engine: &dyn Engine, f32: bool) -> Vec<Check> {
+fn convergence_orders(engine: &Target, f32: bool) -> Vec<Check> {
     let mut out = vec![];
     let problems = order_problems();
     for scheme in SCHEME_NAMES {

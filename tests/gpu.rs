@@ -11,11 +11,11 @@
 
 use reeb::backend::{cpu, gpu};
 use reeb::models::{Model, MODEL_NAMES};
+use reeb::num::precision::Real;
 use reeb::plan::observations::Observations;
 use reeb::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
-use reeb::plan::{Plan, Problem, Source};
-use reeb::num::precision::Real;
 use reeb::plan::scheme::{Scheme, SCHEME_NAMES};
+use reeb::plan::{Plan, Problem, Source};
 
 mod common;
 use common::{first_var, gpu, problem};

@@ -170,7 +170,11 @@ fn every_module_uses_only_lower_layers() {
             }
         }
     }
-    assert!(wrong.is_empty(), "imports against the layering:\n{}", wrong.join("\n"));
+    assert!(
+        wrong.is_empty(),
+        "imports against the layering:\n{}",
+        wrong.join("\n")
+    );
 }
 
 #[test]
@@ -205,7 +209,10 @@ fn no_import_circle_between_files() {
             }
         }
         // Paths relative to the file's module: `child::x` (not `pub mod child;`).
-        for child in modules.keys().filter(|c| c.len() == m.len() + 1 && c.starts_with(m)) {
+        for child in modules
+            .keys()
+            .filter(|c| c.len() == m.len() + 1 && c.starts_with(m))
+        {
             let name = format!("{}::", child[m.len()]);
             let used = text.match_indices(&name).any(|(k, _)| {
                 !text[..k]
@@ -258,7 +265,11 @@ fn no_import_circle_between_files() {
     for m in modules.keys() {
         if !state.contains_key(m) {
             let circle = visit(m, &edges, &mut state, &mut vec![]);
-            assert!(circle.is_none(), "import circle: {}", circle.unwrap().join(" → "));
+            assert!(
+                circle.is_none(),
+                "import circle: {}",
+                circle.unwrap().join(" → ")
+            );
         }
     }
 }

@@ -1,11 +1,18 @@
 //! The whole `reeb verify` suite (SPEC §4 oracles and every scheme's
 //! measured order) on the CPU backend, in both precisions.
 
+use reeb::backend::Engine;
 use reeb::num::precision::Precision;
-use reeb::verify::{run_all, CpuEngine};
+use reeb::verify::{run_all, Target};
 
 fn suite(precision: Precision) {
-    let rows = run_all(&CpuEngine(precision), |_| {});
+    let rows = run_all(
+        &Target {
+            engine: Engine::Cpu,
+            precision,
+        },
+        |_| {},
+    );
     let failed: Vec<String> = rows
         .iter()
         .filter(|c| !c.pass)

@@ -4,8 +4,9 @@
 
 use std::path::{Path, PathBuf};
 
+use reeb::backend::Engine;
 use reeb::num::precision::Precision;
-use reeb::output::run::{integrate, run_scene, Engine, RunOptions};
+use reeb::output::run::{run_scene, RunOptions};
 use reeb::scene::{BackendChoice, Scene};
 
 mod common;
@@ -116,19 +117,24 @@ fn every_scene_agrees_between_cpu_and_gpu() {
         for sub in scene.sub_runs().unwrap() {
             let (c, g) = match scene.precision {
                 Precision::F32 => {
-                    let c = integrate::<f32>(&Engine::Cpu, &sub.plan, None)
+                    let c = Engine::Cpu
+                        .run::<f32>(&sub.plan, None)
                         .unwrap()
-                        .0
+                        .observations
                         .convert::<f64>();
-                    let g = integrate::<f32>(&engine, &sub.plan, None)
+                    let g = engine
+                        .run::<f32>(&sub.plan, None)
                         .unwrap()
-                        .0
+                        .observations
                         .convert::<f64>();
                     (c, g)
                 }
                 Precision::F64 => (
-                    integrate::<f64>(&Engine::Cpu, &sub.plan, None).unwrap().0,
-                    integrate::<f64>(&engine, &sub.plan, None).unwrap().0,
+                    Engine::Cpu
+                        .run::<f64>(&sub.plan, None)
+                        .unwrap()
+                        .observations,
+                    engine.run::<f64>(&sub.plan, None).unwrap().observations,
                 ),
             };
             let tol = if scene.precision == Precision::F32 {

@@ -3,10 +3,10 @@
 
 use reeb::backend::gpu::{codegen::generate, validate};
 use reeb::models::{Model, MODEL_NAMES};
-use reeb::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
-use reeb::plan::{Plan, Problem, Source};
 use reeb::num::precision::Precision;
+use reeb::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
 use reeb::plan::scheme::{Scheme, SCHEME_NAMES};
+use reeb::plan::{Plan, Problem, Source};
 
 mod common;
 use common::{first_var, problem};

@@ -1,67 +1,146 @@
 //! Backends: the CPU (rayon) and the GPU (wgpu). Both execute a [`Plan`] and
-//! return the same [`Observations`].
+//! return the same [`Observations`]. This file is the one way in: the choice
+//! of backend ([`BackendChoice`] → [`Engine`]) and the one dispatch path
+//! ([`Engine::run`]) that `reeb run`, reports, `verify` and `bench` all use.
 
 pub mod cpu;
 pub mod gpu;
 
 use std::sync::atomic::AtomicU64;
+use std::time::Instant;
 
 use crate::models::Flows;
+use crate::num::precision::Precision;
 use crate::plan::observations::Observations;
 use crate::plan::Plan;
-use crate::num::precision::Precision;
+use gpu::{GpuContext, GpuError};
 
-/// Observations in the precision they were computed in.
-#[derive(Debug, Clone)]
-pub enum AnyObservations {
-    F32(Observations<f32>),
-    F64(Observations<f64>),
+/// Which backend a run asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BackendChoice {
+    /// A hardware GPU adapter if there is one, else the CPU (with a notice).
+    Auto,
+    Cpu,
+    Gpu,
 }
 
-impl AnyObservations {
-    /// Widened to f64 for analysis.
-    pub fn to_f64(&self) -> Observations<f64> {
+impl std::str::FromStr for BackendChoice {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(BackendChoice::Auto),
+            "cpu" => Ok(BackendChoice::Cpu),
+            "gpu" => Ok(BackendChoice::Gpu),
+            _ => Err(format!("`{s}` is not a backend (auto, cpu, gpu)")),
+        }
+    }
+}
+
+/// The backend a run ends up on.
+pub enum Engine {
+    Cpu,
+    Gpu(Box<GpuContext>),
+}
+
+/// One integration: the observations and how long the integration took.
+pub struct Integration<R> {
+    pub observations: Observations<R>,
+    pub seconds: f64,
+    /// "wall clock" or "gpu timestamps".
+    pub timing: &'static str,
+}
+
+impl Engine {
+    /// Chooses the backend. `auto` takes a hardware GPU adapter when there is
+    /// one (and it has f64 if asked for), and otherwise the CPU, returning
+    /// the one-line notice to print. A software adapter (lavapipe) is slower
+    /// than the CPU backend, so `auto` uses it only when asked with `gpu`.
+    pub fn resolve(
+        choice: BackendChoice,
+        precision: Precision,
+    ) -> Result<(Engine, Option<String>), GpuError> {
+        let f64_missing = |ctx: &GpuContext| precision == Precision::F64 && !ctx.shader_f64;
+        match choice {
+            BackendChoice::Cpu => Ok((Engine::Cpu, None)),
+            BackendChoice::Gpu => {
+                let ctx = GpuContext::new()?;
+                if f64_missing(&ctx) {
+                    return Err(GpuError::NoF64(ctx.describe()));
+                }
+                Ok((Engine::Gpu(Box::new(ctx)), None))
+            }
+            BackendChoice::Auto => Ok(match GpuContext::new() {
+                Err(e) => (Engine::Cpu, Some(format!("note: no GPU adapter ({}); running on the CPU", first_line(&e.to_string())))),
+                Ok(ctx) if gpu::is_software(&ctx.info) => (Engine::Cpu, Some(format!("note: only a software GPU adapter ({}); running on the CPU (use --backend gpu to run it anyway)", ctx.info.name))),
+                Ok(ctx) if f64_missing(&ctx) => (Engine::Cpu, Some(format!("note: {} has no f64 shaders; running on the CPU", ctx.info.name))),
+                Ok(ctx) => (Engine::Gpu(Box::new(ctx)), None),
+            }),
+        }
+    }
+
+    pub fn name(&self) -> &'static str {
         match self {
-            AnyObservations::F32(o) => o.convert(),
-            AnyObservations::F64(o) => o.clone(),
+            Engine::Cpu => "cpu",
+            Engine::Gpu(_) => "gpu",
         }
     }
-    pub fn precision(&self) -> Precision {
+
+    pub fn describe(&self) -> String {
         match self {
-            AnyObservations::F32(_) => Precision::F32,
-            AnyObservations::F64(_) => Precision::F64,
+            Engine::Cpu => format!("cpu ({} threads)", rayon::current_num_threads()),
+            Engine::Gpu(ctx) => format!("gpu: {}", ctx.describe()),
         }
+    }
+
+    /// Integrates `plan` in precision `R`; `progress`, if given, counts
+    /// trajectory-steps as they finish.
+    pub fn run<R: Flows>(
+        &self,
+        plan: &Plan,
+        progress: Option<&AtomicU64>,
+    ) -> Result<Integration<R>, GpuError> {
+        Ok(match self {
+            Engine::Cpu => {
+                let t = Instant::now();
+                let observations = cpu::run::<R>(plan, progress);
+                Integration {
+                    observations,
+                    seconds: t.elapsed().as_secs_f64(),
+                    timing: "wall clock",
+                }
+            }
+            Engine::Gpu(ctx) => {
+                let r = gpu::run::<R>(ctx, plan, progress)?;
+                Integration {
+                    observations: r.observations,
+                    seconds: r.seconds,
+                    timing: r.timing,
+                }
+            }
+        })
+    }
+
+    /// [`Engine::run`] in a precision chosen at run time, widened to f64 for
+    /// analysis (reports, verify); also returns the seconds.
+    pub fn run_f64(
+        &self,
+        plan: &Plan,
+        precision: Precision,
+    ) -> Result<(Observations<f64>, f64), GpuError> {
+        Ok(match precision {
+            Precision::F32 => {
+                let r = self.run::<f32>(plan, None)?;
+                (r.observations.convert(), r.seconds)
+            }
+            Precision::F64 => {
+                let r = self.run::<f64>(plan, None)?;
+                (r.observations, r.seconds)
+            }
+        })
     }
 }
 
-/// Runs `plan` on the CPU in `precision`.
-pub fn run_cpu(plan: &Plan, precision: Precision, progress: Option<&AtomicU64>) -> AnyObservations {
-    match precision {
-        Precision::F32 => AnyObservations::F32(cpu::run::<f32>(plan, progress)),
-        Precision::F64 => AnyObservations::F64(cpu::run::<f64>(plan, progress)),
-    }
-}
-
-impl<R: Flows> Observations<R> {
-    /// The same observations in another precision.
-    pub fn convert<S: Flows>(&self) -> Observations<S> {
-        let c = |v: &Vec<R>| {
-            v.iter()
-                .map(|x| S::from_f64(x.to_f64()))
-                .collect::<Vec<S>>()
-        };
-        let cn = |v: &Vec<(String, Vec<R>)>| v.iter().map(|(n, x)| (n.clone(), c(x))).collect();
-        Observations {
-            n: self.n,
-            final_values: cn(&self.final_values),
-            frames: self.frames,
-            trajectory: cn(&self.trajectory),
-            max_points: self.max_points,
-            poincare: cn(&self.poincare),
-            poincare_count: self.poincare_count.clone(),
-            cycle_amplitude: c(&self.cycle_amplitude),
-            cycle_period: c(&self.cycle_period),
-            nonfinite_step: self.nonfinite_step.clone(),
-        }
-    }
+fn first_line(s: &str) -> &str {
+    s.lines().next().unwrap_or(s)
 }

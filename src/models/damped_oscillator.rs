@@ -2,13 +2,12 @@
 //! `q'' = −q − α q' + β sin ωt`.
 
 #[allow(unused_imports)]
-use crate::num::{math::Math, prims::Prims};
-#[allow(unused_imports)]
 use super::mechanical::{Mechanical1dOps, MechanicalFlows};
+#[allow(unused_imports)]
+use crate::num::{math::Math, prims::Prims};
 
-
-use super::spec::{ModelSpec, ParamDef, TimeDependence};
 use super::spec::Method;
+use super::spec::{ModelSpec, ParamDef, TimeDependence};
 
 crate::shared_fns! {
     /// Model functions used by the ops (not ops themselves).

@@ -11,7 +11,6 @@
 #[allow(unused_imports)]
 use crate::num::{math::Math, prims::Prims};
 
-
 crate::shared_fns! {
     /// Interpolation inside a step.
     trait ObserveFlows, wgsl OBSERVE_WGSL;

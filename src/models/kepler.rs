@@ -3,13 +3,12 @@
 //! Singular at q = 0 (the trajectory is then flagged non-finite).
 
 #[allow(unused_imports)]
-use crate::num::{math::Math, prims::Prims};
-#[allow(unused_imports)]
 use super::mechanical::{Mechanical1dOps, MechanicalFlows};
+#[allow(unused_imports)]
+use crate::num::{math::Math, prims::Prims};
 
-
-use super::spec::{InitialAlias, ModelSpec, ParamDef, TimeDependence};
 use super::spec::Method;
+use super::spec::{InitialAlias, ModelSpec, ParamDef, TimeDependence};
 
 crate::shared_fns! {
     /// Model functions used by the ops (not ops themselves).
@@ -221,7 +220,10 @@ const PERIHELION: InitialAlias = InitialAlias {
     key: "eccentricity",
     range: "[0, 1)",
     ok: |e| (0.0..1.0).contains(&e),
-    sets: &[("q1", |e| perihelion(e).0[0]), ("p2", |e| perihelion(e).1[1])],
+    sets: &[
+        ("q1", |e| perihelion(e).0[0]),
+        ("p2", |e| perihelion(e).1[1]),
+    ],
 };
 
 pub const SPEC: ModelSpec = ModelSpec {

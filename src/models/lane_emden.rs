@@ -3,13 +3,12 @@
 //! The outermost `D½` of S2 means `f = 2/t` is first read at t = τ/2.
 
 #[allow(unused_imports)]
-use crate::num::{math::Math, prims::Prims};
-#[allow(unused_imports)]
 use super::mechanical::{Mechanical1dOps, MechanicalFlows};
+#[allow(unused_imports)]
+use crate::num::{math::Math, prims::Prims};
 
-
-use super::spec::{each_in, ModelSpec, ParamDef, RuleError, TimeDependence};
 use super::spec::Method;
+use super::spec::{each_in, ModelSpec, ParamDef, RuleError, TimeDependence};
 
 /// Largest index `powi_small` handles.
 pub const MAX_INDEX: f64 = 15.0;
@@ -126,7 +125,12 @@ fn rules(values: &dyn Fn(&str) -> Vec<f64>, time: bool) -> Result<(), RuleError>
         |k| format!("{k} is not an integer in 0..=15"),
     )?;
     if time {
-        each_in(values, "initial.t0", |t| t >= 0.0, |_| "Lane–Emden starts at t0 ≥ 0 (f = 2/t)".into())?;
+        each_in(
+            values,
+            "initial.t0",
+            |t| t >= 0.0,
+            |_| "Lane–Emden starts at t0 ≥ 0 (f = 2/t)".into(),
+        )?;
     }
     Ok(())
 }

@@ -4,13 +4,12 @@
 //! integrated only when a scene asks for it.
 
 #[allow(unused_imports)]
-use crate::num::{math::Math, prims::Prims};
-#[allow(unused_imports)]
 use super::mechanical::{Mechanical1dOps, MechanicalFlows};
+#[allow(unused_imports)]
+use crate::num::{math::Math, prims::Prims};
 
-
-use super::spec::{ModelSpec, ParamDef, TimeDependence};
 use super::spec::Method;
+use super::spec::{ModelSpec, ParamDef, TimeDependence};
 
 /// Coefficients a polynomial f or g of the general Liénard model may have
 /// (degree ≤ 9).

@@ -5,7 +5,6 @@
 #[allow(unused_imports)]
 use crate::num::{math::Math, prims::Prims};
 
-
 crate::shared_fns! {
     /// Exact flows of the mechanical pieces, per component.
     trait MechanicalFlows, wgsl MECHANICAL_FLOWS_WGSL;

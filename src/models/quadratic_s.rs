@@ -3,13 +3,12 @@
 //! `q'' = −q − γ s q'`: the damping depends on the action itself.
 
 #[allow(unused_imports)]
-use crate::num::{math::Math, prims::Prims};
-#[allow(unused_imports)]
 use super::mechanical::{Mechanical1dOps, MechanicalFlows};
+#[allow(unused_imports)]
+use crate::num::{math::Math, prims::Prims};
 
-
-use super::spec::{ModelSpec, ParamDef, TimeDependence};
 use super::spec::Method;
+use super::spec::{ModelSpec, ParamDef, TimeDependence};
 
 crate::model_ops! {
     /// Pieces, vector field and RK4 of the quadratic-s oscillator.

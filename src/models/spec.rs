@@ -1,7 +1,6 @@
 //! What a model declares: variables, parameters, pieces and the shared
 //! functions (ops) that implement each piece, time term and method.
 
-
 /// A comparison integrator (SPEC §3), as opposed to a splitting scheme.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Method {

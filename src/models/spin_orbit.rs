@@ -10,13 +10,12 @@
 //! B piece costs one sincos of 2q instead of fourteen.
 
 #[allow(unused_imports)]
-use crate::num::{math::Math, prims::Prims};
-#[allow(unused_imports)]
 use super::mechanical::{Mechanical1dOps, MechanicalFlows};
+#[allow(unused_imports)]
+use crate::num::{math::Math, prims::Prims};
 
-
-use super::spec::{each_in, Derived, ModelSpec, ParamDef, RuleError, TimeDependence};
 use super::spec::Method;
+use super::spec::{each_in, Derived, ModelSpec, ParamDef, RuleError, TimeDependence};
 
 /// Cayley coefficients of `(a/r)³ cos(2θ − 2f)` to e⁷ (SPEC §2.1):
 /// `(m, [(k, c)])` with `W_m(e) = Σ c e^k`.
@@ -217,7 +216,12 @@ const WEIGHTS: &[Derived] = &[
 
 /// The eccentricity lies in [0, 1).
 fn rules(values: &dyn Fn(&str) -> Vec<f64>, _time: bool) -> Result<(), RuleError> {
-    each_in(values, "params.eccentricity", |e| (0.0..1.0).contains(&e), |e| format!("{e} is not in [0, 1)"))
+    each_in(
+        values,
+        "params.eccentricity",
+        |e| (0.0..1.0).contains(&e),
+        |e| format!("{e} is not in [0, 1)"),
+    )
 }
 
 pub const SPEC: ModelSpec = ModelSpec {

@@ -171,7 +171,6 @@ impl Math for f64 {
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;

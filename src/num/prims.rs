@@ -98,4 +98,3 @@ impl Prims for f64 {
         a.mul_add(b, c)
     }
 }
-

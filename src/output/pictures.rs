@@ -8,9 +8,9 @@ use std::path::Path;
 
 use anyhow::Result;
 
-use crate::plan::observations::Observations;
-use crate::output::plot::{self, Figure, Series};
 use crate::num::precision::Real;
+use crate::output::plot::{self, Figure, Series};
+use crate::plan::observations::Observations;
 use crate::scene::Scene;
 
 /// Is the grid geometric (so a log axis shows it evenly)?

@@ -8,68 +8,16 @@
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use npyz::WriterBuilder;
 
+use crate::backend::Engine;
 use crate::models::Flows;
-use crate::backend::cpu;
-use crate::backend::gpu::{self, GpuContext};
-use crate::plan::observations::{estimate_bytes, Observations};
 use crate::num::precision::Precision;
+use crate::plan::observations::{estimate_bytes, Observations};
 use crate::scene::{BackendChoice, OutVar, Scene};
-
-/// The backend a run ends up on.
-pub enum Engine {
-    Cpu,
-    Gpu(Box<GpuContext>),
-}
-
-impl Engine {
-    pub fn name(&self) -> &'static str {
-        match self {
-            Engine::Cpu => "cpu",
-            Engine::Gpu(_) => "gpu",
-        }
-    }
-    pub fn describe(&self) -> String {
-        match self {
-            Engine::Cpu => format!("cpu ({} threads)", rayon::current_num_threads()),
-            Engine::Gpu(ctx) => format!("gpu: {}", ctx.describe()),
-        }
-    }
-}
-
-/// Chooses the backend. `auto` takes a hardware GPU adapter when there is one
-/// (and it has f64 if asked for), and otherwise the CPU, returning the
-/// one-line notice to print. A software adapter (lavapipe) is slower than the
-/// CPU backend, so `auto` uses it only when asked with `gpu`.
-pub fn resolve_backend(
-    choice: BackendChoice,
-    precision: Precision,
-) -> Result<(Engine, Option<String>)> {
-    match choice {
-        BackendChoice::Cpu => Ok((Engine::Cpu, None)),
-        BackendChoice::Gpu => {
-            let ctx = GpuContext::new()?;
-            if precision == Precision::F64 && !ctx.shader_f64 {
-                bail!("{}", gpu::GpuError::NoF64(ctx.describe()));
-            }
-            Ok((Engine::Gpu(Box::new(ctx)), None))
-        }
-        BackendChoice::Auto => match GpuContext::new() {
-            Err(e) => Ok((Engine::Cpu, Some(format!("note: no GPU adapter ({}); running on the CPU", first_line(&e.to_string()))))),
-            Ok(ctx) if gpu::is_software(&ctx.info) => Ok((Engine::Cpu, Some(format!("note: only a software GPU adapter ({}); running on the CPU (use --backend gpu to run it anyway)", ctx.info.name)))),
-            Ok(ctx) if precision == Precision::F64 && !ctx.shader_f64 => Ok((Engine::Cpu, Some(format!("note: {} has no f64 shaders; running on the CPU", ctx.info.name)))),
-            Ok(ctx) => Ok((Engine::Gpu(Box::new(ctx)), None)),
-        },
-    }
-}
-
-fn first_line(s: &str) -> &str {
-    s.lines().next().unwrap_or(s)
-}
 
 /// What a finished run reports.
 pub struct RunReport {
@@ -136,7 +84,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
             bytes(limit)
         );
     }
-    let (engine, notice) = resolve_backend(choice, precision)?;
+    let (engine, notice) = Engine::resolve(choice, precision)?;
     if let Some(n) = notice {
         eprintln!("{n}");
     }
@@ -144,26 +92,6 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
         Precision::F32 => run_typed::<f32>(scene, subs, opts, &engine, precision),
         Precision::F64 => run_typed::<f64>(scene, subs, opts, &engine, precision),
     }
-}
-
-/// Integrates one plan on the chosen engine; returns the observations and
-/// the integration time (and how it was measured).
-pub fn integrate<R: Flows>(
-    engine: &Engine,
-    plan: &crate::plan::Plan,
-    progress: Option<&AtomicU64>,
-) -> Result<(Observations<R>, f64, &'static str)> {
-    Ok(match engine {
-        Engine::Cpu => {
-            let t = Instant::now();
-            let o = cpu::run::<R>(plan, progress);
-            (o, t.elapsed().as_secs_f64(), "wall clock")
-        }
-        Engine::Gpu(ctx) => {
-            let r = gpu::run::<R>(ctx, plan, progress)?;
-            (r.observations, r.seconds, r.timing)
-        }
-    })
 }
 
 fn run_typed<R: Flows>(
@@ -211,7 +139,8 @@ fn run_typed<R: Flows>(
         }
         let result = (|| -> Result<()> {
             for sub in &subs {
-                let (obs, secs, how) = integrate::<R>(engine, &sub.plan, Some(&done))?;
+                let run = engine.run::<R>(&sub.plan, Some(&done))?;
+                let (obs, secs, how) = (run.observations, run.seconds, run.timing);
                 seconds += secs;
                 timing = how;
                 max_steps = max_steps.max(sub.plan.steps);

@@ -401,10 +401,7 @@ impl Plan {
                 .map_or(0.0, |(_, x)| *x);
             bindings.push((
                 v,
-                initial
-                    .get(*v)
-                    .cloned()
-                    .unwrap_or(Source::Const(default)),
+                initial.get(*v).cloned().unwrap_or(Source::Const(default)),
             ));
         }
         bindings.push(("t0", t0));

@@ -1,7 +1,7 @@
 //! What a run produces, per trajectory, in the run's precision.
 
-use crate::plan::{ObsVar, Plan};
 use crate::num::precision::{Precision, Real};
+use crate::plan::{ObsVar, Plan};
 
 /// Status of a trajectory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -141,3 +141,26 @@ pub fn estimate_bytes(plan: &Plan, precision: Precision) -> u64 {
     n * per_traj
 }
 
+impl<R: Real> Observations<R> {
+    /// The same observations in another precision.
+    pub fn convert<S: Real>(&self) -> Observations<S> {
+        let c = |v: &Vec<R>| {
+            v.iter()
+                .map(|x| S::from_f64(x.to_f64()))
+                .collect::<Vec<S>>()
+        };
+        let cn = |v: &Vec<(String, Vec<R>)>| v.iter().map(|(n, x)| (n.clone(), c(x))).collect();
+        Observations {
+            n: self.n,
+            final_values: cn(&self.final_values),
+            frames: self.frames,
+            trajectory: cn(&self.trajectory),
+            max_points: self.max_points,
+            poincare: cn(&self.poincare),
+            poincare_count: self.poincare_count.clone(),
+            cycle_amplitude: c(&self.cycle_amplitude),
+            cycle_period: c(&self.cycle_period),
+            nonfinite_step: self.nonfinite_step.clone(),
+        }
+    }
+}

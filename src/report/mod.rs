@@ -16,15 +16,15 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use crate::plan::observations::Observations;
-use crate::plan::observers::CycleObs;
-use crate::plan::Plan;
-use crate::output::plot::{self, Figure, Series, Slope};
+use crate::backend::BackendChoice;
+use crate::backend::Engine;
 use crate::num::precision::Precision;
-use crate::output::run::{integrate, resolve_backend, Engine};
-use crate::scene::{BackendChoice, Horizon, OutVar, ReportSettings, Scene};
+use crate::output::plot::{self, Figure, Series, Slope};
+use crate::plan::observers::CycleObs;
 use crate::plan::scheme::Scheme;
+use crate::plan::Plan;
 use crate::reference::truth::{dop853_of, lane_of, truth, Truth};
+use crate::scene::{Horizon, OutVar, ReportSettings, Scene};
 
 /// One measured point of a work–precision diagram.
 #[derive(Debug, Clone)]
@@ -96,25 +96,6 @@ fn finite_or_inf(x: f64) -> f64 {
     }
 }
 
-/// Integrates `plan` in `precision` and widens the observations to f64 for
-/// analysis; returns them with the integration time.
-fn integrate_f64(
-    engine: &Engine,
-    plan: &Plan,
-    precision: Precision,
-) -> Result<(Observations<f64>, f64)> {
-    Ok(match precision {
-        Precision::F32 => {
-            let (o, s, _) = integrate::<f32>(engine, plan, None)?;
-            (o.convert::<f64>(), s)
-        }
-        Precision::F64 => {
-            let (o, s, _) = integrate::<f64>(engine, plan, None)?;
-            (o, s)
-        }
-    })
-}
-
 /// Runs the work–precision report of `scene`; returns the path of report.md.
 pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
     let set = settings(scene);
@@ -171,7 +152,7 @@ pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
     };
     let mut engines: Vec<(BackendChoice, Engine)> = vec![];
     for b in &backends {
-        match resolve_backend(*b, Precision::F32) {
+        match Engine::resolve(*b, Precision::F32) {
             Ok((e, notice)) => {
                 if let Some(n) = notice {
                     eprintln!("{n}");
@@ -217,7 +198,7 @@ pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
                         .div_ceil(n0)
                         .max(1);
                     let plan = sub.plan.replicated(copies);
-                    let (obs, seconds) = integrate_f64(engine, &plan, *p)?;
+                    let (obs, seconds) = engine.run_f64(&plan, *p)?;
                     let (mut emax, mut erel) = (0.0f64, 0.0f64);
                     let mut per_time: Vec<f64> = vec![];
                     for j in 0..n0 {
@@ -732,7 +713,7 @@ pub fn stability(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
     let mut summary = String::new();
     let mut first_map = true;
     for p in &precisions {
-        let (engine, notice) = resolve_backend(backend, *p)?;
+        let (engine, notice) = Engine::resolve(backend, *p)?;
         if let Some(n) = notice {
             eprintln!("{n}");
         }
@@ -740,7 +721,7 @@ pub fn stability(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
         let mut error = vec![f64::NAN; n];
         let mut rowsv: Vec<(usize, f64, f64, f64, f64, u64)> = vec![];
         for sub in &subs {
-            let (obs, _) = integrate_f64(&engine, &sub.plan, *p)?;
+            let (obs, _) = engine.run_f64(&sub.plan, *p)?;
             for (j, g) in sub.scene_rows(&shape, &strides).enumerate() {
                 let (ra, rp) = reference_of(&sub.plan, j)?;
                 let (a, per, st) = (

@@ -29,11 +29,12 @@ use std::path::{Path, PathBuf};
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
+pub use crate::backend::BackendChoice;
 use crate::models::{lienard, Model, MODEL_NAMES};
-use crate::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
-use crate::plan::{Plan, Problem, Source};
 use crate::num::precision::Precision;
+use crate::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
 use crate::plan::scheme::{Scheme, SCHEME_NAMES};
+use crate::plan::{Plan, Problem, Source};
 
 /// A scene error: file, line, field and what is wrong.
 #[derive(Debug, Clone, thiserror::Error)]
@@ -43,28 +44,6 @@ pub struct SceneError {
     pub line: Option<usize>,
     pub field: String,
     pub message: String,
-}
-
-/// Which backend a run uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum BackendChoice {
-    /// A hardware GPU adapter if there is one, else the CPU (with a notice).
-    Auto,
-    Cpu,
-    Gpu,
-}
-
-impl std::str::FromStr for BackendChoice {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "auto" => Ok(BackendChoice::Auto),
-            "cpu" => Ok(BackendChoice::Cpu),
-            "gpu" => Ok(BackendChoice::Gpu),
-            _ => Err(format!("`{s}` is not a backend (auto, cpu, gpu)")),
-        }
-    }
 }
 
 /// An axis of the ensemble, as the scene names it.

@@ -5,8 +5,8 @@ use std::sync::OnceLock;
 
 use reeb::backend::gpu::GpuContext;
 use reeb::models::Model;
-use reeb::plan::{Problem, Source};
 use reeb::plan::scheme::{Scheme, SchemeKind};
+use reeb::plan::{Problem, Source};
 
 /// A problem for `model` with nonzero parameters (so every piece and time term is used).
 pub fn problem(model: &str, scheme: &str) -> Option<Problem> {

@@ -10,12 +10,12 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write;
 
+use crate::models::COMMON_WGSL;
 use crate::num::dsl::to_wgsl;
 use crate::num::math::{MATH_F32_WGSL, MATH_F64_WGSL};
-use crate::models::COMMON_WGSL;
+use crate::num::precision::Precision;
 use crate::plan::observers::{Direction, Section};
 use crate::plan::{ObsVar, Op, Plan, Source};
-use crate::num::precision::Precision;
 
 const PRELUDE_F32: &str = include_str!("../../../shaders/prelude_f32.wgsl");
 const PRELUDE_F64: &str = include_str!("../../../shaders/prelude_f64.wgsl");

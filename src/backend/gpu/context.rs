@@ -4,7 +4,6 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
-
 /// Why the GPU backend cannot run.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {

@@ -12,9 +12,9 @@ use wgpu::util::DeviceExt;
 use super::codegen::{generate, AUX_R, AUX_U};
 use super::context::{GpuContext, GpuError};
 use crate::models::Flows;
+use crate::num::precision::Precision;
 use crate::plan::observations::Observations;
 use crate::plan::{ObsVar, Plan};
-use crate::num::precision::Precision;
 
 /// Wall time one dispatch aims at.
 pub const TARGET_DISPATCH_SECONDS: f64 = 0.1;
