@@ -12,7 +12,7 @@
 use crate::num::{math::Math, prims::Prims};
 
 crate::shared_fns! {
-    /// Interpolation inside a step.
+    /// The observers' per-step logic, and interpolation inside a step.
     trait ObserveFlows, wgsl OBSERVE_WGSL;
 
     /// Cubic Hermite interpolant at θ ∈ [0, 1] of a step of length h from
@@ -53,6 +53,63 @@ crate::shared_fns! {
     fn strobe_position(k: R, period: R, phase: R, dt: R) -> R {
         return (phase + k * period) / dt;
     }
+    /// Trajectory observer: is the state after step n1 frame number n1/every?
+    fn frame_due(n1: i32, every: i32) -> bool {
+        return n1 % every == 0;
+    }
+    /// Stroboscopic section sampled exactly (period and phase whole numbers of
+    /// steps): the sampling interval and the first sample, in steps.
+    fn strobe_exact_steps(period: R, phase: R, dt: R, every: &mut i32, first: &mut i32) {
+        *every = R::to_i32(R::floor(period / dt + 0.5));
+        *first = R::to_i32(R::floor(phase / dt + 0.5));
+    }
+    /// Exact stroboscopic section: is the state after step n1 a sample?
+    fn strobe_exact_due(n1: i32, every: i32, first: i32) -> bool {
+        return every > 0 && n1 >= first && (n1 - first) % every == 0;
+    }
+    /// Interpolated stroboscopic section: is sample k due in the step that
+    /// ends at n1 (every sample in (t_{n1−1}, t_{n1}], and t0 itself at the
+    /// initial state), and at which θ of the step?
+    fn strobe_due(k: R, period: R, phase: R, dt: R, n1: R, initial: bool, th: &mut R) -> bool {
+        let x: R = R::strobe_position(k, period, phase, dt);
+        *th = R::select(R::max(R::min(x - n1 + 1.0, 1.0), 0.0), 1.0, initial);
+        return !(x > n1 + 1e-4);
+    }
+    /// Event section: does y (the crossing variable minus its level) cross
+    /// zero between the step ends y0 → y1 in `direction` (0 up, 1 down, 2 both)?
+    fn crossing_due(y0: R, y1: R, direction: i32) -> bool {
+        let up: bool = y0 < 0.0 && y1 >= 0.0;
+        let down: bool = y0 > 0.0 && y1 <= 0.0;
+        return (up && direction != 1) || (down && direction != 0);
+    }
+    /// An observed state variable at θ inside the step y0 → y1 (θ = 1: the
+    /// step's end, exactly).
+    fn observed_state(y0: R, y1: R, d0: R, d1: R, h: R, th: R) -> R {
+        return R::select(R::hermite(y0, y1, d0, d1, h, th), y1, th == 1.0);
+    }
+    /// Time at θ inside the step that ends at step n1.
+    fn observed_time(t0: R, n1: R, dt: R, th: R) -> R {
+        return (t0 + n1 * dt) - (1.0 - th) * dt;
+    }
+    /// Cycle statistics over one step of the measuring window: the running
+    /// extremes of x, and each upward crossing of the level (y0 → y1 relative
+    /// to it, slopes d0, d1) located inside the step, which starts at time
+    /// `t_start`, counted and added to the least-squares period.
+    fn cycle_step(x: R, y0: R, y1: R, d0: R, d1: R, dt: R, t_start: R,
+                  cyc_max: &mut R, cyc_min: &mut R, cyc_count: &mut R,
+                  cyc_first: &mut R, cyc_mean: &mut R, cyc_com: &mut R) {
+        *cyc_max = R::select(*cyc_max, x, x > *cyc_max);
+        *cyc_min = R::select(*cyc_min, x, x < *cyc_min);
+        if y0 < 0.0 && y1 >= 0.0 {
+            let th: R = R::crossing_theta(y0, y1, d0, d1, dt);
+            let tc: R = t_start + th * dt;
+            if *cyc_count == 0.0 {
+                *cyc_first = tc;
+            }
+            R::cycle_crossing(*cyc_count, tc - *cyc_first, cyc_mean, cyc_com);
+            *cyc_count = *cyc_count + 1.0;
+        }
+    }
     /// Adds crossing number k (0-based) at time u (relative to the first)
     /// to the running mean of u and the co-moment C = Σ (k − k̄)(u − ū), by
     /// Welford's update. The mean of the indices before this one is
@@ -61,6 +118,10 @@ crate::shared_fns! {
         let n: R = k + 1.0;
         *mean_u = *mean_u + (u - *mean_u) / n;
         *comoment = *comoment + 0.5 * n * (u - *mean_u);
+    }
+    /// Half the peak-to-peak range of the cycle variable.
+    fn cycle_amplitude(cyc_max: R, cyc_min: R) -> R {
+        return 0.5 * (cyc_max - cyc_min);
     }
     /// Least-squares period from n ≥ 2 crossings: the slope C / Σ (k − k̄)²,
     /// with Σ (k − k̄)² = n(n² − 1)/12. Averaging over all crossings cancels
