@@ -4,6 +4,7 @@
 // looked up along the ensemble's axes), the step (the plan's ops as calls of
 // the shared functions), the finite test and the observers.
 
+// Keep in sync with `struct Uniforms` of src/backend/gpu/run.rs.
 struct Uniforms {
     // Global index of the chunk's first trajectory.
     base: u32,

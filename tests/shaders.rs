@@ -109,3 +109,21 @@ fn van_der_pol_qs_kernel_has_no_p_and_no_time() {
     // Per-thread state: 2 integrated variables instead of 3.
     assert!(driver.matches("var ").count() < driver_p.matches("var ").count());
 }
+
+/// The host's `Uniforms` (gpu/run.rs) and the driver's (driver.wgsl) have
+/// the same size, as naga lays the WGSL struct out.
+#[test]
+fn uniforms_match_the_driver() {
+    let plan = Plan::new(&problem("van_der_pol", "s2").unwrap()).unwrap();
+    let kernel = generate(&plan, Precision::F32).unwrap();
+    let module = naga::front::wgsl::parse_str(&kernel.source).unwrap();
+    let (_, ty) = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some("Uniforms"))
+        .expect("driver declares Uniforms");
+    let naga::TypeInner::Struct { span, .. } = ty.inner else {
+        panic!("Uniforms is not a struct");
+    };
+    assert_eq!(span as usize, reeb::backend::gpu::run::UNIFORMS_BYTES);
+}

@@ -360,16 +360,8 @@ impl Plan {
             found.map(Source::values).unwrap_or_default()
         };
         (spec.rules)(&values, time).map_err(|(f, m)| err(f, m))?;
-        if problem
-            .dt
-            .values()
-            .iter()
-            .any(|v| !(v.is_finite() && *v > 0.0))
-        {
-            return Err(err(
-                "integrator.dt",
-                "every step size must be finite and > 0",
-            ));
+        if let Some(dt) = problem.dt.values().into_iter().find(|v| !(*v > 0.0)) {
+            return Err(err("integrator.dt", format!("must be > 0 (got {dt})")));
         }
         if problem.steps == 0 {
             return Err(err("integrator.steps", "must be at least 1"));
@@ -770,7 +762,7 @@ fn check_coefficients(model: &Model) -> Result<(), PlanError> {
                 return Err(err(
                     format!("params.{name}"),
                     format!(
-                        "{} coefficients given; at most {} (degree 9)",
+                        "{} coefficients; at most {} (degree 9)",
                         c.len(),
                         crate::models::lienard::MAX_COEFFICIENTS
                     ),

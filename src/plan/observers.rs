@@ -122,27 +122,9 @@ impl Observers {
                 return e("output.poincare.vars", "names no variable".into());
             }
             match &p.section {
-                Section::Stroboscopic { period, phase } => {
-                    if !(period.is_finite() && *period > 0.0) {
-                        return e(
-                            "output.poincare.period",
-                            format!("{period} is not a finite number > 0"),
-                        );
-                    }
-                    if !(phase.is_finite() && *phase >= 0.0) {
-                        return e(
-                            "output.poincare.phase",
-                            format!("{phase} is not a finite number ≥ 0"),
-                        );
-                    }
-                }
+                Section::Stroboscopic { period, phase } => check_strobe(*period, *phase)?,
                 Section::Forced { skip } => {
-                    if !(skip.is_finite() && *skip >= 0.0) {
-                        return e(
-                            "output.poincare.skip",
-                            format!("{skip} is not a number of periods ≥ 0"),
-                        );
-                    }
+                    check_skip(*skip).map_err(|m| ("output.poincare.skip".to_string(), m))?
                 }
                 Section::Crossing { value, .. } => {
                     if !value.is_finite() {
@@ -153,7 +135,10 @@ impl Observers {
         }
         if let Some(c) = &self.cycle {
             if !(0.0..1.0).contains(&c.skip) {
-                return e("output.cycle.skip", format!("{} is not in [0, 1)", c.skip));
+                return e(
+                    "output.cycle.skip",
+                    "must be in [0, 1): the fraction of the run skipped as transient".into(),
+                );
             }
             if !c.level.is_finite() {
                 return e("output.cycle.level", "is not a finite number".into());
@@ -173,6 +158,27 @@ pub fn strobe_steps(period: f64, phase: f64, dt: f64) -> Option<(u64, u64)> {
     match (whole(period), whole(phase)) {
         (Some(n), Some(k)) if n > 0 => Some((n, k)),
         _ => None,
+    }
+}
+
+/// A stroboscopic section's period and phase (phase after any skipped periods).
+pub fn check_strobe(period: f64, phase: f64) -> Result<(), (String, String)> {
+    if period.is_finite() && period > 0.0 && phase.is_finite() && phase >= 0.0 {
+        Ok(())
+    } else {
+        Err((
+            "output.poincare.period".into(),
+            "needs period > 0 and phase ≥ 0".into(),
+        ))
+    }
+}
+
+/// Periods skipped before a section starts.
+pub fn check_skip(skip: f64) -> Result<(), String> {
+    if skip.is_finite() && skip >= 0.0 && skip.fract() == 0.0 {
+        Ok(())
+    } else {
+        Err("must be a whole number of periods ≥ 0".into())
     }
 }
 

@@ -5,7 +5,8 @@
 //! The kernel is specialised: it declares only the variables the plan's ops
 //! name, loads and stores only the integrated ones, bakes constant inputs in as
 //! literals, reads time only when the plan has time, and contains observer code
-//! only for the observers asked for.
+//! only for the observers asked for. Observer code calls the same shared
+//! functions (`models/events.rs`) as the CPU's `backend/cpu/observe.rs`.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write;
@@ -14,16 +15,25 @@ use crate::models::COMMON_WGSL;
 use crate::num::dsl::to_wgsl;
 use crate::num::math::{MATH_F32_WGSL, MATH_F64_WGSL};
 use crate::num::precision::Precision;
-use crate::plan::observers::{Direction, Section};
+use crate::plan::observers::{Direction, PoincareObs, Section};
 use crate::plan::{ObsVar, Op, Plan, Source};
 
 const PRELUDE_F32: &str = include_str!("../../../shaders/prelude_f32.wgsl");
 const PRELUDE_F64: &str = include_str!("../../../shaders/prelude_f64.wgsl");
 const DRIVER: &str = include_str!("../../../shaders/driver.wgsl");
 
-/// Per-trajectory observer slots in `aux_r` (R) and `aux_u` (u32).
-pub const AUX_R: [&str; 5] = ["cyc_max", "cyc_min", "cyc_first", "cyc_mean", "cyc_com"];
-pub const AUX_U: [&str; 3] = ["strobe_k", "npoints", "cyc_count"];
+/// Per-trajectory observer state that lives across dispatches, in `aux_r`
+/// (R) and `aux_u` (u32); the CPU twin is `BlockObservers` in
+/// `backend/cpu/observe.rs`. `run.rs` reads the slots back by position.
+pub const AUX_R: [&str; 6] = [
+    "cyc_max",
+    "cyc_min",
+    "cyc_first",
+    "cyc_mean",
+    "cyc_com",
+    "cyc_count",
+];
+pub const AUX_U: [&str; 2] = ["strobe_k", "npoints"];
 
 /// A generated kernel and what the host needs to drive it.
 #[derive(Debug, Clone)]
@@ -129,12 +139,57 @@ fn shared_text(plan: &Plan, precision: Precision) -> Result<String, CodegenError
 pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenError> {
     let shared = shared_text(plan, precision)?;
     let sigs = signatures(&shared);
-    let needs_field = plan.needs_field();
-    let calls = plan.called_ops();
+    let names = bound_names(plan, &sigs)?;
+    let mut table: Vec<f64> = vec![];
+    let mut g = Gen {
+        plan,
+        sigs: &sigs,
+        names: &names,
+        load: String::new(),
+        store: String::new(),
+    };
+    let inputs = g.inputs(precision, &mut table)?;
+    g.state(precision, &mut table)?;
+    let step = g.step();
+    let finite = plan
+        .vars
+        .iter()
+        .map(|v| format!("finite({v})"))
+        .collect::<Vec<_>>()
+        .join(" && ");
+    let strobe_exact = plan.observers.stroboscopic() && !plan.strobe_interpolated();
+    let (begin, observe) = g.observers(strobe_exact);
+
+    let prelude = match precision {
+        Precision::F32 => PRELUDE_F32,
+        Precision::F64 => PRELUDE_F64,
+    };
+    let driver = DRIVER
+        .replace("{{INPUTS}}", inputs.trim_end())
+        .replace("{{LOAD}}", g.load.trim_end())
+        .replace("{{BEGIN}}", begin.trim_end())
+        .replace("{{STEP}}", step.trim_end())
+        .replace("{{FINITE}}", &finite)
+        .replace("{{OBSERVE}}", observe.trim_end())
+        .replace("{{STORE}}", g.store.trim_end());
+    let source = format!("{prelude}\n// ---- shared functions (generated from src/**/*.rs) ----\n{shared}\n// ---- driver ----\n{driver}");
+    Ok(Kernel {
+        source,
+        table,
+        strobe_exact,
+    })
+}
+
+/// Every name the plan's ops bind (their shared functions' arguments), plus
+/// the inputs the driver and observers read.
+fn bound_names(
+    plan: &Plan,
+    sigs: &BTreeMap<String, Vec<(String, bool)>>,
+) -> Result<BTreeSet<String>, CodegenError> {
     let mut names: BTreeSet<String> = BTreeSet::new();
-    for c in &calls {
+    for c in plan.called_ops() {
         let sig = sigs
-            .get(*c)
+            .get(c)
             .ok_or_else(|| CodegenError::Plan(format!("no shared function `{c}`")))?;
         names.extend(sig.iter().map(|(a, _)| a.clone()));
     }
@@ -144,12 +199,28 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
         names.insert("strobe_period".into());
         names.insert("strobe_phase".into());
     }
+    Ok(names)
+}
 
-    // Inputs: constants as literals, axis-dependent values from the table.
-    let mut table: Vec<f64> = vec![];
-    let mut inputs = String::new();
-    let mut declared: BTreeSet<String> = BTreeSet::new();
-    let input_expr = |src: &Source, table: &mut Vec<f64>| -> Result<String, CodegenError> {
+/// The pieces of one kernel as they are generated.
+struct Gen<'a> {
+    plan: &'a Plan,
+    sigs: &'a BTreeMap<String, Vec<(String, bool)>>,
+    names: &'a BTreeSet<String>,
+    /// Declarations and loads at the start of the kernel, stores at its end.
+    load: String,
+    store: String,
+}
+
+impl Gen<'_> {
+    /// The WGSL of an input: a literal for a constant, a table lookup along
+    /// its axis otherwise.
+    fn input_expr(
+        &self,
+        src: &Source,
+        precision: Precision,
+        table: &mut Vec<f64>,
+    ) -> Result<String, CodegenError> {
         Ok(match src {
             Source::Const(v) => {
                 if precision == Precision::F32 && v.abs() > f32::MAX as f64 {
@@ -162,242 +233,267 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
                 table.extend(values);
                 format!(
                     "table[{off}u + (g / {}u) % {}u]",
-                    plan.strides[*axis],
+                    self.plan.strides[*axis],
                     values.len()
                 )
             }
         })
-    };
-    for (name, src) in &plan.bindings {
-        if plan.vars.contains(name) || !names.contains(*name) {
-            continue;
-        }
-        // The step and the start time come from the table even when constant,
-        // so that the plans of a scene's sub-runs (one per dt) share a kernel.
-        let e = match (src, *name) {
-            (Source::Const(v), "dt" | "t0") => {
-                table.push(*v);
-                format!("table[{}u]", table.len() - 1)
+    }
+
+    /// `let` bindings of the inputs the kernel reads (parameters, dt, t0, …).
+    fn inputs(&self, precision: Precision, table: &mut Vec<f64>) -> Result<String, CodegenError> {
+        let mut inputs = String::new();
+        for (name, src) in &self.plan.bindings {
+            if self.plan.vars.contains(name) || !self.names.contains(*name) {
+                continue;
             }
-            _ => input_expr(src, &mut table)?,
-        };
-        writeln!(inputs, "    let {name}: R = {e};").unwrap();
-        declared.insert(name.to_string());
-    }
-
-    // State: the integrated variables (initial values at step 0).
-    let mut load = String::new();
-    let mut store = String::new();
-    for (k, v) in plan.vars.iter().enumerate() {
-        let init = input_expr(plan.binding(v), &mut table)?;
-        writeln!(load, "    var {v}: R;\n    if u.step0 == 0u {{\n        {v} = {init};\n    }} else {{\n        {v} = state[{k}u * u.cap + i];\n    }}").unwrap();
-        writeln!(store, "    state[{k}u * u.cap + i] = {v};").unwrap();
-        declared.insert(v.to_string());
-    }
-    // Everything else an op names: step, time, time terms, derivatives,
-    // variables this plan does not integrate.
-    for n in &names {
-        if !declared.contains(n) {
-            writeln!(load, "    var {n}: R = 0.0;").unwrap();
+            // The step and the start time come from the table even when constant,
+            // so that the plans of a scene's sub-runs (one per dt) share a kernel.
+            let e = match (src, *name) {
+                (Source::Const(v), "dt" | "t0") => {
+                    table.push(*v);
+                    format!("table[{}u]", table.len() - 1)
+                }
+                _ => self.input_expr(src, precision, table)?,
+            };
+            writeln!(inputs, "    let {name}: R = {e};").unwrap();
         }
+        Ok(inputs)
     }
 
-    let call = |name: &str| -> String {
-        let args: Vec<String> = sigs[name]
+    /// The integrated variables (initial values at step 0, else the state of
+    /// the previous window) and every other name an op binds, as locals.
+    fn state(&mut self, precision: Precision, table: &mut Vec<f64>) -> Result<(), CodegenError> {
+        let plan = self.plan;
+        let mut declared: BTreeSet<&str> = plan
+            .bindings
+            .iter()
+            .filter(|(n, _)| !plan.vars.contains(n) && self.names.contains(*n))
+            .map(|(n, _)| *n)
+            .collect();
+        for (k, v) in plan.vars.iter().enumerate() {
+            let init = self.input_expr(plan.binding(v), precision, table)?;
+            writeln!(self.load, "    var {v}: R;\n    if u.step0 == 0u {{\n        {v} = {init};\n    }} else {{\n        {v} = state[{k}u * u.cap + i];\n    }}").unwrap();
+            writeln!(self.store, "    state[{k}u * u.cap + i] = {v};").unwrap();
+            declared.insert(v);
+        }
+        // Step, time, time terms, derivatives, variables this plan does not integrate.
+        for n in self.names {
+            if !declared.contains(n.as_str()) {
+                writeln!(self.load, "    var {n}: R = 0.0;").unwrap();
+            }
+        }
+        Ok(())
+    }
+
+    /// A call of the shared function `name`, arguments bound by name.
+    fn call(&self, name: &str) -> String {
+        let args: Vec<String> = self.sigs[name]
             .iter()
             .map(|(a, p)| if *p { format!("&{a}") } else { a.clone() })
             .collect();
         format!("        {name}({});\n", args.join(", "))
-    };
-    let mut step = String::new();
-    if needs_field {
-        for v in &plan.vars {
-            writeln!(step, "        prev_{v} = {v};\n        dprev_{v} = d{v};").unwrap();
-        }
     }
-    for op in &plan.ops {
-        match op {
-            Op::Tau(c) => writeln!(step, "        tau = {} * dt;", lit(*c)).unwrap(),
-            Op::Time(c) => writeln!(step, "        t = t0 + nf * dt + {} * dt;", lit(*c)).unwrap(),
-            Op::Call(name) => step.push_str(&call(name)),
-        }
-    }
-    let finite = plan
-        .vars
-        .iter()
-        .map(|v| format!("finite({v})"))
-        .collect::<Vec<_>>()
-        .join(" && ");
 
-    let field = |n1: &str| -> String {
-        let mut s = if names.contains("t") {
+    /// One step: the plan's ops (after saving the step's start for interpolation).
+    fn step(&self) -> String {
+        let mut step = String::new();
+        if self.plan.needs_field() {
+            for v in &self.plan.vars {
+                writeln!(step, "        prev_{v} = {v};\n        dprev_{v} = d{v};").unwrap();
+            }
+        }
+        for op in &self.plan.ops {
+            match op {
+                Op::Tau(c) => writeln!(step, "        tau = {} * dt;", lit(*c)).unwrap(),
+                Op::Time(c) => {
+                    writeln!(step, "        t = t0 + nf * dt + {} * dt;", lit(*c)).unwrap()
+                }
+                Op::Call(name) => step.push_str(&self.call(name)),
+            }
+        }
+        step
+    }
+
+    /// The vector field at step `n1` into the `d<var>` locals.
+    fn field(&self, n1: &str) -> String {
+        let mut s = if self.names.contains("t") {
             format!("        t = t0 + R({n1}) * dt;\n")
         } else {
             String::new()
         };
-        for f in &plan.field_ops {
-            s.push_str(&call(f));
+        for f in &self.plan.field_ops {
+            s.push_str(&self.call(f));
         }
         s
-    };
+    }
 
-    // Observers.
-    let strobe_exact = plan.observers.stroboscopic() && !plan.strobe_interpolated();
-    let mut begin = String::new();
-    let mut observe = String::new();
-    let uses_aux = plan.observers.poincare.is_some() || plan.cycle_var.is_some();
-    if uses_aux {
+    /// Observer code: at the start of the kernel (state kept in `aux_*`, the
+    /// field and observations of step 0) and after every step.
+    fn observers(&mut self, strobe_exact: bool) -> (String, String) {
+        let plan = self.plan;
+        let mut begin = String::new();
+        let mut observe = String::new();
+        if plan.observers.poincare.is_some() || plan.cycle_var.is_some() {
+            self.aux_state();
+        }
+        if plan.needs_field() {
+            for v in &plan.vars {
+                writeln!(
+                    self.load,
+                    "    var prev_{v}: R = 0.0;\n    var dprev_{v}: R = 0.0;"
+                )
+                .unwrap();
+            }
+            begin.push_str(&self.field("u.step0"));
+            observe.push_str(&self.field("n + 1u"));
+        }
+        if plan.observers.trajectory.is_some() || plan.observers.poincare.is_some() {
+            let initial = self.observe_at("0u", true, strobe_exact);
+            writeln!(begin, "    if u.step0 == 0u {{\n{initial}    }}").unwrap();
+        }
+        observe.push_str(&self.observe_at("n + 1u", false, strobe_exact));
+        observe.push_str(&self.cycle());
+        (begin, observe)
+    }
+
+    /// Observer state that lives across dispatches, loaded and stored.
+    fn aux_state(&mut self) {
         for (k, a) in AUX_R.iter().enumerate() {
             let init = match *a {
                 "cyc_max" => "-inf()",
                 "cyc_min" => "inf()",
                 _ => "0.0",
             };
-            writeln!(load, "    var {a}: R = {init};\n    if u.step0 != 0u {{\n        {a} = aux_r[{k}u * u.cap + i];\n    }}").unwrap();
-            writeln!(store, "    aux_r[{k}u * u.cap + i] = {a};").unwrap();
+            writeln!(self.load, "    var {a}: R = {init};\n    if u.step0 != 0u {{\n        {a} = aux_r[{k}u * u.cap + i];\n    }}").unwrap();
+            writeln!(self.store, "    aux_r[{k}u * u.cap + i] = {a};").unwrap();
         }
         for (k, a) in AUX_U.iter().enumerate() {
-            writeln!(load, "    var {a}: u32 = 0u;\n    if u.step0 != 0u {{\n        {a} = aux_u[{k}u * u.cap + i];\n    }}").unwrap();
-            writeln!(store, "    aux_u[{k}u * u.cap + i] = {a};").unwrap();
+            writeln!(self.load, "    var {a}: u32 = 0u;\n    if u.step0 != 0u {{\n        {a} = aux_u[{k}u * u.cap + i];\n    }}").unwrap();
+            writeln!(self.store, "    aux_u[{k}u * u.cap + i] = {a};").unwrap();
         }
     }
-    if needs_field {
-        for v in &plan.vars {
-            writeln!(
-                load,
-                "    var prev_{v}: R = 0.0;\n    var dprev_{v}: R = 0.0;"
-            )
-            .unwrap();
-        }
-        begin.push_str(&field("u.step0"));
-    }
-    let value = |v: &ObsVar, th: &str, n1: &str| -> String {
+
+    /// An observed variable at θ inside the step that ends at `n1` (the
+    /// state itself at the step's end).
+    fn value(&self, v: &ObsVar, th: &str, n1: &str) -> String {
         match v {
-            ObsVar::Time => format!("(t0 + R({n1}) * dt) - (1.0 - {th}) * dt"),
+            ObsVar::Time => format!("observed_time(t0, R({n1}), dt, {th})"),
             ObsVar::State(k) => {
-                let x = plan.vars[*k];
+                let x = self.plan.vars[*k];
                 if th == "1.0" {
                     x.to_string()
                 } else {
-                    format!("select(hermite(prev_{x}, {x}, dprev_{x}, d{x}, dt, {th}), {x}, {th} == 1.0)")
+                    format!("observed_state(prev_{x}, {x}, dprev_{x}, d{x}, dt, {th})")
                 }
             }
         }
-    };
-    let observe_at = |n1: &str, initial: bool| -> String {
-        let mut s = String::new();
-        if let Some(tr) = &plan.observers.trajectory {
-            let nv = plan.trajectory_vars.len();
-            writeln!(
-                s,
-                "        if ({n1}) % {}u == 0u {{\n            let fr = ({n1}) / {}u - u.frame0;",
-                tr.every, tr.every
-            )
-            .unwrap();
-            for (j, v) in plan.trajectory_vars.iter().enumerate() {
-                writeln!(
-                    s,
-                    "            traj_out[(fr * {nv}u + {j}u) * u.cap + i] = {};",
-                    value(v, "1.0", n1)
-                )
-                .unwrap();
-            }
-            s.push_str("        }\n");
-        }
-        if let Some(pc) = &plan.observers.poincare {
-            let npv = plan.poincare_vars.len();
-            let record = |th: &str, crossing: Option<(usize, f64)>| -> String {
-                let mut r = format!("            if npoints < {}u {{\n", pc.max_points);
-                for (j, v) in plan.poincare_vars.iter().enumerate() {
-                    let x = match (crossing, v) {
-                        (Some((cv, level)), ObsVar::State(k)) if *k == cv => lit(level),
-                        _ => value(v, th, n1),
-                    };
-                    writeln!(
-                        r,
-                        "                points_out[(npoints * {npv}u + {j}u) * u.cap + i] = {x};"
-                    )
-                    .unwrap();
-                }
-                r.push_str("            }\n            npoints = npoints + 1u;\n");
-                r
-            };
-            match &pc.section {
-                Section::Stroboscopic { .. } | Section::Forced { .. } => {
-                    if strobe_exact {
-                        writeln!(s, "        {{\n            let every = u32(floor(strobe_period / dt + 0.5));\n            let first = u32(floor(strobe_phase / dt + 0.5));\n            if ({n1}) >= first && (({n1}) - first) % every == 0u {{").unwrap();
-                        s.push_str(
-                            &record("1.0", None).replace("\n            ", "\n                "),
-                        );
-                        s.push_str("            }\n        }\n");
-                    } else {
-                        // Every sample time in (t_{n1−1}, t_{n1}] (t_0 itself at step 0).
-                        writeln!(s, "        loop {{\n            let x = strobe_position(R(strobe_k), strobe_period, strobe_phase, dt);\n            if x > R({n1}) + 1e-4 {{\n                break;\n            }}\n            let th: R = {};", if initial { "1.0".to_string() } else { format!("clamp(x - R({n1}) + 1.0, 0.0, 1.0)") }).unwrap();
-                        s.push_str(&record("th", None));
-                        s.push_str("            strobe_k = strobe_k + 1u;\n        }\n");
-                    }
-                }
-                Section::Crossing {
-                    value: level,
-                    direction,
-                    ..
-                } => {
-                    if !initial {
-                        let cv = plan.crossing_var.expect("planned");
-                        let x = plan.vars[cv];
-                        let cond = match direction {
-                            Direction::Up => "y0 < 0.0 && y1 >= 0.0",
-                            Direction::Down => "y0 > 0.0 && y1 <= 0.0",
-                            Direction::Both => "(y0 < 0.0 && y1 >= 0.0) || (y0 > 0.0 && y1 <= 0.0)",
-                        };
-                        writeln!(s, "        {{\n            let y0 = prev_{x} - {l};\n            let y1 = {x} - {l};\n            if {cond} {{\n            let th: R = crossing_theta(y0, y1, dprev_{x}, d{x}, dt);", l = lit(*level)).unwrap();
-                        s.push_str(&record("th", Some((cv, *level))));
-                        s.push_str("            }\n        }\n");
-                    }
-                }
-            }
-        }
-        s
-    };
-    if plan.observers.trajectory.is_some() || plan.observers.poincare.is_some() {
-        writeln!(
-            begin,
-            "    if u.step0 == 0u {{\n{}    }}",
-            observe_at("0u", true)
-        )
-        .unwrap();
-    }
-    if needs_field {
-        observe.push_str(&field("n + 1u"));
-    }
-    observe.push_str(&observe_at("n + 1u", false));
-    if let (Some(k), Some(cy)) = (plan.cycle_var, &plan.observers.cycle) {
-        let x = plan.vars[k];
-        let start = (cy.skip * plan.steps as f64).floor() as u64;
-        writeln!(
-            observe,
-            "        if n + 1u >= {start}u {{\n            cyc_max = max(cyc_max, {x});\n            cyc_min = min(cyc_min, {x});\n            let y0 = prev_{x} - {l};\n            let y1 = {x} - {l};\n            if y0 < 0.0 && y1 >= 0.0 {{\n                let th = crossing_theta(y0, y1, dprev_{x}, d{x}, dt);\n                let tc = t0 + nf * dt + th * dt;\n                if cyc_count == 0u {{\n                    cyc_first = tc;\n                }}\n                cycle_crossing(R(cyc_count), tc - cyc_first, &cyc_mean, &cyc_com);\n                cyc_count = cyc_count + 1u;\n            }}\n        }}",
-            l = lit(cy.level)
-        )
-        .unwrap();
     }
 
-    let prelude = match precision {
-        Precision::F32 => PRELUDE_F32,
-        Precision::F64 => PRELUDE_F64,
-    };
-    let driver = DRIVER
-        .replace("{{INPUTS}}", inputs.trim_end())
-        .replace("{{LOAD}}", load.trim_end())
-        .replace("{{BEGIN}}", begin.trim_end())
-        .replace("{{STEP}}", step.trim_end())
-        .replace("{{FINITE}}", &finite)
-        .replace("{{OBSERVE}}", observe.trim_end())
-        .replace("{{STORE}}", store.trim_end());
-    let source = format!("{prelude}\n// ---- shared functions (generated from src/**/*.rs) ----\n{shared}\n// ---- driver ----\n{driver}");
-    Ok(Kernel {
-        source,
-        table,
-        strobe_exact,
-    })
+    /// Trajectory frames and Poincaré points after step `n1`.
+    fn observe_at(&self, n1: &str, initial: bool, strobe_exact: bool) -> String {
+        let mut s = self.frame(n1);
+        let Some(pc) = &self.plan.observers.poincare else {
+            return s;
+        };
+        match &pc.section {
+            Section::Stroboscopic { .. } | Section::Forced { .. } if strobe_exact => {
+                writeln!(s, "        {{\n            var every: i32;\n            var first: i32;\n            strobe_exact_steps(strobe_period, strobe_phase, dt, &every, &first);\n            if strobe_exact_due(i32({n1}), every, first) {{").unwrap();
+                s.push_str(
+                    &self
+                        .record(pc, "1.0", n1, None)
+                        .replace("\n            ", "\n                "),
+                );
+                s.push_str("            }\n        }\n");
+            }
+            Section::Stroboscopic { .. } | Section::Forced { .. } => {
+                writeln!(s, "        loop {{\n            var th: R = 1.0;\n            if !strobe_due(R(strobe_k), strobe_period, strobe_phase, dt, R({n1}), {initial}, &th) {{\n                break;\n            }}").unwrap();
+                s.push_str(&self.record(pc, "th", n1, None));
+                s.push_str("            strobe_k = strobe_k + 1u;\n        }\n");
+            }
+            Section::Crossing {
+                value: level,
+                direction,
+                ..
+            } if !initial => {
+                let cv = self.plan.crossing_var.expect("planned");
+                let x = self.plan.vars[cv];
+                let dir = match direction {
+                    Direction::Up => 0,
+                    Direction::Down => 1,
+                    Direction::Both => 2,
+                };
+                writeln!(s, "        {{\n            let y0 = prev_{x} - {l};\n            let y1 = {x} - {l};\n            if crossing_due(y0, y1, {dir}) {{\n            let th: R = crossing_theta(y0, y1, dprev_{x}, d{x}, dt);", l = lit(*level)).unwrap();
+                s.push_str(&self.record(pc, "th", n1, Some((cv, *level))));
+                s.push_str("            }\n        }\n");
+            }
+            Section::Crossing { .. } => {}
+        }
+        s
+    }
+
+    /// A trajectory frame, if step `n1` is one.
+    fn frame(&self, n1: &str) -> String {
+        let mut s = String::new();
+        let Some(tr) = &self.plan.observers.trajectory else {
+            return s;
+        };
+        let nv = self.plan.trajectory_vars.len();
+        writeln!(
+            s,
+            "        if frame_due(i32({n1}), {}) {{\n            let fr = ({n1}) / {}u - u.frame0;",
+            tr.every, tr.every
+        )
+        .unwrap();
+        for (j, v) in self.plan.trajectory_vars.iter().enumerate() {
+            writeln!(
+                s,
+                "            traj_out[(fr * {nv}u + {j}u) * u.cap + i] = {};",
+                self.value(v, "1.0", n1)
+            )
+            .unwrap();
+        }
+        s.push_str("        }\n");
+        s
+    }
+
+    /// Stores Poincaré point number `npoints` (if kept) at θ = `th`; the
+    /// crossing variable sits on the section exactly.
+    fn record(
+        &self,
+        pc: &PoincareObs,
+        th: &str,
+        n1: &str,
+        crossing: Option<(usize, f64)>,
+    ) -> String {
+        let npv = self.plan.poincare_vars.len();
+        let mut r = format!("            if npoints < {}u {{\n", pc.max_points);
+        for (j, v) in self.plan.poincare_vars.iter().enumerate() {
+            let x = match (crossing, v) {
+                (Some((cv, level)), ObsVar::State(k)) if *k == cv => lit(level),
+                _ => self.value(v, th, n1),
+            };
+            writeln!(
+                r,
+                "                points_out[(npoints * {npv}u + {j}u) * u.cap + i] = {x};"
+            )
+            .unwrap();
+        }
+        r.push_str("            }\n            npoints = npoints + 1u;\n");
+        r
+    }
+
+    /// Cycle statistics over the step, inside the measuring window.
+    fn cycle(&self) -> String {
+        let plan = self.plan;
+        let (Some(k), Some(cy)) = (plan.cycle_var, &plan.observers.cycle) else {
+            return String::new();
+        };
+        let x = plan.vars[k];
+        let start = (cy.skip * plan.steps as f64).floor() as u64;
+        format!(
+            "        if n + 1u >= {start}u {{\n            cycle_step({x}, prev_{x} - {l}, {x} - {l}, dprev_{x}, d{x}, dt, t0 + nf * dt, &cyc_max, &cyc_min, &cyc_count, &cyc_first, &cyc_mean, &cyc_com);\n        }}\n",
+            l = lit(cy.level)
+        )
+    }
 }

@@ -45,6 +45,8 @@ pub struct GpuRun<R> {
     pub dispatches: u64,
 }
 
+/// Keep in sync with `struct Uniforms` of `shaders/driver.wgsl` (field
+/// order and types; `tests/shaders.rs` checks the size against naga's layout).
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct Uniforms {
@@ -57,6 +59,9 @@ struct Uniforms {
     nframes: u32,
     _pad: u32,
 }
+
+/// Bytes of the uniform block the driver reads (checked against the WGSL).
+pub const UNIFORMS_BYTES: usize = std::mem::size_of::<Uniforms>();
 
 struct Buffers {
     uniform: wgpu::Buffer,
@@ -536,15 +541,15 @@ fn collect<R: Flows>(
                 }
             }
             if plan.cycle_var.is_some() {
-                let crossings = au(2);
+                let crossings = a(5);
                 let ok = st == 0;
                 out.cycle_amplitude[g] = if ok {
-                    R::from_f64(0.5) * (a(0) - a(1))
+                    R::cycle_amplitude(a(0), a(1))
                 } else {
                     R::nan()
                 };
-                out.cycle_period[g] = if ok && crossings >= 2 {
-                    R::cycle_period(a(4), R::from_f64(crossings as f64))
+                out.cycle_period[g] = if ok && crossings >= R::from_f64(2.0) {
+                    R::cycle_period(a(4), crossings)
                 } else {
                     R::nan()
                 };

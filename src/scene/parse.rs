@@ -1,0 +1,865 @@
+//! Reading a scene file: the TOML parsed once with spans; the model-keyed
+//! tables and `dt` through the value-language walker (`values.rs`); the
+//! fixed tables through their serde types (`tables.rs`); then the scene's
+//! plans are built, so that every check of the plan (parameters, variables,
+//! observers, model rules) is reported at the line of its field.
+
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::Path;
+
+use serde::de::DeserializeOwned;
+use toml::de::{DeTable, DeValue, ValueDeserializer};
+use toml::Spanned;
+
+use crate::models::spec::ModelSpec;
+use crate::models::{lienard, Model, MODEL_NAMES};
+use crate::num::precision::Precision;
+use crate::plan::observers::{check_skip, check_strobe, CycleObs, Direction, Section};
+use crate::plan::scheme::{Scheme, SCHEME_NAMES};
+
+use super::tables::{self, Cycle, Period, Str, Strs, Table};
+use super::values::{integ_span, suggest, Entry, Parser};
+use super::{
+    BackendChoice, Horizon, Input, OutVar, PlotSettings, ReportSettings, Scene, SceneAxis,
+    SceneError,
+};
+
+const TOP_KEYS: &[&str] = &[
+    "model",
+    "name",
+    "title",
+    "params",
+    "initial",
+    "integrator",
+    "output",
+    "run",
+    "report",
+    "plot",
+];
+const INTEGRATOR_KEYS: &[&str] = &["scheme", "order", "dt", "t_end", "steps"];
+const OUTPUT_KEYS: &[&str] = &["final", "trajectory", "poincare", "cycle"];
+const TRAJECTORY_KEYS: &[&str] = &["every", "vars"];
+const POINCARE_KEYS: &[&str] = &[
+    "period",
+    "phase",
+    "crossing",
+    "value",
+    "direction",
+    "vars",
+    "max_points",
+    "skip",
+];
+const CYCLE_KEYS: &[&str] = &["var", "level", "skip"];
+const RUN_KEYS: &[&str] = &["backend", "precision"];
+const PLOT_KEYS: &[&str] = &[
+    "phase",
+    "poincare",
+    "wrap_x",
+    "max_trajectories",
+    "lienard_plane",
+    "bifurcation",
+];
+const BIFURCATION_KEYS: &[&str] = &["axis", "var"];
+const REPORT_KEYS: &[&str] = &[
+    "schemes",
+    "backends",
+    "precisions",
+    "error_vars",
+    "reference_rtol",
+    "distorted",
+    "targets",
+];
+
+/// The top-level entries of a scene file.
+struct Doc<'i> {
+    top: Vec<Entry<'i>>,
+}
+
+impl<'i> Doc<'i> {
+    fn get(&self, name: &str) -> Option<&'i Spanned<DeValue<'i>>> {
+        self.top
+            .iter()
+            .find(|(k, _)| k.get_ref() == name)
+            .map(|(_, v)| *v)
+    }
+    /// The table `name`, if given; anything else there is an error.
+    fn table(&self, p: &Parser, name: &str) -> Result<Option<&'i DeTable<'i>>, SceneError> {
+        match self.get(name) {
+            None => Ok(None),
+            Some(v) => match v.get_ref() {
+                DeValue::Table(t) => Ok(Some(t)),
+                _ => Err(p.mismatch(name, v, "a table")),
+            },
+        }
+    }
+}
+
+/// Inputs given so far, and the axes they open (keyed by where their value
+/// starts in the file, which fixes the axes' order).
+#[derive(Default)]
+struct Inputs {
+    axes: Vec<(usize, SceneAxis)>,
+}
+
+impl Inputs {
+    /// A constant, or a new axis named `name` (its index is resolved once
+    /// every axis is known).
+    fn add(
+        &mut self,
+        p: &Parser,
+        field: &str,
+        name: &str,
+        v: &Spanned<DeValue>,
+    ) -> Result<(usize, Input), SceneError> {
+        Ok(match p.values(field, v)? {
+            Ok(c) => (v.span().start, Input::Const(c)),
+            Err(values) => {
+                self.axes.push((
+                    v.span().start,
+                    SceneAxis {
+                        name: name.to_string(),
+                        field: field.to_string(),
+                        values,
+                    },
+                ));
+                (v.span().start, Input::Axis(usize::MAX))
+            }
+        })
+    }
+
+    /// The axes in file order (repeated names made unique), and a map from
+    /// an input's start to its axis index.
+    fn number(mut self) -> (Vec<SceneAxis>, impl Fn((usize, Input)) -> Input) {
+        self.axes.sort_by_key(|(start, _)| *start);
+        let starts: Vec<usize> = self.axes.iter().map(|(s, _)| *s).collect();
+        let mut axes: Vec<SceneAxis> = self.axes.into_iter().map(|(_, a)| a).collect();
+        // Axis names are file names: make repeats unique.
+        for k in 0..axes.len() {
+            if axes[..k].iter().any(|a| a.name == axes[k].name) {
+                axes[k].name = axes[k].field.replace('.', "_");
+            }
+        }
+        let resolve = move |(start, input): (usize, Input)| match input {
+            Input::Axis(usize::MAX) => {
+                Input::Axis(starts.iter().position(|s| *s == start).expect("registered"))
+            }
+            other => other,
+        };
+        (axes, resolve)
+    }
+}
+
+impl Scene {
+    /// Reads and validates a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+            path: path.to_path_buf(),
+            line: None,
+            field: "file".into(),
+            message: e.to_string(),
+        })?;
+        Scene::parse(path, &text)
+    }
+
+    /// Parses and validates scene text (`path` names it in errors).
+    pub fn parse(path: &Path, text: &str) -> Result<Scene, SceneError> {
+        let root = parse_toml(path, text)?;
+        let mut p = Parser::new(path, text);
+        let doc = Doc {
+            top: p.entries(root.get_ref(), "", Some(TOP_KEYS))?,
+        };
+        let mut model = model(&p, &doc)?;
+        let spec = model.spec();
+        let name = scene_name(&p, &doc, path)?;
+        let title = doc.get("title").map(|v| p.string("title", v)).transpose()?;
+        let mut inputs = Inputs::default();
+        let params = params(&mut p, &doc, &mut model, &mut inputs)?;
+        let initial = initial(&mut p, &doc, spec, &mut inputs)?;
+        let integ = integrator(&mut p, &doc, &mut inputs)?;
+        let (axes, resolve) = inputs.number();
+        let resolve_all = |m: BTreeMap<String, (usize, Input)>| -> BTreeMap<String, Input> {
+            m.into_iter().map(|(k, i)| (k, resolve(i))).collect()
+        };
+        let params = resolve_all(params);
+        let initial = resolve_all(initial);
+        let dt = resolve(integ.dt);
+        let out = output(&mut p, &doc, &model)?;
+        let (backend, precision) = run(&mut p, &doc)?;
+        let plot = plot(&mut p, &doc, &model)?;
+        let report = report(&mut p, &doc, &integ.scheme)?;
+        check_bifurcation(&p, &plot, &axes, out.poincare.is_some())?;
+        let scene = Scene {
+            path: path.to_path_buf(),
+            name,
+            title,
+            model,
+            axes,
+            params,
+            initial,
+            dt,
+            horizon: integ.horizon,
+            scheme: integ.scheme,
+            order: integ.order,
+            final_vars: out.final_vars,
+            trajectory: out.trajectory,
+            poincare: out.poincare,
+            cycle: out.cycle,
+            backend,
+            precision,
+            plot,
+            report,
+            text: text.to_string(),
+            step_cap: None,
+            spans: p.into_spans(),
+        };
+        // Everything the plan checks (parameters, values, scheme for the
+        // model, variables, observers), reported at the line of the field.
+        scene.sub_runs()?;
+        Ok(scene)
+    }
+}
+
+fn parse_toml<'i>(path: &Path, text: &'i str) -> Result<Spanned<DeTable<'i>>, SceneError> {
+    DeTable::parse(text).map_err(|e| SceneError {
+        path: path.to_path_buf(),
+        line: e
+            .span()
+            .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1),
+        field: "toml".into(),
+        message: e.message().to_string(),
+    })
+}
+
+/// `model = "…"`, by name from the registry.
+fn model(p: &Parser, doc: &Doc) -> Result<Model, SceneError> {
+    let v = doc.get("model").ok_or_else(|| {
+        p.err(
+            "model",
+            None,
+            format!("missing; one of: {}", MODEL_NAMES.join(", ")),
+        )
+    })?;
+    let name = p.string("model", v)?;
+    Model::from_name(&name).ok_or_else(|| {
+        p.err(
+            "model",
+            Some(&v.span()),
+            format!(
+                "unknown model `{name}`{}; one of: {}",
+                suggest(&name, MODEL_NAMES),
+                MODEL_NAMES.join(", ")
+            ),
+        )
+    })
+}
+
+/// `name = "…"` (default: the file's stem), a plain file name.
+fn scene_name(p: &Parser, doc: &Doc, path: &Path) -> Result<String, SceneError> {
+    let name = match doc.get("name") {
+        Some(v) => p.string("name", v)?,
+        None => path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scene".into()),
+    };
+    if name.is_empty() || name.contains(['/', '\\']) || name == "." || name == ".." {
+        return Err(p.err(
+            "name",
+            doc.get("name").map(|v| v.span()).as_ref(),
+            "must be a plain file name",
+        ));
+    }
+    Ok(name)
+}
+
+/// `[params]`: the model's parameters in the value language; for the
+/// Liénard model also its coefficient lists `f` and `g` (model data, not axes).
+fn params(
+    p: &mut Parser,
+    doc: &Doc,
+    model: &mut Model,
+    inputs: &mut Inputs,
+) -> Result<BTreeMap<String, (usize, Input)>, SceneError> {
+    let mut params = BTreeMap::new();
+    let mut known: Vec<&str> = model.spec().params.iter().map(|d| d.name).collect();
+    if matches!(model, Model::Lienard { .. }) {
+        known.extend(["f", "g"]);
+    }
+    let table = doc.table(p, "params")?;
+    if let Some(t) = table {
+        for (k, v) in p.entries(t, "params", Some(&known))? {
+            let field = format!("params.{}", k.get_ref());
+            if let Model::Lienard { f, g } = &mut *model {
+                let coef = match k.get_ref().as_ref() {
+                    "f" => Some(f),
+                    "g" => Some(g),
+                    _ => None,
+                };
+                if let Some(c) = coef {
+                    *c = p.numbers(&field, v)?;
+                    continue;
+                }
+            }
+            params.insert(
+                k.get_ref().to_string(),
+                inputs.add(p, &field, k.get_ref(), v)?,
+            );
+        }
+    }
+    if let Model::Lienard { g, .. } = model {
+        if g.is_empty() {
+            return Err(p.err(
+                "params.g",
+                None,
+                "the Liénard model needs g (ascending coefficients of g(q), e.g. g = [0.0, 1.0])",
+            ));
+        }
+    }
+    let _ = lienard::MAX_COEFFICIENTS;
+    Ok(params)
+}
+
+/// `[initial]`: the model's variables, `t0`, and the model's alias key.
+fn initial(
+    p: &mut Parser,
+    doc: &Doc,
+    spec: &ModelSpec,
+    inputs: &mut Inputs,
+) -> Result<BTreeMap<String, (usize, Input)>, SceneError> {
+    let mut initial = BTreeMap::new();
+    let mut known: Vec<&str> = spec.vars.to_vec();
+    known.push("t0");
+    if let Some(alias) = &spec.initial_alias {
+        // e.g. Kepler's eccentricity: an orbit at perihelion (SPEC §2.1).
+        known.push(alias.key);
+    }
+    if let Some(t) = doc.table(p, "initial")? {
+        for (k, v) in p.entries(t, "initial", Some(&known))? {
+            let field = format!("initial.{}", k.get_ref());
+            initial.insert(
+                k.get_ref().to_string(),
+                inputs.add(p, &field, k.get_ref(), v)?,
+            );
+        }
+    }
+    Ok(initial)
+}
+
+/// What `[integrator]` gives.
+struct Integ {
+    scheme: String,
+    order: Option<String>,
+    dt: (usize, Input),
+    horizon: Horizon,
+}
+
+fn integrator(p: &mut Parser, doc: &Doc, inputs: &mut Inputs) -> Result<Integ, SceneError> {
+    let t = doc.table(p, "integrator")?.ok_or_else(|| {
+        p.err(
+            "integrator",
+            None,
+            "missing; it needs scheme, dt and t_end or steps",
+        )
+    })?;
+    let entries = p.entries(t, "integrator", Some(INTEGRATOR_KEYS))?;
+    let entries: Vec<Entry> = entries.into_iter().collect();
+    let table: tables::Integrator = deserialize(p, doc.get("integrator"))?;
+    let scheme = table
+        .scheme
+        .as_ref()
+        .map_or("s2".into(), |s| s.get_ref().0.clone());
+    if Scheme::by_name(&scheme).is_none() {
+        return Err(p.err(
+            "integrator.scheme",
+            table.scheme.as_ref().map(|s| s.span()).as_ref(),
+            format!(
+                "unknown scheme `{scheme}`{}; one of: {}",
+                suggest(&scheme, SCHEME_NAMES),
+                SCHEME_NAMES.join(", ")
+            ),
+        ));
+    }
+    let dt_v = entries
+        .iter()
+        .find(|(k, _)| k.get_ref() == "dt")
+        .map(|(_, v)| *v)
+        .ok_or_else(|| {
+            p.err(
+                "integrator.dt",
+                Some(&integ_span(&entries)),
+                "missing: the step size",
+            )
+        })?;
+    let dt = inputs.add(p, "integrator.dt", "dt", dt_v)?;
+    let horizon = match (table.t_end, table.steps) {
+        (Some(t), None) => Horizon::TEnd(t.get_ref().0),
+        (None, Some(s)) if s.get_ref().0 == 0 => {
+            return Err(p.err("integrator.steps", Some(&s.span()), "must be at least 1"))
+        }
+        (None, Some(s)) => Horizon::Steps(s.get_ref().0),
+        (Some(t), Some(_)) => {
+            return Err(p.err(
+                "integrator.t_end",
+                Some(&t.span()),
+                "give t_end or steps, not both",
+            ))
+        }
+        (None, None) => {
+            return Err(p.err(
+                "integrator",
+                Some(&integ_span(&entries)),
+                "needs t_end or steps",
+            ))
+        }
+    };
+    Ok(Integ {
+        scheme,
+        order: table.order.map(|o| o.into_inner().0),
+        dt,
+        horizon,
+    })
+}
+
+/// A fixed table (`value`, the whole table's value) through its serde
+/// type; a type error is reported at its span's field and line.
+fn deserialize<T: DeserializeOwned + Default>(
+    p: &Parser,
+    value: Option<&Spanned<DeValue>>,
+) -> Result<T, SceneError> {
+    let Some(v) = value else {
+        return Ok(T::default());
+    };
+    T::deserialize(ValueDeserializer::from(v.clone())).map_err(|e| {
+        let span = e.span().unwrap_or_else(|| v.span());
+        p.err(&p.field_at(&span), Some(&span), e.message().to_string())
+    })
+}
+
+/// What `[output]` gives.
+struct Out {
+    final_vars: Vec<OutVar>,
+    trajectory: Option<(u64, Vec<OutVar>)>,
+    poincare: Option<(Section, Vec<OutVar>, usize)>,
+    cycle: Option<CycleObs>,
+}
+
+/// Resolves output variable names against the model: a variable, `t`, or a
+/// vector (`q` of Kepler is `[q1, q2]`).
+struct OutVars<'a> {
+    spec: &'a ModelSpec,
+}
+
+impl OutVars<'_> {
+    fn one(
+        &self,
+        p: &Parser,
+        field: &str,
+        name: &str,
+        span: &Range<usize>,
+    ) -> Result<OutVar, SceneError> {
+        let vars = self.spec.vars;
+        if name == "t" || vars.contains(&name) {
+            return Ok(OutVar {
+                name: name.into(),
+                components: vec![name.into()],
+            });
+        }
+        let comps: Vec<String> = vars
+            .iter()
+            .filter(|v| {
+                v.len() == name.len() + 1
+                    && v.starts_with(name)
+                    && v.ends_with(|c: char| c.is_ascii_digit())
+            })
+            .map(|v| v.to_string())
+            .collect();
+        if comps.is_empty() {
+            return Err(p.err(
+                field,
+                Some(span),
+                format!(
+                    "model `{}` has no variable `{name}`; its variables are: {}, t",
+                    self.spec.name,
+                    vars.join(", ")
+                ),
+            ));
+        }
+        Ok(OutVar {
+            name: name.into(),
+            components: comps,
+        })
+    }
+    fn list(&self, p: &Parser, field: &str, v: &Spanned<Strs>) -> Result<Vec<OutVar>, SceneError> {
+        v.get_ref()
+            .0
+            .iter()
+            .map(|n| self.one(p, field, n, &v.span()))
+            .collect()
+    }
+    /// The model's variables other than the optional one.
+    fn defaults(&self) -> Vec<OutVar> {
+        self.spec
+            .vars
+            .iter()
+            .filter(|v| Some(**v) != self.spec.optional_var)
+            .map(|v| OutVar {
+                name: v.to_string(),
+                components: vec![v.to_string()],
+            })
+            .collect()
+    }
+}
+
+fn output(p: &mut Parser, doc: &Doc, model: &Model) -> Result<Out, SceneError> {
+    let ov = OutVars { spec: model.spec() };
+    let table = doc.table(p, "output")?;
+    if let Some(t) = table {
+        check_keys(
+            p,
+            t,
+            "output",
+            OUTPUT_KEYS,
+            &[
+                ("trajectory", TRAJECTORY_KEYS),
+                ("poincare", POINCARE_KEYS),
+                ("cycle", CYCLE_KEYS),
+            ],
+        )?;
+    }
+    let o: tables::Output = deserialize(p, doc.get("output"))?;
+    let final_vars = match &o.final_vars {
+        Some(v) => ov.list(p, "output.final", v)?,
+        None => ov.defaults(),
+    };
+    let trajectory = match o.trajectory {
+        None => None,
+        Some(tr) => {
+            let Table(tr) = tr.into_inner();
+            let every = tr.every.map_or(1, |e| e.into_inner().0);
+            let vars = match &tr.vars {
+                Some(v) => ov.list(p, "output.trajectory.vars", v)?,
+                None => ov.defaults(),
+            };
+            Some((every, vars))
+        }
+    };
+    let poincare = match o.poincare {
+        None => None,
+        Some(pc) => Some(poincare(p, &ov, model, pc)?),
+    };
+    let first_var = model.spec().vars[0].to_string();
+    let cycle = match o.cycle.map(Spanned::into_inner) {
+        None | Some(Cycle::On(false)) => None,
+        Some(Cycle::On(true)) => Some(CycleObs {
+            var: first_var,
+            ..CycleObs::default()
+        }),
+        Some(Cycle::Table(c)) => {
+            let var = match &c.var {
+                Some(v) => {
+                    ov.one(p, "output.cycle.var", &v.get_ref().0, &v.span())?;
+                    v.get_ref().0.clone()
+                }
+                None => first_var,
+            };
+            let d = CycleObs::default();
+            Some(CycleObs {
+                var,
+                level: c.level.map_or(d.level, |x| x.into_inner().0),
+                skip: c.skip.map_or(d.skip, |x| x.into_inner().0),
+            })
+        }
+    };
+    Ok(Out {
+        final_vars,
+        trajectory,
+        poincare,
+        cycle,
+    })
+}
+
+/// `output.poincare`: the section, its variables and the points kept.
+fn poincare(
+    p: &Parser,
+    ov: &OutVars,
+    model: &Model,
+    pc: Spanned<Table<tables::Poincare>>,
+) -> Result<(Section, Vec<OutVar>, usize), SceneError> {
+    let field = "output.poincare";
+    let span = pc.span();
+    let Table(pc) = pc.into_inner();
+    let section = match (&pc.period, &pc.crossing) {
+        (Some(per), None) => {
+            let skip = pc.skip.as_ref().map_or(0.0, |s| s.get_ref().0);
+            check_skip(skip).map_err(|m| {
+                p.err(
+                    "output.poincare.skip",
+                    pc.skip.as_ref().map(|s| s.span()).as_ref(),
+                    m,
+                )
+            })?;
+            let period = match per.get_ref() {
+                Period::Named(s) if s != "forcing" => return Err(p.err(
+                    "output.poincare.period",
+                    Some(&per.span()),
+                    "expected a number or \"forcing\" (the forcing period 2π/ω of each trajectory)",
+                )),
+                Period::Named(_) if model.forcing_frequency_param().is_none() => {
+                    return Err(p.err(
+                        "output.poincare.period",
+                        Some(&per.span()),
+                        format!("model `{}` has no forcing period", model.name()),
+                    ))
+                }
+                Period::Named(_) => None,
+                Period::Number(x) => Some(*x),
+            };
+            let phase =
+                pc.phase.as_ref().map_or(0.0, |x| x.get_ref().0) + skip * period.unwrap_or(1.0);
+            check_strobe(period.unwrap_or(1.0), phase)
+                .map_err(|(f, m)| p.err(&f, Some(&per.span()), m))?;
+            match period {
+                None => Section::Forced { skip },
+                Some(period) => Section::Stroboscopic { period, phase },
+            }
+        }
+        (None, Some(c)) => {
+            let var = c.get_ref().0.clone();
+            ov.one(p, "output.poincare.crossing", &var, &c.span())?;
+            let direction = match &pc.direction {
+                None => Direction::Up,
+                Some(d) => match d.get_ref().0.as_str() {
+                    "up" => Direction::Up,
+                    "down" => Direction::Down,
+                    "both" => Direction::Both,
+                    o => {
+                        return Err(p.err(
+                            "output.poincare.direction",
+                            Some(&d.span()),
+                            format!("`{o}` is not up, down or both"),
+                        ))
+                    }
+                },
+            };
+            Section::Crossing {
+                var,
+                value: pc.value.as_ref().map_or(0.0, |x| x.get_ref().0),
+                direction,
+            }
+        }
+        _ => {
+            return Err(p.err(
+                field,
+                Some(&span),
+                "give either period (stroboscopic) or crossing (event section)",
+            ))
+        }
+    };
+    let vars = match &pc.vars {
+        Some(v) => ov.list(p, "output.poincare.vars", v)?,
+        None => ov.defaults(),
+    };
+    let max_points = pc.max_points.map_or(1000, |m| m.into_inner().0 as usize);
+    Ok((section, vars, max_points))
+}
+
+/// Checks the keys of `table` (and of its inline tables in `nested`),
+/// recording every field's span.
+fn check_keys(
+    p: &mut Parser,
+    table: &DeTable,
+    name: &str,
+    keys: &[&str],
+    nested: &[(&str, &[&str])],
+) -> Result<(), SceneError> {
+    for (k, v) in p.entries(table, name, Some(keys))? {
+        let inner = nested.iter().find(|(n, _)| *n == k.get_ref().as_ref());
+        if let (Some((n, keys)), DeValue::Table(t)) = (inner, v.get_ref()) {
+            p.entries(t, &format!("{name}.{n}"), Some(keys))?;
+        }
+    }
+    Ok(())
+}
+
+/// `[run]`: backend and precision.
+fn run(p: &mut Parser, doc: &Doc) -> Result<(BackendChoice, Precision), SceneError> {
+    if let Some(t) = doc.table(p, "run")? {
+        check_keys(p, t, "run", RUN_KEYS, &[])?;
+    }
+    let r: tables::Run = deserialize(p, doc.get("run"))?;
+    let backend = parsed(p, "run.backend", &r.backend)?.unwrap_or(BackendChoice::Auto);
+    let precision = parsed(p, "run.precision", &r.precision)?.unwrap_or(Precision::F32);
+    Ok((backend, precision))
+}
+
+/// A string field parsed by `FromStr` (whose message is the error's).
+fn parsed<T: std::str::FromStr<Err = String>>(
+    p: &Parser,
+    field: &str,
+    v: &Option<Spanned<Str>>,
+) -> Result<Option<T>, SceneError> {
+    v.as_ref()
+        .map(|s| {
+            s.get_ref()
+                .0
+                .parse()
+                .map_err(|m: String| p.err(field, Some(&s.span()), m))
+        })
+        .transpose()
+}
+
+/// `[plot]`: the quick-look pictures' settings.
+fn plot(p: &mut Parser, doc: &Doc, model: &Model) -> Result<PlotSettings, SceneError> {
+    if let Some(t) = doc.table(p, "plot")? {
+        check_keys(
+            p,
+            t,
+            "plot",
+            PLOT_KEYS,
+            &[("bifurcation", BIFURCATION_KEYS)],
+        )?;
+    }
+    let t: tables::Plot = deserialize(p, doc.get("plot"))?;
+    let pair =
+        |field: &str, v: &Option<Spanned<Strs>>| -> Result<Option<(String, String)>, SceneError> {
+            match v {
+                None => Ok(None),
+                Some(xs) if xs.get_ref().0.len() != 2 => Err(p.err(
+                    field,
+                    Some(&xs.span()),
+                    "expected two variable names [x, y]",
+                )),
+                Some(xs) => Ok(Some((xs.get_ref().0[0].clone(), xs.get_ref().0[1].clone()))),
+            }
+        };
+    let mut plot = PlotSettings {
+        max_trajectories: t.max_trajectories.map_or(64, |m| m.into_inner().0 as usize),
+        phase: pair("plot.phase", &t.phase)?,
+        poincare: pair("plot.poincare", &t.poincare)?,
+        ..PlotSettings::default()
+    };
+    if let Some(w) = &t.wrap_x {
+        if w.get_ref().0 != "2pi" && w.get_ref().0 != "pi" {
+            return Err(p.err(
+                "plot.wrap_x",
+                Some(&w.span()),
+                "expected \"2pi\" (wrap into [0, 2π)) or \"pi\" (into [−π, π))",
+            ));
+        }
+        plot.wrap_x = Some(w.get_ref().0.clone());
+    }
+    if let Some(l) = &t.lienard_plane {
+        plot.lienard_plane = l.get_ref().0;
+        if plot.lienard_plane && !matches!(model, Model::VanDerPol) {
+            return Err(p.err(
+                "plot.lienard_plane",
+                Some(&l.span()),
+                "the Liénard plane is drawn for van_der_pol only",
+            ));
+        }
+    }
+    if let Some(b) = t.bifurcation {
+        let span = b.span();
+        let Table(b) = b.into_inner();
+        let need = |n: &str, v: Option<Spanned<Str>>| {
+            v.map(|s| s.into_inner().0)
+                .ok_or_else(|| p.err(&format!("plot.bifurcation.{n}"), Some(&span), "missing"))
+        };
+        let axis = need("axis", b.axis)?;
+        let var = need("var", b.var)?;
+        plot.bifurcation = Some((axis, var));
+    }
+    Ok(plot)
+}
+
+/// `[report]`, if given: what `reeb report` runs.
+fn report(p: &mut Parser, doc: &Doc, scheme: &str) -> Result<Option<ReportSettings>, SceneError> {
+    let Some(t) = doc.table(p, "report")? else {
+        return Ok(None);
+    };
+    check_keys(p, t, "report", REPORT_KEYS, &[])?;
+    let t: tables::Report = deserialize(p, doc.get("report"))?;
+    let mut r = ReportSettings::defaults(scheme);
+    if let Some(s) = &t.schemes {
+        for name in &s.get_ref().0 {
+            if Scheme::by_name(name).is_none() {
+                return Err(p.err(
+                    "report.schemes",
+                    Some(&s.span()),
+                    format!("unknown scheme `{name}`{}", suggest(name, SCHEME_NAMES)),
+                ));
+            }
+        }
+        r.schemes = s.get_ref().0.clone();
+    }
+    if let Some(b) = &t.backends {
+        r.backends = each(p, "report.backends", b)?;
+    }
+    if let Some(pr) = &t.precisions {
+        r.precisions = each(p, "report.precisions", pr)?;
+    }
+    if let Some(e) = t.error_vars {
+        r.error_vars = e.into_inner().0;
+    }
+    if let Some(x) = t.reference_rtol {
+        r.reference_rtol = x.into_inner().0;
+    }
+    if let Some(x) = t.distorted {
+        r.distorted = x.into_inner().0;
+    }
+    if let Some(x) = t.targets {
+        r.targets = x.into_inner().0;
+    }
+    Ok(Some(r))
+}
+
+/// Every string of a list field parsed by `FromStr` (whose message is the error's).
+fn each<T: std::str::FromStr<Err = String>>(
+    p: &Parser,
+    field: &str,
+    v: &Spanned<Strs>,
+) -> Result<Vec<T>, SceneError> {
+    v.get_ref()
+        .0
+        .iter()
+        .map(|s| {
+            s.parse()
+                .map_err(|m: String| p.err(field, Some(&v.span()), m))
+        })
+        .collect()
+}
+
+/// The bifurcation diagram's axis is an axis of the scene, and there is a
+/// Poincaré section to draw it from.
+fn check_bifurcation(
+    p: &Parser,
+    plot: &PlotSettings,
+    axes: &[SceneAxis],
+    has_section: bool,
+) -> Result<(), SceneError> {
+    let Some((axis, _)) = &plot.bifurcation else {
+        return Ok(());
+    };
+    if !axes.iter().any(|a| &a.name == axis) {
+        return Err(p.err(
+            "plot.bifurcation.axis",
+            p.span_of("plot.bifurcation"),
+            format!(
+                "`{axis}` is not an axis of this scene; its axes are: {}",
+                axes.iter()
+                    .map(|a| a.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        ));
+    }
+    if !has_section {
+        return Err(p.err(
+            "plot.bifurcation",
+            p.span_of("plot.bifurcation"),
+            "needs an output.poincare section",
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,150 @@
+//! A scene's plans: one, or one per value of the axes that change the step
+//! count (`dt` or `t0` with `t_end`), each a [`Plan`] of the scene's
+//! problem with those axes held fixed.
+
+use crate::plan::observers::{PoincareObs, TrajectoryObs};
+use crate::plan::{Plan, Problem, Source};
+
+use super::{Horizon, Input, OutVar, Scene, SceneError, SubRun};
+
+impl Scene {
+    pub(crate) fn t0_input(&self) -> Input {
+        self.initial.get("t0").cloned().unwrap_or(Input::Const(0.0))
+    }
+
+    /// The axes that change the step count (dt and t0 with t_end): each plan
+    /// holds them at one value.
+    fn step_axes(&self) -> Vec<usize> {
+        let mut v = vec![];
+        if let Horizon::TEnd(_) = self.horizon {
+            for input in [&self.dt, &self.t0_input()] {
+                if let Input::Axis(k) = input {
+                    if !v.contains(k) {
+                        v.push(*k);
+                    }
+                }
+            }
+        }
+        v
+    }
+
+    /// The plans that make up the scene: one, or one per value combination of
+    /// the axes that change the step count.
+    pub fn sub_runs(&self) -> Result<Vec<SubRun>, SceneError> {
+        let step_axes = self.step_axes();
+        let combos: usize = step_axes
+            .iter()
+            .map(|k| self.axes[*k].values.len())
+            .product();
+        let mut out = vec![];
+        for c in 0..combos {
+            let mut fixed = vec![];
+            let mut rem = c;
+            for k in step_axes.iter().rev() {
+                let len = self.axes[*k].values.len();
+                fixed.push((*k, rem % len));
+                rem /= len;
+            }
+            fixed.reverse();
+            out.push(SubRun {
+                plan: self.plan_for(&fixed)?,
+                fixed,
+            });
+        }
+        Ok(out)
+    }
+
+    /// The plan with the axes in `fixed` held at one value.
+    fn plan_for(&self, fixed: &[(usize, usize)]) -> Result<Plan, SceneError> {
+        let mut problem = Problem::new(self.model.clone(), &self.scheme)
+            .map_err(|e| self.error(&e.field, e.message))?;
+        problem.order = self.order.clone();
+        // Free axes keep their order; fixed ones become constants.
+        let mut axis_map = vec![None; self.axes.len()];
+        for (k, a) in self.axes.iter().enumerate() {
+            if !fixed.iter().any(|(f, _)| *f == k) {
+                axis_map[k] = Some(problem.axes.len());
+                problem.axes.push(crate::plan::Axis {
+                    name: a.name.clone(),
+                    len: a.values.len(),
+                });
+            }
+        }
+        let source = |input: &Input| -> Source {
+            match input {
+                Input::Const(v) => Source::Const(*v),
+                Input::Axis(k) => match axis_map[*k] {
+                    Some(a) => Source::Axis {
+                        axis: a,
+                        values: self.axes[*k].values.clone(),
+                    },
+                    None => {
+                        let idx = fixed
+                            .iter()
+                            .find(|(f, _)| f == k)
+                            .map(|(_, i)| *i)
+                            .expect("fixed");
+                        Source::Const(self.axes[*k].values[idx])
+                    }
+                },
+            }
+        };
+        for (k, v) in &self.params {
+            problem.params.insert(k.clone(), source(v));
+        }
+        for (k, v) in &self.initial {
+            problem.initial.insert(k.clone(), source(v));
+        }
+        problem.dt = source(&self.dt);
+        problem.steps = match self.horizon {
+            Horizon::Steps(s) => s,
+            Horizon::TEnd(t_end) => {
+                let (Source::Const(dt), Source::Const(t0)) =
+                    (source(&self.dt), source(&self.t0_input()))
+                else {
+                    unreachable!("dt and t0 are fixed in every sub-run when t_end is given")
+                };
+                if !(dt > 0.0) {
+                    // Refused by the plan, with the other step checks.
+                    1
+                } else if t_end <= t0 {
+                    return Err(self.error(
+                        "integrator.t_end",
+                        format!("{t_end} is not after t0 = {t0}"),
+                    ));
+                } else {
+                    let steps = ((t_end - t0) / dt).round();
+                    if steps > 4e9 {
+                        return Err(self.error(
+                            "integrator.t_end",
+                            format!("{steps:e} steps of dt = {dt}: too many (at most 4·10⁹)"),
+                        ));
+                    }
+                    (steps as u64).max(1)
+                }
+            }
+        };
+        if let Some(cap) = self.step_cap {
+            problem.steps = problem.steps.min(cap);
+        }
+        let comps = |vars: &[OutVar]| -> Vec<String> {
+            vars.iter().flat_map(|v| v.components.clone()).collect()
+        };
+        problem.observers.final_vars = comps(&self.final_vars);
+        problem.observers.trajectory =
+            self.trajectory.as_ref().map(|(every, vars)| TrajectoryObs {
+                every: *every,
+                vars: comps(vars),
+            });
+        problem.observers.poincare =
+            self.poincare
+                .as_ref()
+                .map(|(section, vars, max_points)| PoincareObs {
+                    section: section.clone(),
+                    vars: comps(vars),
+                    max_points: *max_points,
+                });
+        problem.observers.cycle = self.cycle.clone();
+        Plan::new(&problem).map_err(|e| self.error(&e.field, e.message))
+    }
+}

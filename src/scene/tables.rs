@@ -1,0 +1,341 @@
+//! The scene's fixed tables — `[integrator]`, `[output]`, `[run]`, `[plot]`,
+//! `[report]` — as serde types, deserialized with their spans from the
+//! parsed TOML. Leaf types say what they expected in the scene's own words
+//! ("expected a number, found string"); `parse.rs` turns the error's span
+//! back into the field and line. Unknown keys are refused before (with a
+//! did-you-mean) by the walker in `values.rs`; `dt` is read there too (it
+//! speaks the value language: scalar, list, linspace, …).
+
+use std::fmt;
+
+use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
+use serde::Deserialize;
+use toml::Spanned;
+
+/// A finite number.
+#[derive(Debug, Clone, Copy)]
+pub struct Num(pub f64);
+
+/// A non-negative integer.
+#[derive(Debug, Clone, Copy)]
+pub struct Int(pub u64);
+
+/// A string.
+#[derive(Debug, Clone)]
+pub struct Str(pub String);
+
+/// A list of strings (a single string is a list of one).
+#[derive(Debug, Clone)]
+pub struct Strs(pub Vec<String>);
+
+/// A list of finite numbers.
+#[derive(Debug, Clone)]
+pub struct Nums(pub Vec<f64>);
+
+/// A boolean.
+#[derive(Debug, Clone, Copy)]
+pub struct Bool(pub bool);
+
+/// A value read by kind: each method accepts one kind of TOML value; the
+/// defaults refuse with "expected WHAT, found <kind>".
+pub trait Leaf: Sized {
+    /// What the value should be, e.g. "a number".
+    const WHAT: &'static str;
+    fn found(kind: &str) -> String {
+        format!("expected {}, found {kind}", Self::WHAT)
+    }
+    fn from_bool(_: bool) -> Result<Self, String> {
+        Err(Self::found("boolean"))
+    }
+    fn from_int(_: i128) -> Result<Self, String> {
+        Err(Self::found("integer"))
+    }
+    fn from_float(_: f64) -> Result<Self, String> {
+        Err(Self::found("float"))
+    }
+    fn from_str(_: &str) -> Result<Self, String> {
+        Err(Self::found("string"))
+    }
+    fn from_seq<'de, A: SeqAccess<'de>>(_: A) -> Result<Self, A::Error> {
+        Err(de::Error::custom(Self::found("array")))
+    }
+    fn from_map<'de, A: MapAccess<'de>>(_: A) -> Result<Self, A::Error> {
+        Err(de::Error::custom(Self::found("table")))
+    }
+}
+
+/// The serde visitor of a [`Leaf`].
+struct LeafVisitor<T>(std::marker::PhantomData<T>);
+
+impl<'de, T: Leaf> Visitor<'de> for LeafVisitor<T> {
+    type Value = T;
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str(T::WHAT)
+    }
+    fn visit_bool<E: de::Error>(self, v: bool) -> Result<T, E> {
+        T::from_bool(v).map_err(E::custom)
+    }
+    fn visit_i64<E: de::Error>(self, v: i64) -> Result<T, E> {
+        T::from_int(v.into()).map_err(E::custom)
+    }
+    fn visit_u64<E: de::Error>(self, v: u64) -> Result<T, E> {
+        T::from_int(v.into()).map_err(E::custom)
+    }
+    fn visit_i128<E: de::Error>(self, v: i128) -> Result<T, E> {
+        T::from_int(v).map_err(E::custom)
+    }
+    fn visit_u128<E: de::Error>(self, v: u128) -> Result<T, E> {
+        T::from_int(i128::try_from(v).unwrap_or(i128::MAX)).map_err(E::custom)
+    }
+    fn visit_f64<E: de::Error>(self, v: f64) -> Result<T, E> {
+        T::from_float(v).map_err(E::custom)
+    }
+    fn visit_str<E: de::Error>(self, v: &str) -> Result<T, E> {
+        T::from_str(v).map_err(E::custom)
+    }
+    fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<T, A::Error> {
+        T::from_seq(seq)
+    }
+    fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<T, A::Error> {
+        T::from_map(map)
+    }
+}
+
+/// `Deserialize` for [`Leaf`] types.
+macro_rules! leaf_deserialize {
+    ($($ty:ty),* $(,)?) => {
+        $(impl<'de> Deserialize<'de> for $ty {
+            fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+                d.deserialize_any(LeafVisitor::<$ty>(std::marker::PhantomData))
+            }
+        })*
+    };
+}
+
+impl Leaf for Num {
+    const WHAT: &'static str = "a number";
+    fn from_int(v: i128) -> Result<Num, String> {
+        match i64::try_from(v) {
+            Ok(i) => Ok(Num(i as f64)),
+            Err(_) => Err("expected a finite number".into()),
+        }
+    }
+    fn from_float(v: f64) -> Result<Num, String> {
+        if v.is_finite() {
+            Ok(Num(v))
+        } else {
+            Err("expected a finite number".into())
+        }
+    }
+}
+
+impl Leaf for Int {
+    const WHAT: &'static str = "an integer";
+    fn from_int(v: i128) -> Result<Int, String> {
+        u64::try_from(v)
+            .map(Int)
+            .map_err(|_| "expected a non-negative integer".into())
+    }
+}
+
+impl Leaf for Str {
+    const WHAT: &'static str = "a string";
+    fn from_str(v: &str) -> Result<Str, String> {
+        Ok(Str(v.to_string()))
+    }
+}
+
+impl Leaf for Bool {
+    const WHAT: &'static str = "true or false";
+    fn from_bool(v: bool) -> Result<Bool, String> {
+        Ok(Bool(v))
+    }
+}
+
+impl Leaf for Strs {
+    const WHAT: &'static str = "a list of strings";
+    fn from_str(v: &str) -> Result<Strs, String> {
+        Ok(Strs(vec![v.to_string()]))
+    }
+    fn from_seq<'de, A: SeqAccess<'de>>(mut seq: A) -> Result<Strs, A::Error> {
+        let mut out = vec![];
+        while let Some(Str(s)) = seq.next_element()? {
+            out.push(s);
+        }
+        Ok(Strs(out))
+    }
+}
+
+impl Leaf for Nums {
+    const WHAT: &'static str = "a list of numbers";
+    fn from_seq<'de, A: SeqAccess<'de>>(mut seq: A) -> Result<Nums, A::Error> {
+        let mut out = vec![];
+        while let Some(Num(x)) = seq.next_element()? {
+            out.push(x);
+        }
+        Ok(Nums(out))
+    }
+}
+
+leaf_deserialize!(Num, Int, Str, Bool, Strs, Nums, Period, Cycle);
+
+/// An inline table of known fields; any other value is refused with
+/// `T::EXPECTED`, the form the scene should have used.
+#[derive(Debug, Clone)]
+pub struct Table<T>(pub T);
+
+/// The form of an inline table, for the message when something else is given.
+pub trait Expected {
+    const EXPECTED: &'static str;
+}
+
+impl<T: for<'a> Deserialize<'a> + Expected> Leaf for Table<T> {
+    const WHAT: &'static str = T::EXPECTED;
+    fn found(_: &str) -> String {
+        format!("expected {}", T::EXPECTED)
+    }
+    fn from_map<'de, A: MapAccess<'de>>(map: A) -> Result<Table<T>, A::Error> {
+        T::deserialize(de::value::MapAccessDeserializer::new(map)).map(Table)
+    }
+}
+
+impl<'de, T: for<'a> Deserialize<'a> + Expected> Deserialize<'de> for Table<T> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_any(LeafVisitor::<Table<T>>(std::marker::PhantomData))
+    }
+}
+
+type Field<T> = Option<Spanned<T>>;
+
+/// `[integrator]` (its `dt` is read in the value language).
+#[derive(Debug, Default, Deserialize)]
+pub struct Integrator {
+    pub scheme: Field<Str>,
+    pub order: Field<Str>,
+    pub t_end: Field<Num>,
+    pub steps: Field<Int>,
+}
+
+/// `[output]`.
+#[derive(Debug, Default, Deserialize)]
+pub struct Output {
+    #[serde(rename = "final")]
+    pub final_vars: Field<Strs>,
+    pub trajectory: Field<Table<Trajectory>>,
+    pub poincare: Field<Table<Poincare>>,
+    pub cycle: Field<Cycle>,
+}
+
+/// `output.trajectory = { every = k, vars = [...] }`.
+#[derive(Debug, Default, Deserialize)]
+pub struct Trajectory {
+    pub every: Field<Int>,
+    pub vars: Field<Strs>,
+}
+
+impl Expected for Trajectory {
+    const EXPECTED: &'static str = "{ every = k, vars = [...] }";
+}
+
+/// `output.poincare`: a stroboscopic (`period`) or an event (`crossing`) section.
+#[derive(Debug, Default, Deserialize)]
+pub struct Poincare {
+    pub period: Field<Period>,
+    pub phase: Field<Num>,
+    pub skip: Field<Num>,
+    pub crossing: Field<Str>,
+    pub value: Field<Num>,
+    pub direction: Field<Str>,
+    pub vars: Field<Strs>,
+    pub max_points: Field<Int>,
+}
+
+impl Expected for Poincare {
+    const EXPECTED: &'static str =
+        "{ period = T } or { crossing = \"q\", value = 0.0, direction = \"up\" }";
+}
+
+/// A section period: a number, or `"forcing"` (each trajectory's forcing period).
+#[derive(Debug, Clone)]
+pub enum Period {
+    Number(f64),
+    Named(String),
+}
+
+impl Leaf for Period {
+    const WHAT: &'static str = "a number";
+    fn from_int(v: i128) -> Result<Period, String> {
+        Num::from_int(v).map(|Num(x)| Period::Number(x))
+    }
+    fn from_float(v: f64) -> Result<Period, String> {
+        Num::from_float(v).map(|Num(x)| Period::Number(x))
+    }
+    fn from_str(v: &str) -> Result<Period, String> {
+        Ok(Period::Named(v.to_string()))
+    }
+}
+
+/// `output.cycle = true` or `{ var, level, skip }`.
+#[derive(Debug)]
+pub enum Cycle {
+    On(bool),
+    Table(CycleTable),
+}
+
+#[derive(Debug, Default, Deserialize)]
+pub struct CycleTable {
+    pub var: Field<Str>,
+    pub level: Field<Num>,
+    pub skip: Field<Num>,
+}
+
+impl Leaf for Cycle {
+    const WHAT: &'static str = "true or { var, level, skip }";
+    fn from_bool(v: bool) -> Result<Cycle, String> {
+        Ok(Cycle::On(v))
+    }
+    fn from_map<'de, A: MapAccess<'de>>(map: A) -> Result<Cycle, A::Error> {
+        CycleTable::deserialize(de::value::MapAccessDeserializer::new(map)).map(Cycle::Table)
+    }
+}
+
+/// `[run]`.
+#[derive(Debug, Default, Deserialize)]
+pub struct Run {
+    pub backend: Field<Str>,
+    pub precision: Field<Str>,
+}
+
+/// `[plot]`.
+#[derive(Debug, Default, Deserialize)]
+pub struct Plot {
+    pub phase: Field<Strs>,
+    pub poincare: Field<Strs>,
+    pub wrap_x: Field<Str>,
+    pub max_trajectories: Field<Int>,
+    pub lienard_plane: Field<Bool>,
+    pub bifurcation: Field<Table<Bifurcation>>,
+}
+
+/// `plot.bifurcation = { axis = "…", var = "…" }`.
+#[derive(Debug, Default, Deserialize)]
+pub struct Bifurcation {
+    pub axis: Field<Str>,
+    pub var: Field<Str>,
+}
+
+impl Expected for Bifurcation {
+    const EXPECTED: &'static str = "{ axis = \"…\", var = \"…\" }";
+}
+
+/// `[report]`.
+#[derive(Debug, Default, Deserialize)]
+pub struct Report {
+    pub schemes: Field<Strs>,
+    pub backends: Field<Strs>,
+    pub precisions: Field<Strs>,
+    pub error_vars: Field<Strs>,
+    pub reference_rtol: Field<Num>,
+    pub distorted: Field<Num>,
+    pub targets: Field<Nums>,
+}
