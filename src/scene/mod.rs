@@ -275,6 +275,7 @@ impl Scene {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::Path;
 
     fn parse(text: &str) -> Result<Scene, SceneError> {
         Scene::parse(Path::new("test.toml"), text)

@@ -1,0 +1,71 @@
+//! The observed variables of a plan resolved to what it integrates: state
+//! variables by index, or time.
+
+use super::observers::{Observers, Section};
+use super::problem::{err, PlanError};
+
+/// A state variable or time, as observers see it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ObsVar {
+    /// Index into [`Plan::vars`].
+    State(usize),
+    Time,
+}
+
+/// Every observer's variables, resolved.
+pub struct Observed {
+    pub final_vars: Vec<ObsVar>,
+    pub trajectory_vars: Vec<ObsVar>,
+    pub poincare_vars: Vec<ObsVar>,
+    /// The crossing variable of an event section, and of the cycle statistics.
+    pub crossing_var: Option<usize>,
+    pub cycle_var: Option<usize>,
+}
+
+impl Observed {
+    /// Resolves the observers' names against the integrated `vars`.
+    pub fn resolve(obs: &Observers, vars: &[&str]) -> Result<Observed, PlanError> {
+        let resolve = |name: &str, field: &str| -> Result<ObsVar, PlanError> {
+            if name == "t" {
+                return Ok(ObsVar::Time);
+            }
+            vars.iter()
+                .position(|v| *v == name)
+                .map(ObsVar::State)
+                .ok_or_else(|| err(field, format!("`{name}` is not integrated by this plan")))
+        };
+        let list = |names: Option<&Vec<String>>, field: &str| -> Result<Vec<ObsVar>, PlanError> {
+            names
+                .into_iter()
+                .flatten()
+                .map(|v| resolve(v, field))
+                .collect()
+        };
+        let state_only = |name: &str, field: &str| match resolve(name, field)? {
+            ObsVar::State(k) => Ok(k),
+            ObsVar::Time => Err(err(field, "time cannot be the crossing variable")),
+        };
+        Ok(Observed {
+            final_vars: list(Some(&obs.final_vars), "output.final")?,
+            trajectory_vars: list(
+                obs.trajectory.as_ref().map(|t| &t.vars),
+                "output.trajectory.vars",
+            )?,
+            poincare_vars: list(
+                obs.poincare.as_ref().map(|p| &p.vars),
+                "output.poincare.vars",
+            )?,
+            crossing_var: match obs.poincare.as_ref().map(|p| &p.section) {
+                Some(Section::Crossing { var, .. }) => {
+                    Some(state_only(var, "output.poincare.crossing")?)
+                }
+                _ => None,
+            },
+            cycle_var: obs
+                .cycle
+                .as_ref()
+                .map(|c| state_only(&c.var, "output.cycle.var"))
+                .transpose()?,
+        })
+    }
+}
