@@ -1,6 +1,7 @@
 //! What a run leaves on disk: `reeb run` (a scene through a backend into a
 //! directory), the arrays, and the pictures drawn with the plotting module.
 
+pub mod arrays;
 pub mod pictures;
 pub mod plot;
 pub mod run;

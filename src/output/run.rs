@@ -11,13 +11,14 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
-use npyz::WriterBuilder;
 
 use crate::backend::Engine;
 use crate::models::Flows;
 use crate::num::precision::Precision;
+use crate::output::arrays::write_arrays;
+pub use crate::output::arrays::write_npy;
 use crate::plan::observations::{estimate_bytes, Observations};
-use crate::scene::{BackendChoice, OutVar, Scene};
+use crate::scene::{BackendChoice, Scene, SubRun};
 
 /// What a finished run reports.
 pub struct RunReport {
@@ -96,37 +97,89 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
 
 fn run_typed<R: Flows>(
     scene: &Scene,
-    subs: Vec<crate::scene::SubRun>,
+    subs: Vec<SubRun>,
     opts: &RunOptions,
     engine: &Engine,
     precision: Precision,
 ) -> Result<RunReport> {
+    let run = integrate_scene::<R>(scene, &subs, engine, opts.progress)?;
+    // Write into <out>.partial, then move into place.
+    let out = opts
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("runs").join(&scene.name));
+    let partial = fresh_partial(&out)?;
+    let mut files = write_arrays(scene, &partial, &run.observations)?;
+    match crate::output::pictures::draw(scene, &partial, &run.observations) {
+        Ok(p) => files.extend(p),
+        Err(e) => eprintln!("warning: pictures not drawn: {e:#}"),
+    }
+    let summary = summary(scene, &subs, engine, precision, &run, &files);
+    {
+        let mut f = BufWriter::new(std::fs::File::create(partial.join("summary.json"))?);
+        serde_json::to_writer_pretty(&mut f, &summary)?;
+        f.write_all(b"\n")?;
+        f.flush()?;
+    }
+    if out.exists() {
+        std::fs::remove_dir_all(&out).with_context(|| format!("replacing {}", out.display()))?;
+    }
+    std::fs::rename(&partial, &out)
+        .with_context(|| format!("moving {} to {}", partial.display(), out.display()))?;
     let n = scene.ensemble_size();
+    let ok = run.observations.count_ok();
+    let line = format!(
+        "{}: {} trajectories × {} steps on {} ({}) in {:.3} s: {:.3e} trajectory-steps/s; {} ok, {} non-finite → {}",
+        scene.name,
+        n,
+        run.max_steps,
+        engine.name(),
+        precision,
+        run.seconds,
+        run.rate(),
+        ok,
+        n - ok,
+        out.display()
+    );
+    Ok(RunReport { out, summary, line })
+}
+
+/// A scene integrated: its arrays (rows in the scene's axis order) and timing.
+struct SceneRun<R> {
+    observations: Observations<R>,
+    seconds: f64,
+    timing: &'static str,
+    max_steps: u64,
+    traj_steps: u64,
+}
+
+impl<R> SceneRun<R> {
+    /// Trajectory-steps per second of the integration.
+    fn rate(&self) -> f64 {
+        if self.seconds > 0.0 {
+            self.traj_steps as f64 / self.seconds
+        } else {
+            f64::NAN
+        }
+    }
+}
+
+/// Integrates every sub-run of `scene` and places its rows in the scene's
+/// arrays, with a progress bar on stderr if asked for.
+fn integrate_scene<R: Flows>(
+    scene: &Scene,
+    subs: &[SubRun],
+    engine: &Engine,
+    progress: bool,
+) -> Result<SceneRun<R>> {
     let total: u64 = subs.iter().map(|s| s.plan.traj_steps()).sum();
     let done = AtomicU64::new(0);
-    let bar = (opts.progress && total > 0).then(|| {
-        let b = indicatif::ProgressBar::with_draw_target(
-            Some(total),
-            indicatif::ProgressDrawTarget::stderr(),
-        );
-        b.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{spinner} {msg} [{bar:30}] {percent:>3}% {elapsed} (eta {eta}) {per_sec}",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-            .progress_chars("=> "),
-        );
-        b.set_message(format!("{} on {}", scene.name, engine.name()));
-        b
-    });
-    // The scene's arrays, rows in the scene's axis order; sub-runs of fewer
-    // steps fill the leading frames of their rows.
-    let mut asm: Option<Observations<R>> = None;
-    let mut seconds = 0.0;
-    let mut timing = "wall clock";
-    let mut max_steps = 0;
-    let (shape, strides) = (scene.shape(), scene.strides());
+    let bar = (progress && total > 0)
+        .then(|| progress_bar(total, format!("{} on {}", scene.name, engine.name())));
     let finished = std::sync::atomic::AtomicBool::new(false);
+    let (shape, strides) = (scene.shape(), scene.strides());
+    let mut whole: Option<Observations<R>> = None;
+    let (mut seconds, mut timing, mut max_steps) = (0.0, "wall clock", 0);
     std::thread::scope(|scope| -> Result<()> {
         if let Some(b) = &bar {
             let (b, done, finished) = (b.clone(), &done, &finished);
@@ -138,44 +191,18 @@ fn run_typed<R: Flows>(
             });
         }
         let result = (|| -> Result<()> {
-            for sub in &subs {
+            for sub in subs {
                 let run = engine.run::<R>(&sub.plan, Some(&done))?;
-                let (obs, secs, how) = (run.observations, run.seconds, run.timing);
-                seconds += secs;
-                timing = how;
+                seconds += run.seconds;
+                timing = run.timing;
                 max_steps = max_steps.max(sub.plan.steps);
                 if subs.len() == 1 {
-                    asm = Some(obs);
+                    whole = Some(run.observations);
                     continue;
                 }
-                let a = asm.get_or_insert_with(|| {
-                    let longest = subs.iter().max_by_key(|s| s.plan.steps).unwrap_or(sub);
-                    let mut whole = longest.plan.clone();
-                    whole.n = n;
-                    Observations::for_plan(&whole)
-                });
-                // Local row j (over the free axes) → global row g.
-                for (j, g) in sub.scene_rows(&shape, &strides).enumerate() {
-                    for ((_, dst), (_, src)) in a.final_values.iter_mut().zip(&obs.final_values) {
-                        dst[g] = src[j];
-                    }
-                    for ((_, dst), (_, src)) in a.trajectory.iter_mut().zip(&obs.trajectory) {
-                        dst[g * a.frames..g * a.frames + obs.frames]
-                            .copy_from_slice(&src[j * obs.frames..(j + 1) * obs.frames]);
-                    }
-                    let mp = obs.max_points;
-                    for ((_, dst), (_, src)) in a.poincare.iter_mut().zip(&obs.poincare) {
-                        dst[g * mp..(g + 1) * mp].copy_from_slice(&src[j * mp..(j + 1) * mp]);
-                    }
-                    if mp > 0 {
-                        a.poincare_count[g] = obs.poincare_count[j];
-                    }
-                    if !obs.cycle_amplitude.is_empty() {
-                        a.cycle_amplitude[g] = obs.cycle_amplitude[j];
-                        a.cycle_period[g] = obs.cycle_period[j];
-                    }
-                    a.nonfinite_step[g] = obs.nonfinite_step[j];
-                }
+                whole
+                    .get_or_insert_with(|| scene_arrays(scene, subs))
+                    .place_rows(&run.observations, sub.scene_rows(&shape, &strides));
             }
             Ok(())
         })();
@@ -185,131 +212,67 @@ fn run_typed<R: Flows>(
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
-    let a = asm.context("the scene produced no run")?;
+    Ok(SceneRun {
+        observations: whole.context("the scene produced no run")?,
+        seconds,
+        timing,
+        max_steps,
+        traj_steps: total,
+    })
+}
 
-    // Write into <out>.partial, then move into place.
-    let out = opts
-        .out
-        .clone()
-        .unwrap_or_else(|| Path::new("runs").join(&scene.name));
-    let partial = partial_dir(&out);
+/// Arrays for the whole scene, shaped by its longest sub-run, NaN-filled.
+fn scene_arrays<R: Flows>(scene: &Scene, subs: &[SubRun]) -> Observations<R> {
+    let longest = subs.iter().max_by_key(|s| s.plan.steps).expect("a sub-run");
+    let mut whole = longest.plan.clone();
+    whole.n = scene.ensemble_size();
+    Observations::for_plan(&whole)
+}
+
+fn progress_bar(total: u64, message: String) -> indicatif::ProgressBar {
+    let b = indicatif::ProgressBar::with_draw_target(
+        Some(total),
+        indicatif::ProgressDrawTarget::stderr(),
+    );
+    b.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} {msg} [{bar:30}] {percent:>3}% {elapsed} (eta {eta}) {per_sec}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    b.set_message(message);
+    b
+}
+
+/// `<out>.partial`, empty and ready to write.
+fn fresh_partial(out: &Path) -> Result<PathBuf> {
+    let partial = partial_dir(out);
     if partial.exists() {
         std::fs::remove_dir_all(&partial)
             .with_context(|| format!("removing {}", partial.display()))?;
     }
     std::fs::create_dir_all(&partial).with_context(|| format!("creating {}", partial.display()))?;
-    let mut files: Vec<String> = vec![];
-    let shape: Vec<u64> = scene.shape().iter().map(|s| *s as u64).collect();
-    let with = |extra: &[u64]| -> Vec<u64> { shape.iter().chain(extra).copied().collect() };
+    Ok(partial)
+}
 
-    for ax in &scene.axes {
-        write_npy(
-            &partial.join(format!("axis_{}.npy", ax.name)),
-            &[ax.values.len() as u64],
-            ax.values.iter().copied(),
-        )?;
-        files.push(format!("axis_{}.npy", ax.name));
-    }
-    let vec_out = |vars: &[OutVar],
-                   arrays: &[(String, Vec<R>)],
-                   inner: usize,
-                   prefix: &str,
-                   files: &mut Vec<String>|
-     -> Result<()> {
-        for v in vars {
-            let comps: Vec<&Vec<R>> = v
-                .components
-                .iter()
-                .map(|c| {
-                    arrays
-                        .iter()
-                        .find(|(n, _)| n == c)
-                        .map(|(_, x)| x)
-                        .context("recorded component")
-                })
-                .collect::<Result<_>>()?;
-            let mut dims = if inner > 0 {
-                with(&[inner as u64])
-            } else {
-                with(&[])
-            };
-            let name = format!("{prefix}_{}.npy", v.name);
-            if comps.len() == 1 {
-                write_npy(&partial.join(&name), &dims, comps[0].iter().copied())?;
-            } else {
-                dims.push(comps.len() as u64);
-                let len = comps[0].len();
-                write_npy(
-                    &partial.join(&name),
-                    &dims,
-                    (0..len).flat_map(|i| comps.iter().map(move |c| c[i])),
-                )?;
-            }
-            files.push(name);
-        }
-        Ok(())
-    };
-    vec_out(&scene.final_vars, &a.final_values, 0, "final", &mut files)?;
-    if let Some((_, vars)) = &scene.trajectory {
-        vec_out(vars, &a.trajectory, a.frames, "trajectory", &mut files)?;
-    }
-    if let Some((_, vars, _)) = &scene.poincare {
-        vec_out(vars, &a.poincare, a.max_points, "poincare", &mut files)?;
-        write_npy(
-            &partial.join("poincare_count.npy"),
-            &with(&[]),
-            a.poincare_count.iter().copied(),
-        )?;
-        files.push("poincare_count.npy".into());
-    }
-    if scene.cycle.is_some() {
-        write_npy(
-            &partial.join("cycle_amplitude.npy"),
-            &with(&[]),
-            a.cycle_amplitude.iter().copied(),
-        )?;
-        write_npy(
-            &partial.join("cycle_period.npy"),
-            &with(&[]),
-            a.cycle_period.iter().copied(),
-        )?;
-        files.extend([
-            "cycle_amplitude.npy".to_string(),
-            "cycle_period.npy".to_string(),
-        ]);
-    }
-    // status: 0 ok, 1 non-finite; status_step: the step it became non-finite (−1: never).
-    write_npy(
-        &partial.join("status.npy"),
-        &with(&[]),
-        a.nonfinite_step.iter().map(|s| u8::from(*s != 0)),
-    )?;
-    write_npy(
-        &partial.join("status_step.npy"),
-        &with(&[]),
-        a.nonfinite_step
-            .iter()
-            .map(|s| if *s == 0 { -1i64 } else { *s as i64 }),
-    )?;
-    files.extend(["status.npy".to_string(), "status_step.npy".to_string()]);
-
-    let pictures = crate::output::pictures::draw(scene, &partial, &a);
-    let pictures = match pictures {
-        Ok(p) => p,
-        Err(e) => {
-            eprintln!("warning: pictures not drawn: {e:#}");
-            vec![]
-        }
-    };
-    files.extend(pictures);
-
-    let ok = a.count_ok();
-    let rate = if seconds > 0.0 {
-        total as f64 / seconds
-    } else {
-        f64::NAN
-    };
-    let summary = serde_json::json!({
+/// The contents of summary.json.
+fn summary<R>(
+    scene: &Scene,
+    subs: &[SubRun],
+    engine: &Engine,
+    precision: Precision,
+    run: &SceneRun<R>,
+    files: &[String],
+) -> serde_json::Value {
+    let n = scene.ensemble_size();
+    let ok = run
+        .observations
+        .nonfinite_step
+        .iter()
+        .filter(|s| **s == 0)
+        .count();
+    serde_json::json!({
         "reeb_version": env!("CARGO_PKG_VERSION"),
         "scene": {
             "name": scene.name,
@@ -327,41 +290,16 @@ fn run_typed<R: Flows>(
         "precision": precision.name(),
         "ensemble_size": n,
         "shape": scene.shape(),
-        "steps": max_steps,
+        "steps": run.max_steps,
         "steps_per_run": subs.iter().map(|s| s.plan.steps).collect::<Vec<_>>(),
-        "traj_steps": total,
-        "integration_seconds": seconds,
-        "timing": timing,
-        "traj_steps_per_s": rate,
+        "traj_steps": run.traj_steps,
+        "integration_seconds": run.seconds,
+        "timing": run.timing,
+        "traj_steps_per_s": run.rate(),
         "evaluations_per_step": crate::plan::scheme::Scheme::by_name(&scene.scheme).map(|s| s.evaluations()),
         "status": {"ok": ok, "non_finite": n - ok},
         "files": files,
-    });
-    {
-        let mut f = BufWriter::new(std::fs::File::create(partial.join("summary.json"))?);
-        serde_json::to_writer_pretty(&mut f, &summary)?;
-        f.write_all(b"\n")?;
-        f.flush()?;
-    }
-    if out.exists() {
-        std::fs::remove_dir_all(&out).with_context(|| format!("replacing {}", out.display()))?;
-    }
-    std::fs::rename(&partial, &out)
-        .with_context(|| format!("moving {} to {}", partial.display(), out.display()))?;
-    let line = format!(
-        "{}: {} trajectories × {} steps on {} ({}) in {:.3} s: {:.3e} trajectory-steps/s; {} ok, {} non-finite → {}",
-        scene.name,
-        n,
-        max_steps,
-        engine.name(),
-        precision,
-        seconds,
-        rate,
-        ok,
-        n - ok,
-        out.display()
-    );
-    Ok(RunReport { out, summary, line })
+    })
 }
 
 fn partial_dir(out: &Path) -> PathBuf {
@@ -371,22 +309,4 @@ fn partial_dir(out: &Path) -> PathBuf {
         .unwrap_or_else(|| "run".into());
     name.push(".partial");
     out.with_file_name(name)
-}
-
-/// Writes a C-order .npy array.
-pub fn write_npy<T: npyz::AutoSerialize + npyz::Serialize>(
-    path: &Path,
-    shape: &[u64],
-    data: impl IntoIterator<Item = T>,
-) -> Result<()> {
-    let file =
-        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let mut w = npyz::WriteOptions::new()
-        .default_dtype()
-        .shape(shape)
-        .writer(BufWriter::new(file))
-        .begin_nd()?;
-    w.extend(data)?;
-    w.finish()?;
-    Ok(())
 }

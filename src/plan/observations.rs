@@ -84,6 +84,32 @@ impl<R: Real> Observations<R> {
         }
     }
 
+    /// Copies the rows of `src` (a sub-run's) to rows `rows` of `self` (the
+    /// whole scene's); a sub-run of fewer steps fills the leading frames.
+    pub fn place_rows(&mut self, src: &Observations<R>, rows: impl Iterator<Item = usize>) {
+        let (fs, mp) = (src.frames, src.max_points);
+        for (j, g) in rows.enumerate() {
+            for ((_, dst), (_, s)) in self.final_values.iter_mut().zip(&src.final_values) {
+                dst[g] = s[j];
+            }
+            for ((_, dst), (_, s)) in self.trajectory.iter_mut().zip(&src.trajectory) {
+                dst[g * self.frames..g * self.frames + fs]
+                    .copy_from_slice(&s[j * fs..(j + 1) * fs]);
+            }
+            for ((_, dst), (_, s)) in self.poincare.iter_mut().zip(&src.poincare) {
+                dst[g * mp..(g + 1) * mp].copy_from_slice(&s[j * mp..(j + 1) * mp]);
+            }
+            if mp > 0 {
+                self.poincare_count[g] = src.poincare_count[j];
+            }
+            if !src.cycle_amplitude.is_empty() {
+                self.cycle_amplitude[g] = src.cycle_amplitude[j];
+                self.cycle_period[g] = src.cycle_period[j];
+            }
+            self.nonfinite_step[g] = src.nonfinite_step[j];
+        }
+    }
+
     pub fn status(&self, i: usize) -> Status {
         match self.nonfinite_step[i] {
             0 => Status::Ok,
