@@ -167,5 +167,5 @@ pub const SPEC: ModelSpec = ModelSpec {
     initial_defaults: &[("q", 1.0)],
     initial_alias: None,
     methods_carry_optional: true,
-    rules: rules,
+    rules,
 };

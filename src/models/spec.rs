@@ -129,11 +129,15 @@ pub struct ModelSpec {
     pub methods_carry_optional: bool,
     /// Model rules on parameter and initial values (beyond finiteness);
     /// `values("params.index")` lists every value a field takes.
-    pub rules: fn(values: &dyn Fn(&str) -> Vec<f64>, time: bool) -> Result<(), RuleError>,
+    pub rules: Rules,
 }
 
 /// A broken model rule: the field and what is wrong.
 pub type RuleError = (String, String);
+
+/// A model's rules: `values(field)` lists every value a field takes; `time`
+/// says whether the plan reads time.
+pub type Rules = fn(values: &dyn Fn(&str) -> Vec<f64>, time: bool) -> Result<(), RuleError>;
 
 /// Rules of a model that has none.
 pub fn no_rules(_: &dyn Fn(&str) -> Vec<f64>, _: bool) -> Result<(), RuleError> {

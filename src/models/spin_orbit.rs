@@ -255,7 +255,7 @@ pub const SPEC: ModelSpec = ModelSpec {
     initial_defaults: &[],
     initial_alias: None,
     methods_carry_optional: true,
-    rules: rules,
+    rules,
 };
 
 #[cfg(test)]
