@@ -133,15 +133,7 @@ pub fn run_with<R: Flows>(
     } else {
         Precision::F32
     };
-    if precision == Precision::F64 && !ctx.shader_f64 {
-        return Err(GpuError::NoF64(ctx.describe()));
-    }
-    if plan.n > u32::MAX as usize || plan.steps > u32::MAX as u64 - 1 {
-        return Err(GpuError::TooLarge(format!(
-            "the GPU backend counts trajectories and steps in 32 bits: {} trajectories, {} steps",
-            plan.n, plan.steps
-        )));
-    }
+    check_fits(ctx, plan, precision)?;
     let mut out = Observations::<R>::for_plan(plan);
     if plan.n == 0 {
         return Ok(GpuRun {
@@ -154,280 +146,420 @@ pub fn run_with<R: Flows>(
     }
     let kernel = generate(plan, precision)?;
     let pipeline = ctx.pipeline(&kernel.source)?;
-
-    // Chunk capacity from the per-trajectory size of every buffer.
-    let b = std::mem::size_of::<R>() as u64;
-    let nv = plan.vars.len() as u64;
-    let tv = plan.trajectory_vars.len() as u64;
-    let pv = plan.poincare_vars.len() as u64;
-    let max_points = out.max_points as u64;
-    let every = plan.observers.trajectory.as_ref().map_or(0, |t| t.every);
-    let limit = ctx
-        .limits
-        .max_storage_buffer_binding_size
-        .min(ctx.limits.max_buffer_size);
-    let per_buffer = [
-        nv * b,
-        4,
-        AUX_R.len() as u64 * b,
-        AUX_U.len() as u64 * 4,
-        max_points * pv * b,
-    ];
-    let widest = *per_buffer.iter().max().expect("nonempty");
-    let mut cap = (plan.n as u64)
-        .min(limit / widest)
-        .min(MEMORY_BUDGET / per_buffer.iter().sum::<u64>());
-    // Trajectory frames: at least two per window must fit.
-    if tv > 0 {
-        cap = cap.min(limit / (2 * tv * b));
-    }
-    if cap == 0 {
-        return Err(GpuError::TooLarge(format!(
-            "one trajectory's observations ({} bytes) exceed the adapter's storage binding limit ({limit} bytes): lower output.poincare.max_points or the number of recorded variables",
-            widest
-        )));
-    }
-    cap = cap
-        .next_multiple_of(WORKGROUP)
-        .min(limit / widest / WORKGROUP * WORKGROUP)
-        .max(WORKGROUP.min(cap));
-    if let Some(m) = opts.max_chunk {
-        cap = cap.min(m.max(1));
-    }
-    let max_window = opts
-        .max_steps_per_dispatch
-        .unwrap_or(MAX_STEPS_PER_DISPATCH)
-        .clamp(1, MAX_STEPS_PER_DISPATCH);
-    let max_frames = if tv > 0 {
-        (limit / (cap * tv * b))
-            .min(MEMORY_BUDGET / (cap * tv * b))
-            .max(2)
-    } else {
-        0
-    };
-
+    let sizes = Sizes::new::<R>(ctx, plan, opts)?;
     let table: Vec<R> = kernel.table.iter().map(|v| R::from_f64(*v)).collect();
-    let bufs = Buffers {
-        uniform: ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("uniforms"),
-            size: std::mem::size_of::<Uniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        }),
-        state: storage(ctx, "state", nv * cap * b),
-        table: if table.is_empty() {
-            storage(ctx, "table", 16)
-        } else {
-            ctx.device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("table"),
-                    contents: bytemuck::cast_slice(&table),
-                    usage: wgpu::BufferUsages::STORAGE,
-                })
-        },
-        status: storage(ctx, "status", 4 * cap),
-        aux_r: storage(ctx, "aux_r", AUX_R.len() as u64 * cap * b),
-        aux_u: storage(ctx, "aux_u", AUX_U.len() as u64 * cap * 4),
-        traj: storage(ctx, "trajectory", max_frames * tv * cap * b),
-        points: storage(ctx, "points", max_points * pv * cap * b),
-        staging: ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("staging"),
-            size: [
-                nv * b,
-                4,
-                AUX_R.len() as u64 * b,
-                AUX_U.len() as u64 * 4,
-                max_points * pv * b,
-                max_frames * tv * b,
-            ]
-            .into_iter()
-            .max()
-            .unwrap_or(16)
-            .max(4)
-                * cap,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        }),
+    let bufs = Buffers::new(ctx, &sizes, bytemuck::cast_slice(&table));
+    let run = Dispatcher {
+        ctx,
+        pipeline: &pipeline,
+        bind: bind_group(ctx, &bufs),
+        timestamps: Timestamps::new(ctx),
     };
-    let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("reeb kernel"),
-        layout: ctx.bind_group_layout(),
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: bufs.uniform.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: bufs.state.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: bufs.table.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 3,
-                resource: bufs.status.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 4,
-                resource: bufs.aux_r.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 5,
-                resource: bufs.aux_u.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 6,
-                resource: bufs.traj.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 7,
-                resource: bufs.points.as_entire_binding(),
-            },
-        ],
-    });
-    let queries = ctx.timestamps.then(|| {
-        let set = ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
-            label: Some("dispatch"),
-            ty: wgpu::QueryType::Timestamp,
-            count: 2,
-        });
-        let resolve = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("timestamps"),
-            size: 16,
-            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let readback = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("timestamps readback"),
-            size: 16,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        (set, resolve, readback)
-    });
-    let period_ns = ctx.queue.get_timestamp_period() as f64;
-
-    let frames_total = out.frames as u64;
-    let mut seconds = 0.0;
-    let mut dispatches = 0u64;
-    let mut chunks = 0usize;
+    let mut chunks = 0;
+    let mut base = 0u64;
+    let mut totals = (0.0, 0u64);
     // Trajectory-steps per dispatch, adapted to the measured speed.
     let mut budget: f64 = 1e6;
-    let mut base = 0u64;
     while base < plan.n as u64 {
-        let count = cap.min(plan.n as u64 - base);
+        let count = sizes.cap.min(plan.n as u64 - base);
         chunks += 1;
+        let (s, d) = run.chunk(
+            plan,
+            &sizes,
+            &bufs,
+            &mut out,
+            base,
+            count,
+            &mut budget,
+            progress,
+        )?;
+        totals = (totals.0 + s, totals.1 + d);
+        collect(ctx, plan, &bufs, &mut out, base, count, sizes.cap, sizes.b)?;
+        base += count;
+    }
+    Ok(GpuRun {
+        observations: out,
+        seconds: totals.0,
+        timing: run
+            .timestamps
+            .as_ref()
+            .map_or("wall clock", |_| "GPU timestamps"),
+        chunks,
+        dispatches: totals.1,
+    })
+}
+
+/// Refuses what the adapter cannot run: f64 without f64 shaders, counts
+/// beyond the kernel's 32-bit indices.
+fn check_fits(ctx: &GpuContext, plan: &Plan, precision: Precision) -> Result<(), GpuError> {
+    if precision == Precision::F64 && !ctx.shader_f64 {
+        return Err(GpuError::NoF64(ctx.describe()));
+    }
+    if plan.n > u32::MAX as usize || plan.steps > u32::MAX as u64 - 1 {
+        return Err(GpuError::TooLarge(format!(
+            "the GPU backend counts trajectories and steps in 32 bits: {} trajectories, {} steps",
+            plan.n, plan.steps
+        )));
+    }
+    Ok(())
+}
+
+/// Sizes of one chunk's buffers.
+struct Sizes {
+    /// Bytes of the precision.
+    b: u64,
+    /// Integrated variables, trajectory variables, Poincaré variables.
+    nv: u64,
+    tv: u64,
+    pv: u64,
+    max_points: u64,
+    /// Trajectories resident at once (a multiple of the workgroup size).
+    cap: u64,
+    /// Most steps and trajectory frames one dispatch may take.
+    max_window: u64,
+    max_frames: u64,
+    /// Steps between trajectory frames (0: no trajectory observer).
+    every: u64,
+}
+
+impl Sizes {
+    /// The chunk capacity from the per-trajectory size of every buffer,
+    /// within the adapter's binding limit and reeb's memory budget.
+    fn new<R>(ctx: &GpuContext, plan: &Plan, opts: &GpuOptions) -> Result<Sizes, GpuError> {
+        let b = std::mem::size_of::<R>() as u64;
+        let (nv, tv, pv) = (
+            plan.vars.len() as u64,
+            plan.trajectory_vars.len() as u64,
+            plan.poincare_vars.len() as u64,
+        );
+        let max_points = plan.observers.poincare.as_ref().map_or(0, |p| p.max_points) as u64;
+        let limit = ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(ctx.limits.max_buffer_size);
+        let per_buffer = [
+            nv * b,
+            4,
+            AUX_R.len() as u64 * b,
+            AUX_U.len() as u64 * 4,
+            max_points * pv * b,
+        ];
+        let widest = *per_buffer.iter().max().expect("nonempty");
+        let mut cap = (plan.n as u64)
+            .min(limit / widest)
+            .min(MEMORY_BUDGET / per_buffer.iter().sum::<u64>());
+        // Trajectory frames: at least two per window must fit.
+        if tv > 0 {
+            cap = cap.min(limit / (2 * tv * b));
+        }
+        if cap == 0 {
+            return Err(GpuError::TooLarge(format!(
+                "one trajectory's observations ({} bytes) exceed the adapter's storage binding limit ({limit} bytes): lower output.poincare.max_points or the number of recorded variables",
+                widest
+            )));
+        }
+        cap = cap
+            .next_multiple_of(WORKGROUP)
+            .min(limit / widest / WORKGROUP * WORKGROUP)
+            .max(WORKGROUP.min(cap));
+        if let Some(m) = opts.max_chunk {
+            cap = cap.min(m.max(1));
+        }
+        let max_frames = if tv > 0 {
+            (limit / (cap * tv * b))
+                .min(MEMORY_BUDGET / (cap * tv * b))
+                .max(2)
+        } else {
+            0
+        };
+        Ok(Sizes {
+            b,
+            nv,
+            tv,
+            pv,
+            max_points,
+            cap,
+            max_window: opts
+                .max_steps_per_dispatch
+                .unwrap_or(MAX_STEPS_PER_DISPATCH)
+                .clamp(1, MAX_STEPS_PER_DISPATCH),
+            max_frames,
+            every: plan.observers.trajectory.as_ref().map_or(0, |t| t.every),
+        })
+    }
+
+    /// The window of steps from `step0` that a dispatch of `count`
+    /// trajectories takes within `budget` trajectory-steps, and the
+    /// trajectory frames it records: `(nsteps, frame0, nframes)`.
+    fn window(&self, step0: u64, steps: u64, count: u64, budget: f64) -> (u64, u64, u64) {
+        let mut nsteps = ((budget / count as f64) as u64)
+            .clamp(1, steps - step0)
+            .min(self.max_window);
+        // Frames f with f·every in the window (step 0 itself on the first
+        // window) go to traj_out; at most `max_frames` of them fit.
+        let (mut frame0, mut nframes) = (0, 0);
+        if let Some(after) = step0.checked_div(self.every) {
+            frame0 = if step0 == 0 { 0 } else { after + 1 };
+            nsteps = nsteps
+                .min((frame0 + self.max_frames) * self.every - 1 - step0)
+                .max(1);
+            nframes = ((step0 + nsteps) / self.every + 1).saturating_sub(frame0);
+        }
+        (nsteps, frame0, nframes)
+    }
+}
+
+impl Buffers {
+    fn new(ctx: &GpuContext, s: &Sizes, table: &[u8]) -> Buffers {
+        let (b, cap) = (s.b, s.cap);
+        let staging_per_trajectory = [
+            s.nv * b,
+            4,
+            AUX_R.len() as u64 * b,
+            AUX_U.len() as u64 * 4,
+            s.max_points * s.pv * b,
+            s.max_frames * s.tv * b,
+        ]
+        .into_iter()
+        .max()
+        .unwrap_or(16)
+        .max(4);
+        Buffers {
+            uniform: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("uniforms"),
+                size: std::mem::size_of::<Uniforms>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            state: storage(ctx, "state", s.nv * cap * b),
+            table: if table.is_empty() {
+                storage(ctx, "table", 16)
+            } else {
+                ctx.device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("table"),
+                        contents: table,
+                        usage: wgpu::BufferUsages::STORAGE,
+                    })
+            },
+            status: storage(ctx, "status", 4 * cap),
+            aux_r: storage(ctx, "aux_r", AUX_R.len() as u64 * cap * b),
+            aux_u: storage(ctx, "aux_u", AUX_U.len() as u64 * cap * 4),
+            traj: storage(ctx, "trajectory", s.max_frames * s.tv * cap * b),
+            points: storage(ctx, "points", s.max_points * s.pv * cap * b),
+            staging: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("staging"),
+                size: staging_per_trajectory * cap,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+        }
+    }
+}
+
+/// The kernel's bindings, in the order of `shaders/driver.wgsl`.
+fn bind_group(ctx: &GpuContext, bufs: &Buffers) -> wgpu::BindGroup {
+    let order = [
+        &bufs.uniform,
+        &bufs.state,
+        &bufs.table,
+        &bufs.status,
+        &bufs.aux_r,
+        &bufs.aux_u,
+        &bufs.traj,
+        &bufs.points,
+    ];
+    let entries: Vec<wgpu::BindGroupEntry> = order
+        .iter()
+        .enumerate()
+        .map(|(k, buf)| wgpu::BindGroupEntry {
+            binding: k as u32,
+            resource: buf.as_entire_binding(),
+        })
+        .collect();
+    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("reeb kernel"),
+        layout: ctx.bind_group_layout(),
+        entries: &entries,
+    })
+}
+
+/// Timestamp queries around each dispatch, where the adapter has them.
+struct Timestamps {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    period_ns: f64,
+}
+
+impl Timestamps {
+    fn new(ctx: &GpuContext) -> Option<Timestamps> {
+        let buffer = |label, usage| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 16,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        ctx.timestamps.then(|| Timestamps {
+            set: ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("dispatch"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            }),
+            resolve: buffer(
+                "timestamps",
+                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            ),
+            readback: buffer(
+                "timestamps readback",
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+            period_ns: ctx.queue.get_timestamp_period() as f64,
+        })
+    }
+}
+
+/// Runs windows of the kernel over a chunk.
+struct Dispatcher<'a> {
+    ctx: &'a GpuContext,
+    pipeline: &'a wgpu::ComputePipeline,
+    bind: wgpu::BindGroup,
+    timestamps: Option<Timestamps>,
+}
+
+impl Dispatcher<'_> {
+    /// Integrates trajectories `base..base+count` over the whole horizon,
+    /// window by window, reading the trajectory frames back as they come;
+    /// returns the integration seconds and the number of dispatches.
+    #[allow(clippy::too_many_arguments)]
+    fn chunk<R: Flows>(
+        &self,
+        plan: &Plan,
+        sizes: &Sizes,
+        bufs: &Buffers,
+        out: &mut Observations<R>,
+        base: u64,
+        count: u64,
+        budget: &mut f64,
+        progress: Option<&AtomicU64>,
+    ) -> Result<(f64, u64), GpuError> {
+        let ctx = self.ctx;
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         enc.clear_buffer(&bufs.status, 0, None);
         ctx.queue.submit([enc.finish()]);
+        let (mut seconds, mut dispatches) = (0.0, 0);
         let mut step0 = 0u64;
         while step0 < plan.steps {
-            let mut nsteps = ((budget / count as f64) as u64)
-                .clamp(1, plan.steps - step0)
-                .min(max_window);
-            // Frames f with f·every in the window (step 0 itself on the first
-            // window) go to traj_out; at most `max_frames` of them fit.
-            let (mut frame0, mut nframes) = (0, 0);
-            if let Some(after) = step0.checked_div(every) {
-                frame0 = if step0 == 0 { 0 } else { after + 1 };
-                nsteps = nsteps.min((frame0 + max_frames) * every - 1 - step0).max(1);
-                nframes = ((step0 + nsteps) / every + 1).saturating_sub(frame0);
-            }
+            let (nsteps, frame0, nframes) = sizes.window(step0, plan.steps, count, *budget);
             let u = Uniforms {
                 base: base as u32,
                 count: count as u32,
-                cap: cap as u32,
+                cap: sizes.cap as u32,
                 step0: step0 as u32,
                 nsteps: nsteps as u32,
                 frame0: frame0 as u32,
                 nframes: nframes as u32,
                 _pad: 0,
             };
-            ctx.queue
-                .write_buffer(&bufs.uniform, 0, bytemuck::bytes_of(&u));
-            let groups = count.div_ceil(WORKGROUP);
-            let max_dim = ctx.limits.max_compute_workgroups_per_dimension as u64;
-            let gx = groups.min(max_dim);
-            let gy = groups.div_ceil(gx);
-            let mut enc = ctx.device.create_command_encoder(&Default::default());
-            {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("reeb window"),
-                    timestamp_writes: queries.as_ref().map(|(set, _, _)| {
-                        wgpu::ComputePassTimestampWrites {
-                            query_set: set,
-                            beginning_of_pass_write_index: Some(0),
-                            end_of_pass_write_index: Some(1),
-                        }
-                    }),
-                });
-                pass.set_pipeline(&pipeline);
-                pass.set_bind_group(0, &bind, &[]);
-                pass.dispatch_workgroups(gx as u32, gy as u32, 1);
-            }
-            if let Some((set, resolve, readback)) = &queries {
-                enc.resolve_query_set(set, 0..2, resolve, 0);
-                enc.copy_buffer_to_buffer(resolve, 0, readback, 0, 16);
-            }
-            let started = Instant::now();
-            ctx.queue.submit([enc.finish()]);
-            ctx.device
-                .poll(wgpu::PollType::wait_indefinitely())
-                .map_err(|e| GpuError::Runtime(e.to_string()))?;
-            let wall = started.elapsed().as_secs_f64();
-            check(ctx)?;
-            let took = match &queries {
-                Some((_, _, readback)) => {
-                    let ts: Vec<u64> = read_mapped(ctx, readback, 16)?;
-                    let gpu = ts[1].saturating_sub(ts[0]) as f64 * period_ns * 1e-9;
-                    if gpu > 0.0 {
-                        gpu
-                    } else {
-                        wall
-                    }
-                }
-                None => wall,
-            };
+            let (wall, took) = self.dispatch(bufs, &u, count)?;
             seconds += took;
             dispatches += 1;
             if nframes > 0 {
-                let frames: Vec<R> = read(ctx, &bufs.traj, &bufs.staging, nframes * tv * cap * b)?;
-                for (j, (_, dst)) in out.trajectory.iter_mut().enumerate() {
-                    for f in 0..nframes {
-                        for i in 0..count {
-                            let src = ((f * tv + j as u64) * cap + i) as usize;
-                            dst[((base + i) * frames_total + frame0 + f) as usize] = frames[src];
-                        }
-                    }
-                }
+                read_frames(ctx, sizes, bufs, out, base, count, frame0, nframes)?;
             }
             if let Some(p) = progress {
                 p.fetch_add(count * nsteps, Ordering::Relaxed);
             }
             // Aim at the target time per dispatch, changing by at most 4× at once.
             let rate = (count * nsteps) as f64 / wall.max(1e-6);
-            budget = (rate * TARGET_DISPATCH_SECONDS)
-                .clamp(budget / 4.0, budget * 4.0)
+            *budget = (rate * TARGET_DISPATCH_SECONDS)
+                .clamp(*budget / 4.0, *budget * 4.0)
                 .max(count as f64);
             step0 += nsteps;
         }
-        collect(ctx, plan, &bufs, &mut out, base, count, cap, b)?;
-        base += count;
+        Ok((seconds, dispatches))
     }
-    let timing = if queries.is_some() {
-        "GPU timestamps"
-    } else {
-        "wall clock"
-    };
-    Ok(GpuRun {
-        observations: out,
-        seconds,
-        timing,
-        chunks,
-        dispatches,
-    })
+
+    /// One dispatch with uniforms `u`; returns (wall seconds, integration
+    /// seconds by timestamps where available).
+    fn dispatch(&self, bufs: &Buffers, u: &Uniforms, count: u64) -> Result<(f64, f64), GpuError> {
+        let ctx = self.ctx;
+        ctx.queue
+            .write_buffer(&bufs.uniform, 0, bytemuck::bytes_of(u));
+        let groups = count.div_ceil(WORKGROUP);
+        let max_dim = ctx.limits.max_compute_workgroups_per_dimension as u64;
+        let gx = groups.min(max_dim);
+        let gy = groups.div_ceil(gx);
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("reeb window"),
+                timestamp_writes: self.timestamps.as_ref().map(|t| {
+                    wgpu::ComputePassTimestampWrites {
+                        query_set: &t.set,
+                        beginning_of_pass_write_index: Some(0),
+                        end_of_pass_write_index: Some(1),
+                    }
+                }),
+            });
+            pass.set_pipeline(self.pipeline);
+            pass.set_bind_group(0, &self.bind, &[]);
+            pass.dispatch_workgroups(gx as u32, gy as u32, 1);
+        }
+        if let Some(t) = &self.timestamps {
+            enc.resolve_query_set(&t.set, 0..2, &t.resolve, 0);
+            enc.copy_buffer_to_buffer(&t.resolve, 0, &t.readback, 0, 16);
+        }
+        let started = Instant::now();
+        ctx.queue.submit([enc.finish()]);
+        ctx.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Runtime(e.to_string()))?;
+        let wall = started.elapsed().as_secs_f64();
+        check(ctx)?;
+        let took = match &self.timestamps {
+            Some(t) => {
+                let ts: Vec<u64> = read_mapped(ctx, &t.readback, 16)?;
+                let gpu = ts[1].saturating_sub(ts[0]) as f64 * t.period_ns * 1e-9;
+                if gpu > 0.0 {
+                    gpu
+                } else {
+                    wall
+                }
+            }
+            None => wall,
+        };
+        Ok((wall, took))
+    }
+}
+
+/// Copies the trajectory frames `frame0..frame0+nframes` of a window into
+/// the observations.
+#[allow(clippy::too_many_arguments)]
+fn read_frames<R: Flows>(
+    ctx: &GpuContext,
+    s: &Sizes,
+    bufs: &Buffers,
+    out: &mut Observations<R>,
+    base: u64,
+    count: u64,
+    frame0: u64,
+    nframes: u64,
+) -> Result<(), GpuError> {
+    let (tv, cap) = (s.tv, s.cap);
+    let frames_total = out.frames as u64;
+    let frames: Vec<R> = read(ctx, &bufs.traj, &bufs.staging, nframes * tv * cap * s.b)?;
+    for (j, (_, dst)) in out.trajectory.iter_mut().enumerate() {
+        for f in 0..nframes {
+            for i in 0..count {
+                let src = ((f * tv + j as u64) * cap + i) as usize;
+                dst[((base + i) * frames_total + frame0 + f) as usize] = frames[src];
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Maps a small MAP_READ buffer and returns its contents.
