@@ -57,20 +57,33 @@ fn envelope(x: &[f64], y: impl Fn(usize) -> f64) -> (Vec<f64>, Vec<f64>) {
 
 /// Draws the pictures into `dir`; returns the file names written.
 pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &Observations<R>) -> Result<Vec<String>> {
-    let mut files = vec![];
     let title = scene
         .title
         .clone()
         .unwrap_or_else(|| format!("{} ({}, {})", scene.name, scene.model.name(), scene.scheme));
-    let shape = scene.shape();
-    let n: usize = shape.iter().product();
+    let pictures = Pictures::new(scene, dir, &title);
+    let stats = statistics(d);
     // The first two axes with more than one value span the maps; the others
     // are held at their first value.
-    let varying: Vec<usize> = (0..shape.len()).filter(|k| shape[*k] > 1).collect();
-    let strides = scene.strides();
-    // Statistics as accessors on the run's arrays: the pictures read only
-    // the slice they draw, never a copy of a whole (possibly 10⁷-long) array.
-    type Stat<'a> = (String, String, Box<dyn Fn(usize) -> f64 + 'a>);
+    let mut files = match pictures.varying[..] {
+        [] => vec![],
+        [k] => pictures.stat_curves(&stats, k)?,
+        [kx, ky, ..] => pictures.stat_maps(&stats, kx, ky)?,
+    };
+    files.extend(pictures.phase_portrait(d)?);
+    files.extend(pictures.poincare_portrait(d)?);
+    files.extend(pictures.bifurcation_diagram(d)?);
+    Ok(files)
+}
+
+/// A statistic of the run: file stem, label, and its value for trajectory
+/// `i`. Accessors on the run's arrays: the pictures read only the slice
+/// they draw, never a copy of a whole (possibly 10⁷-long) array.
+type Stat<'a> = (String, String, Box<dyn Fn(usize) -> f64 + 'a>);
+
+/// The statistics drawn over the axes: every final value, the cycle's
+/// amplitude and period if observed, and where trajectories stopped if any did.
+fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
     let mut stats: Vec<Stat> = vec![];
     for (name, v) in &d.final_values {
         stats.push((
@@ -104,276 +117,364 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &Observations<R>) -> Result<V
             }),
         ));
     }
-    match varying.len() {
-        0 => {}
-        1 => {
-            let k = varying[0];
-            let ax = &scene.axes[k];
-            for (file, label, v) in &stats {
-                let (x, y) = envelope(&ax.values, |i| v(i * strides[k]));
-                let fig = Figure {
-                    title: &title,
-                    x_label: &ax.name,
-                    y_label: label,
-                    ..Figure::default()
-                };
-                let name = format!("{file}.png");
-                plot::lines(
-                    &dir.join(&name),
-                    &fig,
-                    &[Series::new(label, &x, &y)],
-                    is_log_spaced(&ax.values),
-                    false,
-                )?;
-                files.push(name);
-            }
-        }
-        _ => {
-            let (kx, ky) = (varying[0], varying[1]);
-            let (ax, ay) = (&scene.axes[kx], &scene.axes[ky]);
-            for (file, label, v) in &stats {
-                let mut grid = vec![f64::NAN; shape[kx] * shape[ky]];
-                for ix in 0..shape[kx] {
-                    for iy in 0..shape[ky] {
-                        grid[ix * shape[ky] + iy] = v(ix * strides[kx] + iy * strides[ky]);
-                    }
-                }
-                // Values far outside the bulk (a method blowing up, yet still
-                // finite) would flatten the colours of everything else: clip
-                // the colour range to Tukey's fences, the quartiles ± 3 IQR,
-                // and say so.
-                let mut label = label.clone();
-                let mut sorted: Vec<f64> = grid.iter().copied().filter(|x| x.is_finite()).collect();
-                sorted.sort_by(f64::total_cmp);
-                if sorted.len() >= 8 {
-                    let (q1, q3) = (sorted[sorted.len() / 4], sorted[3 * sorted.len() / 4]);
-                    let (lo, hi) = (q1 - 3.0 * (q3 - q1), q3 + 3.0 * (q3 - q1));
-                    if q3 > q1 && (sorted[0] < lo || sorted[sorted.len() - 1] > hi) {
-                        for x in grid.iter_mut().filter(|x| x.is_finite()) {
-                            *x = x.clamp(lo, hi);
-                        }
-                        label.push_str(" (colours clipped to quartiles ± 3 IQR)");
-                    }
-                }
-                let label = &label;
-                let positive = grid.iter().filter(|x| x.is_finite()).all(|x| *x > 0.0);
-                let spread = {
-                    let f: Vec<f64> = grid
-                        .iter()
-                        .copied()
-                        .filter(|x| x.is_finite() && *x > 0.0)
-                        .collect();
-                    let (lo, hi) = f
-                        .iter()
-                        .fold((f64::INFINITY, 0.0f64), |a, x| (a.0.min(*x), a.1.max(*x)));
-                    hi / lo
-                };
-                let fig = Figure {
-                    title: &title,
-                    x_label: &ax.name,
-                    y_label: &ay.name,
-                    ..Figure::default()
-                };
-                let name = format!("{file}.png");
-                plot::heatmap(
-                    &dir.join(&name),
-                    &fig,
-                    &ax.values,
-                    &ay.values,
-                    &grid,
-                    label,
-                    positive && spread > 1e3,
-                    is_log_spaced(&ax.values),
-                    is_log_spaced(&ay.values),
-                )?;
-                files.push(name);
-            }
+    stats
+}
+
+/// What every picture of a run needs: the scene, where its trajectories
+/// sit on its axes, the directory and the title.
+struct Pictures<'a> {
+    scene: &'a Scene,
+    dir: &'a Path,
+    title: &'a str,
+    shape: Vec<usize>,
+    /// Trajectories.
+    n: usize,
+    /// The axes with more than one value.
+    varying: Vec<usize>,
+    strides: Vec<usize>,
+}
+
+impl<'a> Pictures<'a> {
+    fn new(scene: &'a Scene, dir: &'a Path, title: &'a str) -> Self {
+        let shape = scene.shape();
+        let n: usize = shape.iter().product();
+        let varying: Vec<usize> = (0..shape.len()).filter(|k| shape[*k] > 1).collect();
+        Self {
+            scene,
+            dir,
+            title,
+            shape,
+            n,
+            varying,
+            strides: scene.strides(),
         }
     }
 
-    // Phase portrait of the trajectories.
-    if d.frames > 1 && !d.trajectory.is_empty() {
+    fn figure<'f>(&'f self, x_label: &'f str, y_label: &'f str) -> Figure<'f> {
+        Figure {
+            title: self.title,
+            x_label,
+            y_label,
+            ..Figure::default()
+        }
+    }
+
+    /// One axis varies: each statistic as a curve over it.
+    fn stat_curves(&self, stats: &[Stat], k: usize) -> Result<Vec<String>> {
+        let ax = &self.scene.axes[k];
+        let mut files = vec![];
+        for (file, label, v) in stats {
+            let (x, y) = envelope(&ax.values, |i| v(i * self.strides[k]));
+            let name = format!("{file}.png");
+            plot::lines(
+                &self.dir.join(&name),
+                &self.figure(&ax.name, label),
+                &[Series::new(label, &x, &y)],
+                is_log_spaced(&ax.values),
+                false,
+            )?;
+            files.push(name);
+        }
+        Ok(files)
+    }
+
+    /// Two or more axes vary: each statistic as a heat map over the first two.
+    fn stat_maps(&self, stats: &[Stat], kx: usize, ky: usize) -> Result<Vec<String>> {
+        let (shape, strides) = (&self.shape, &self.strides);
+        let (ax, ay) = (&self.scene.axes[kx], &self.scene.axes[ky]);
+        let mut files = vec![];
+        for (file, label, v) in stats {
+            let mut grid = vec![f64::NAN; shape[kx] * shape[ky]];
+            for ix in 0..shape[kx] {
+                for iy in 0..shape[ky] {
+                    grid[ix * shape[ky] + iy] = v(ix * strides[kx] + iy * strides[ky]);
+                }
+            }
+            let label = &clip_outliers(&mut grid, label);
+            let name = format!("{file}.png");
+            plot::heatmap(
+                &self.dir.join(&name),
+                &self.figure(&ax.name, &ay.name),
+                &ax.values,
+                &ay.values,
+                &grid,
+                label,
+                log_colour(&grid),
+                is_log_spaced(&ax.values),
+                is_log_spaced(&ay.values),
+            )?;
+            files.push(name);
+        }
+        Ok(files)
+    }
+
+    /// Phase portrait of (at most `plot.max_trajectories`, evenly chosen)
+    /// trajectories: `trajectory.png`, if the run recorded trajectories.
+    fn phase_portrait<R: Real>(&self, d: &Observations<R>) -> Result<Option<String>> {
+        if d.frames <= 1 || d.trajectory.is_empty() {
+            return Ok(None);
+        }
         let names: Vec<&str> = d.trajectory.iter().map(|(v, _)| v.as_str()).collect();
-        let pick = |want: &Option<(String, String)>| -> Option<(usize, usize)> {
-            match want {
-                Some((x, y)) => Some((
-                    names.iter().position(|n| n == x)?,
-                    names.iter().position(|n| n == y)?,
-                )),
-                None => {
-                    let state: Vec<usize> = (0..names.len()).filter(|k| names[*k] != "t").collect();
-                    match state.len() {
-                        0 => None,
-                        1 => Some((
-                            names.iter().position(|n| *n == "t").unwrap_or(state[0]),
-                            state[0],
-                        )),
-                        _ => Some((state[0], state[1])),
-                    }
-                }
-            }
+        let Some((jx, jy)) = phase_pair(self.scene, &names) else {
+            return Ok(None);
         };
-        let lienard = scene.plot.lienard_plane.then(|| {
-            (
-                names.iter().position(|n| *n == "q"),
-                names.iter().position(|n| *n == "s"),
-            )
-        });
-        let pair = match lienard {
-            Some((Some(q), Some(s))) => Some((q, s)),
-            _ => pick(&scene.plot.phase),
-        };
-        if let Some((jx, jy)) = pair {
-            let count = scene.plot.max_trajectories.max(1).min(n);
-            let chosen: Vec<usize> = (0..count).map(|c| c * n / count).collect();
-            let xs: Vec<Vec<f64>> = chosen
-                .iter()
-                .map(|i| f64s(&d.trajectory[jx].1[i * d.frames..(i + 1) * d.frames]))
-                .collect();
-            let mut ys: Vec<Vec<f64>> = chosen
-                .iter()
-                .map(|i| f64s(&d.trajectory[jy].1[i * d.frames..(i + 1) * d.frames]))
-                .collect();
-            let mut y_label = names[jy].to_string();
-            if lienard.is_some() {
-                // Liénard plane: y = q − q³/3 − s/ε, ε of each trajectory.
-                for (c, i) in chosen.iter().enumerate() {
-                    let eps = scene.param_value("epsilon", *i, &strides);
-                    for (y, q) in ys[c].iter_mut().zip(&xs[c]) {
-                        *y = q - q * q * q / 3.0 - *y / eps;
-                    }
-                }
-                y_label = "q − q³/3 − s/ε".into();
+        let n = self.n;
+        let count = self.scene.plot.max_trajectories.max(1).min(n);
+        let chosen: Vec<usize> = (0..count).map(|c| c * n / count).collect();
+        let of = |j: usize, i: usize| f64s(&d.trajectory[j].1[i * d.frames..(i + 1) * d.frames]);
+        let xs: Vec<Vec<f64>> = chosen.iter().map(|i| of(jx, *i)).collect();
+        let mut ys: Vec<Vec<f64>> = chosen.iter().map(|i| of(jy, *i)).collect();
+        let mut y_label = names[jy].to_string();
+        if self.scene.plot.lienard_plane {
+            self.lienard_plane(&chosen, &xs, &mut ys);
+            y_label = "q − q³/3 − s/ε".into();
+        }
+        let labels: Vec<String> = chosen
+            .iter()
+            .map(|i| trajectory_label(self.scene, *i, &self.strides))
+            .collect();
+        let series: Vec<Series> = (0..chosen.len())
+            .map(|c| Series::new(&labels[c], &xs[c], &ys[c]))
+            .collect();
+        let fig = self.figure(names[jx], &y_label);
+        plot::lines(
+            &self.dir.join("trajectory.png"),
+            &fig,
+            &series,
+            false,
+            false,
+        )?;
+        Ok(Some("trajectory.png".into()))
+    }
+
+    /// Liénard plane: y = q − q³/3 − s/ε, ε of each trajectory.
+    fn lienard_plane(&self, chosen: &[usize], qs: &[Vec<f64>], ys: &mut [Vec<f64>]) {
+        for (c, i) in chosen.iter().enumerate() {
+            let eps = self.scene.param_value("epsilon", *i, &self.strides);
+            for (y, q) in ys[c].iter_mut().zip(&qs[c]) {
+                *y = q - q * q * q / 3.0 - *y / eps;
             }
-            let labels: Vec<String> = chosen
-                .iter()
-                .map(|i| trajectory_label(scene, *i, &strides))
-                .collect();
-            let series: Vec<Series> = (0..chosen.len())
-                .map(|c| Series::new(&labels[c], &xs[c], &ys[c]))
-                .collect();
-            let fig = Figure {
-                title: &title,
-                x_label: names[jx],
-                y_label: &y_label,
-                ..Figure::default()
-            };
-            plot::lines(&dir.join("trajectory.png"), &fig, &series, false, false)?;
-            files.push("trajectory.png".into());
         }
     }
 
-    // Poincaré portrait.
-    if d.max_points > 0 && d.poincare.len() >= 2 {
+    /// Poincaré portrait of every orbit's section points: `poincare.png`,
+    /// if the run recorded sections.
+    fn poincare_portrait<R: Real>(&self, d: &Observations<R>) -> Result<Option<String>> {
+        if d.max_points == 0 || d.poincare.len() < 2 {
+            return Ok(None);
+        }
         let names: Vec<&str> = d.poincare.iter().map(|(v, _)| v.as_str()).collect();
-        let (jx, jy) = match &scene.plot.poincare {
-            Some((x, y)) => (
-                names.iter().position(|n| n == x).unwrap_or(0),
-                names.iter().position(|n| n == y).unwrap_or(1),
-            ),
-            None => {
-                let state: Vec<usize> = (0..names.len()).filter(|k| names[*k] != "t").collect();
-                if state.len() >= 2 {
-                    (state[0], state[1])
-                } else {
-                    (0, 1)
-                }
-            }
-        };
-        let wrap = |x: f64| match scene.plot.wrap_x.as_deref() {
-            Some("2pi") => x.rem_euclid(2.0 * PI),
-            Some("pi") => (x + PI).rem_euclid(2.0 * PI) - PI,
-            _ => x,
-        };
-        // Few orbits: one colour each. Many: ten colour bands along the last
-        // varying axis (the orbits of an area-preserving map fill the plane
-        // evenly, so a single density would show no structure).
-        let per_orbit = n <= 12;
-        let band_axis = varying.last().copied();
-        let bands = if per_orbit {
-            n
-        } else if band_axis.is_some() {
-            10
-        } else {
-            1
-        };
-        let band_of = |i: usize| match (per_orbit, band_axis) {
-            (true, _) => i,
-            (false, Some(k)) => (i / strides[k]) % shape[k] * bands / shape[k],
-            (false, None) => 0,
-        };
-        let mut xs: Vec<Vec<f64>> = vec![vec![]; bands];
-        let mut ys: Vec<Vec<f64>> = vec![vec![]; bands];
-        for i in 0..n {
+        let (jx, jy) = poincare_pair(self.scene, &names);
+        let wrap_x = self.scene.plot.wrap_x.as_deref();
+        let bands = Bands::of(self.n, &self.varying);
+        let mut xs: Vec<Vec<f64>> = vec![vec![]; bands.count];
+        let mut ys: Vec<Vec<f64>> = vec![vec![]; bands.count];
+        for i in 0..self.n {
             let k = (d.poincare_count[i] as usize).min(d.max_points);
-            let b = band_of(i);
+            let b = bands.of_orbit(i, &self.shape, &self.strides);
             let (x, y) = (&mut xs[b], &mut ys[b]);
             for p in 0..k {
-                x.push(wrap(d.poincare[jx].1[i * d.max_points + p].to_f64()));
+                x.push(wrap(
+                    wrap_x,
+                    d.poincare[jx].1[i * d.max_points + p].to_f64(),
+                ));
                 y.push(d.poincare[jy].1[i * d.max_points + p].to_f64());
             }
         }
         let labels: Vec<String> = (0..xs.len())
-            .map(|b| match (per_orbit, band_axis) {
-                (true, _) => trajectory_label(scene, b, &strides),
-                (false, Some(k)) => {
-                    let v = &scene.axes[k].values;
-                    let (lo, hi) = (
-                        v[b * v.len() / bands],
-                        v[((b + 1) * v.len() / bands).max(1) - 1],
-                    );
-                    format!("{} ∈ [{lo:.3}, {hi:.3}]", scene.axes[k].name)
-                }
-                (false, None) => format!("{n} orbits"),
-            })
+            .map(|b| bands.label(b, self.scene, &self.strides, self.n))
             .collect();
         let series: Vec<Series> = (0..xs.len())
             .map(|c| Series::new(&labels[c], &xs[c], &ys[c]))
             .collect();
-        let x_range = match scene.plot.wrap_x.as_deref() {
+        let x_range = match wrap_x {
             Some("2pi") => Some((0.0, 2.0 * PI)),
             Some("pi") => Some((-PI, PI)),
             _ => None,
         };
-        let fig = Figure {
-            title: &title,
-            x_label: names[jx],
-            y_label: names[jy],
-            ..Figure::default()
-        };
-        plot::point_cloud(&dir.join("poincare.png"), &fig, &series, x_range, None)?;
-        files.push("poincare.png".into());
+        let fig = self.figure(names[jx], names[jy]);
+        plot::point_cloud(&self.dir.join("poincare.png"), &fig, &series, x_range, None)?;
+        Ok(Some("poincare.png".into()))
     }
-    // Bifurcation diagram: every section value against its trajectory's axis value.
-    if let (Some((axis, var)), true) = (&scene.plot.bifurcation, d.max_points > 0) {
-        let k = scene.axes.iter().position(|a| &a.name == axis);
+
+    /// Bifurcation diagram: every section value of `var` against its
+    /// trajectory's value on `axis` (`plot.bifurcation`): `bifurcation.png`.
+    fn bifurcation_diagram<R: Real>(&self, d: &Observations<R>) -> Result<Option<String>> {
+        let (Some((axis, var)), true) = (&self.scene.plot.bifurcation, d.max_points > 0) else {
+            return Ok(None);
+        };
+        let k = self.scene.axes.iter().position(|a| &a.name == axis);
         let j = d.poincare.iter().position(|(v, _)| v == var);
-        if let (Some(k), Some(j)) = (k, j) {
-            let (mut xs, mut ys) = (vec![], vec![]);
-            for i in 0..n {
-                let a = scene.axes[k].values[(i / strides[k]) % shape[k]];
-                for p in 0..(d.poincare_count[i] as usize).min(d.max_points) {
-                    xs.push(a);
-                    ys.push(d.poincare[j].1[i * d.max_points + p].to_f64());
-                }
+        let (Some(k), Some(j)) = (k, j) else {
+            return Ok(None);
+        };
+        let (mut xs, mut ys) = (vec![], vec![]);
+        for i in 0..self.n {
+            let a = self.scene.axes[k].values[(i / self.strides[k]) % self.shape[k]];
+            for p in 0..(d.poincare_count[i] as usize).min(d.max_points) {
+                xs.push(a);
+                ys.push(d.poincare[j].1[i * d.max_points + p].to_f64());
             }
-            let fig = Figure {
-                title: &title,
-                x_label: axis,
-                y_label: var,
-                ..Figure::default()
-            };
-            plot::point_cloud(
-                &dir.join("bifurcation.png"),
-                &fig,
-                &[Series::new(var, &xs, &ys)],
-                None,
-                None,
-            )?;
-            files.push("bifurcation.png".into());
+        }
+        plot::point_cloud(
+            &self.dir.join("bifurcation.png"),
+            &self.figure(axis, var),
+            &[Series::new(var, &xs, &ys)],
+            None,
+            None,
+        )?;
+        Ok(Some("bifurcation.png".into()))
+    }
+}
+
+/// Values far outside the bulk (a method blowing up, yet still finite)
+/// would flatten the colours of everything else: clips the grid's values to
+/// Tukey's fences, the quartiles ± 3 IQR, and says so in the returned label.
+fn clip_outliers(grid: &mut [f64], label: &str) -> String {
+    let mut label = label.to_string();
+    let mut sorted: Vec<f64> = grid.iter().copied().filter(|x| x.is_finite()).collect();
+    sorted.sort_by(f64::total_cmp);
+    if sorted.len() >= 8 {
+        let (q1, q3) = (sorted[sorted.len() / 4], sorted[3 * sorted.len() / 4]);
+        let (lo, hi) = (q1 - 3.0 * (q3 - q1), q3 + 3.0 * (q3 - q1));
+        if q3 > q1 && (sorted[0] < lo || sorted[sorted.len() - 1] > hi) {
+            for x in grid.iter_mut().filter(|x| x.is_finite()) {
+                *x = x.clamp(lo, hi);
+            }
+            label.push_str(" (colours clipped to quartiles ± 3 IQR)");
         }
     }
-    Ok(files)
+    label
+}
+
+/// Colours on a log scale: every finite value positive, spanning more than
+/// three decades.
+fn log_colour(grid: &[f64]) -> bool {
+    let positive = grid.iter().filter(|x| x.is_finite()).all(|x| *x > 0.0);
+    let spread = {
+        let f: Vec<f64> = grid
+            .iter()
+            .copied()
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .collect();
+        let (lo, hi) = f
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |a, x| (a.0.min(*x), a.1.max(*x)));
+        hi / lo
+    };
+    positive && spread > 1e3
+}
+
+/// The variables (indices into `names`) of the phase portrait: q and s in
+/// the Liénard plane, else `plot.phase`, else the first two recorded state
+/// variables (or time and the only one).
+fn phase_pair(scene: &Scene, names: &[&str]) -> Option<(usize, usize)> {
+    if scene.plot.lienard_plane {
+        let q = names.iter().position(|n| *n == "q");
+        let s = names.iter().position(|n| *n == "s");
+        if let (Some(q), Some(s)) = (q, s) {
+            return Some((q, s));
+        }
+    }
+    match &scene.plot.phase {
+        Some((x, y)) => Some((
+            names.iter().position(|n| n == x)?,
+            names.iter().position(|n| n == y)?,
+        )),
+        None => {
+            let state: Vec<usize> = (0..names.len()).filter(|k| names[*k] != "t").collect();
+            match state.len() {
+                0 => None,
+                1 => Some((
+                    names.iter().position(|n| *n == "t").unwrap_or(state[0]),
+                    state[0],
+                )),
+                _ => Some((state[0], state[1])),
+            }
+        }
+    }
+}
+
+/// The variables (indices into `names`) of the Poincaré portrait:
+/// `plot.poincare`, else the first two recorded state variables.
+fn poincare_pair(scene: &Scene, names: &[&str]) -> (usize, usize) {
+    match &scene.plot.poincare {
+        Some((x, y)) => (
+            names.iter().position(|n| n == x).unwrap_or(0),
+            names.iter().position(|n| n == y).unwrap_or(1),
+        ),
+        None => {
+            let state: Vec<usize> = (0..names.len()).filter(|k| names[*k] != "t").collect();
+            if state.len() >= 2 {
+                (state[0], state[1])
+            } else {
+                (0, 1)
+            }
+        }
+    }
+}
+
+/// An angle wrapped as `plot.wrap_x` asks.
+fn wrap(wrap_x: Option<&str>, x: f64) -> f64 {
+    match wrap_x {
+        Some("2pi") => x.rem_euclid(2.0 * PI),
+        Some("pi") => (x + PI).rem_euclid(2.0 * PI) - PI,
+        _ => x,
+    }
+}
+
+/// The colours of a Poincaré portrait. Few orbits: one colour each. Many:
+/// ten colour bands along the last varying axis (the orbits of an
+/// area-preserving map fill the plane evenly, so a single density would
+/// show no structure).
+struct Bands {
+    per_orbit: bool,
+    axis: Option<usize>,
+    count: usize,
+}
+
+impl Bands {
+    fn of(n: usize, varying: &[usize]) -> Self {
+        let per_orbit = n <= 12;
+        let axis = varying.last().copied();
+        let count = if per_orbit {
+            n
+        } else if axis.is_some() {
+            10
+        } else {
+            1
+        };
+        Self {
+            per_orbit,
+            axis,
+            count,
+        }
+    }
+
+    /// The band of orbit `i`.
+    fn of_orbit(&self, i: usize, shape: &[usize], strides: &[usize]) -> usize {
+        match (self.per_orbit, self.axis) {
+            (true, _) => i,
+            (false, Some(k)) => (i / strides[k]) % shape[k] * self.count / shape[k],
+            (false, None) => 0,
+        }
+    }
+
+    /// The legend of band `b`: the orbit, the range of the axis, or the count.
+    fn label(&self, b: usize, scene: &Scene, strides: &[usize], n: usize) -> String {
+        match (self.per_orbit, self.axis) {
+            (true, _) => trajectory_label(scene, b, strides),
+            (false, Some(k)) => {
+                let v = &scene.axes[k].values;
+                let (lo, hi) = (
+                    v[b * v.len() / self.count],
+                    v[((b + 1) * v.len() / self.count).max(1) - 1],
+                );
+                format!("{} ∈ [{lo:.3}, {hi:.3}]", scene.axes[k].name)
+            }
+            (false, None) => format!("{n} orbits"),
+        }
+    }
 }
 
 /// "epsilon = 0.5, q = 2" for trajectory `i`.

@@ -1,0 +1,239 @@
+//! Gridded figures: heat maps and class maps, rasterised cell by cell.
+
+use std::path::Path;
+
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+use super::axis::{extent, tf, Axis};
+use super::canvas::{render, text_width};
+use super::chart::{blit, build_chart, draw_frame, no_data, split_side, Frame};
+use super::colorbar::ColorBar;
+use super::colour::{put, rgb, viridis, NAN_GREY};
+use super::figure::{Figure, PlotError, Rgb};
+
+/// Cell boundaries along one grid axis (transformed coordinates): cell `k`
+/// in sorted order spans `edges[k]..edges[k + 1]` and shows grid index
+/// `index[k]`.
+struct Cells {
+    edges: Vec<f64>,
+    index: Vec<usize>,
+}
+
+impl Cells {
+    /// Edges at the midpoints between neighbours; the outer cells are as
+    /// wide as their inner neighbour's half-distance on the outside. `None`
+    /// when no grid value can be shown.
+    fn new(v: &[f64], log: bool) -> Option<Self> {
+        let mut pts: Vec<(f64, usize)> = v
+            .iter()
+            .enumerate()
+            .filter_map(|(i, &x)| tf(log, x).map(|t| (t, i)))
+            .collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let n = pts.len();
+        let first = pts.first()?.0;
+        let last = pts.last()?.0;
+        let mut edges = Vec::with_capacity(n + 1);
+        if last - first > 0.0 {
+            edges.push(first - 0.5 * (pts[1].0 - first));
+            edges.extend(pts.windows(2).map(|p| 0.5 * p[0].0 + 0.5 * p[1].0));
+            edges.push(last + 0.5 * (last - pts[n - 2].0));
+        } else {
+            // A single (possibly repeated) value: a cell of nominal width.
+            let half = if log || first == 0.0 {
+                0.5
+            } else {
+                0.05 * first.abs()
+            };
+            edges.push(first - half);
+            edges.extend(std::iter::repeat_n(first, n.saturating_sub(1)));
+            edges.push(first + half);
+        }
+        if !edges.iter().all(|e| e.is_finite()) {
+            return None;
+        }
+        Some(Self {
+            edges,
+            index: pts.into_iter().map(|p| p.1).collect(),
+        })
+    }
+
+    fn axis(&self, log: bool) -> Axis {
+        let lo = self.edges.first().copied();
+        let hi = self.edges.last().copied();
+        Axis::new(log, lo.zip(hi), 0.0)
+    }
+
+    /// Grid index of the cell containing `t`.
+    fn find(&self, t: f64) -> Option<usize> {
+        let (lo, hi) = (*self.edges.first()?, *self.edges.last()?);
+        if !(t >= lo && t <= hi) {
+            return None;
+        }
+        let k = self.edges.partition_point(|&e| e <= t);
+        let k = k.saturating_sub(1).min(self.index.len().saturating_sub(1));
+        self.index.get(k).copied()
+    }
+}
+
+/// Renders a gridded image: `cell(ix, iy)` gives the colour of grid cell
+/// `(ix, iy)`; pixels outside every cell stay white.
+fn grid_raster(
+    f: &Frame,
+    xa: &Axis,
+    ya: &Axis,
+    cx: &Cells,
+    cy: &Cells,
+    cell: impl Fn(usize, usize) -> Rgb,
+) -> Vec<u8> {
+    let (w, h) = (f.w(), f.h());
+    let cols: Vec<Option<usize>> = (0..w)
+        .map(|i| cx.find(xa.lo + (i as f64 + 0.5) / w as f64 * xa.span()))
+        .collect();
+    let rows: Vec<Option<usize>> = (0..h)
+        .map(|j| cy.find(ya.hi - (j as f64 + 0.5) / h as f64 * ya.span()))
+        .collect();
+    let mut buf = vec![255u8; 3 * w * h];
+    for (j, row) in rows.iter().enumerate() {
+        let Some(iy) = *row else { continue };
+        for (i, col) in cols.iter().enumerate() {
+            if let Some(ix) = *col {
+                put(&mut buf, j * w + i, cell(ix, iy));
+            }
+        }
+    }
+    buf
+}
+
+fn check_grid(nx: usize, ny: usize, n: usize, what: &str) -> Result<(), PlotError> {
+    match nx.checked_mul(ny) {
+        Some(m) if m == n => Ok(()),
+        _ => Err(PlotError::Input(format!(
+            "{what} has {n} entries, but the grid is {nx} x {ny}"
+        ))),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(super) fn heatmap_impl(
+    path: &Path,
+    fig: &Figure,
+    x: &[f64],
+    y: &[f64],
+    values: &[f64],
+    value_label: &str,
+    log_color: bool,
+    x_log: bool,
+    y_log: bool,
+) -> Result<(), PlotError> {
+    check_grid(x.len(), y.len(), values.len(), "values")?;
+    let ny = y.len();
+    let cells = Cells::new(x, x_log).zip(Cells::new(y, y_log));
+    let crange = extent(log_color, values.iter().copied());
+    let has_nan = values.iter().any(|v| !v.is_finite());
+    render(path, fig, |body, st| {
+        let ca = Axis::new(log_color, crange, 0.0);
+        let (_, bh) = body.dim_in_pixel();
+        let cb = ColorBar::new(ca, value_label, has_nan, f64::from(bh), st);
+        let (main, side) = split_side(body, cb.width(body, st));
+        let (xa, ya) = match &cells {
+            Some((cx, cy)) => (cx.axis(x_log), cy.axis(y_log)),
+            None => (Axis::new(x_log, None, 0.0), Axis::new(y_log, None, 0.0)),
+        };
+        let (_chart, f) = build_chart(&main, st, fig, &xa, &ya, false, st.px(12.0))?;
+        match &cells {
+            Some((cx, cy)) if !values.is_empty() => {
+                let colour = |v: f64| -> Rgb {
+                    if !v.is_finite() {
+                        NAN_GREY
+                    } else if log_color && v <= 0.0 {
+                        viridis(0.0)
+                    } else {
+                        let t = if log_color { v.log10() } else { v };
+                        viridis(ca.frac(t))
+                    }
+                };
+                let buf = grid_raster(&f, &xa, &ya, cx, cy, |ix, iy| {
+                    values.get(ix * ny + iy).map_or(NAN_GREY, |&v| colour(v))
+                });
+                blit(&main, &f, buf)?;
+            }
+            _ => no_data(&main, &f, st)?,
+        }
+        draw_frame(&main, &f)?;
+        cb.draw(&side, st, &f)
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(super) fn class_map_impl(
+    path: &Path,
+    fig: &Figure,
+    x: &[f64],
+    y: &[f64],
+    classes: &[u8],
+    legend: &[(&str, Rgb)],
+    x_log: bool,
+    y_log: bool,
+) -> Result<(), PlotError> {
+    check_grid(x.len(), y.len(), classes.len(), "classes")?;
+    let ny = y.len();
+    let cells = Cells::new(x, x_log).zip(Cells::new(y, y_log));
+    let has_unknown = classes.iter().any(|&c| usize::from(c) >= legend.len());
+    render(path, fig, |body, st| {
+        let font = st.legend();
+        let swatch = st.px(18.0);
+        let mut entries: Vec<(&str, Rgb)> = legend.to_vec();
+        if has_unknown {
+            entries.push(("unknown", NAN_GREY));
+        }
+        let text_w = entries
+            .iter()
+            .map(|(name, _)| text_width(body, name, &font))
+            .max()
+            .unwrap_or(0);
+        let side_w = if entries.is_empty() {
+            st.px(10.0)
+        } else {
+            st.px(24.0) + swatch + st.px(8.0) + text_w + st.px(12.0)
+        };
+        let (main, side) = split_side(body, side_w);
+        let (xa, ya) = match &cells {
+            Some((cx, cy)) => (cx.axis(x_log), cy.axis(y_log)),
+            None => (Axis::new(x_log, None, 0.0), Axis::new(y_log, None, 0.0)),
+        };
+        let (_chart, f) = build_chart(&main, st, fig, &xa, &ya, false, st.px(12.0))?;
+        match &cells {
+            Some((cx, cy)) if !classes.is_empty() => {
+                let buf = grid_raster(&f, &xa, &ya, cx, cy, |ix, iy| {
+                    classes
+                        .get(ix * ny + iy)
+                        .and_then(|&c| legend.get(usize::from(c)))
+                        .map_or(NAN_GREY, |e| e.1)
+                });
+                blit(&main, &f, buf)?;
+            }
+            _ => no_data(&main, &f, st)?,
+        }
+        draw_frame(&main, &f)?;
+        // Legend panel: one swatch and name per entry, top-aligned with the map.
+        let (_, sy) = side.get_base_pixel();
+        let row = st.px(28.0);
+        let left = st.px(24.0);
+        let style = font.pos(Pos::new(HPos::Left, VPos::Center));
+        for (k, (name, c)) in entries.iter().enumerate() {
+            let top = f.y0 - sy + k as i32 * row;
+            side.draw(&Rectangle::new(
+                [(left, top), (left + swatch, top + swatch)],
+                rgb(*c).filled(),
+            ))?;
+            side.draw(&Rectangle::new(
+                [(left, top), (left + swatch, top + swatch)],
+                RGBColor(80, 80, 80).stroke_width(1),
+            ))?;
+            side.draw_text(name, &style, (left + swatch + st.px(8.0), top + swatch / 2))?;
+        }
+        Ok(())
+    })
+}
