@@ -73,7 +73,7 @@ crate::shared_fns! {
     fn strobe_due(k: R, period: R, phase: R, dt: R, n1: R, initial: bool, th: &mut R) -> bool {
         let x: R = R::strobe_position(k, period, phase, dt);
         *th = R::select(R::max(R::min(x - n1 + 1.0, 1.0), 0.0), 1.0, initial);
-        return !(x > n1 + 1e-4);
+        return x <= n1 + 1e-4;
     }
     /// Event section: does y (the crossing variable minus its level) cross
     /// zero between the step ends y0 → y1 in `direction` (0 up, 1 down, 2 both)?

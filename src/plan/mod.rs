@@ -351,7 +351,7 @@ fn check_rules(
 
 /// Every step size > 0; a step count the backends can count.
 fn check_steps(problem: &Problem) -> Result<(), PlanError> {
-    if let Some(dt) = problem.dt.values().into_iter().find(|v| !(*v > 0.0)) {
+    if let Some(dt) = problem.dt.values().into_iter().find(|v| *v <= 0.0) {
         return Err(err("integrator.dt", format!("must be > 0 (got {dt})")));
     }
     if problem.steps == 0 {

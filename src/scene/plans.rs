@@ -104,7 +104,7 @@ impl Scene {
                 else {
                     unreachable!("dt and t0 are fixed in every sub-run when t_end is given")
                 };
-                if !(dt > 0.0) {
+                if dt <= 0.0 {
                     // Refused by the plan, with the other step checks.
                     1
                 } else if t_end <= t0 {
