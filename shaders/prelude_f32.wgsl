@@ -1,5 +1,5 @@
 // reeb prelude, f32: the working precision and the primitives that shared
-// functions call (their CPU twins are in src/real.rs, `Prims` and `Math`).
+// functions call (their CPU twins are `Prims` and `Math` in src/num/).
 
 alias R = f32;
 

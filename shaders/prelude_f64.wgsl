@@ -1,7 +1,7 @@
 // reeb prelude, f64 (needs SHADER_F64): the working precision and the
-// primitives that shared functions call (CPU twins: src/real.rs). Nothing here
+// primitives that shared functions call (CPU twins: src/num/prims.rs). Nothing here
 // uses a WGSL builtin that lavapipe gets wrong in f64 (exp, sin, cos, ...):
-// reeb's own polynomials (src/math.rs) replace them.
+// reeb's own polynomials (src/num/math.rs) replace them.
 
 alias R = f64;
 

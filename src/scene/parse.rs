@@ -13,7 +13,7 @@ use toml::de::{DeTable, DeValue, ValueDeserializer};
 use toml::Spanned;
 
 use crate::models::spec::ModelSpec;
-use crate::models::{lienard, Model, MODEL_NAMES};
+use crate::models::{Model, MODEL_NAMES};
 use crate::num::precision::Precision;
 use crate::plan::observers::{check_skip, check_strobe, CycleObs, Direction, Section};
 use crate::plan::scheme::{Scheme, SCHEME_NAMES};
@@ -316,7 +316,6 @@ fn params(
             ));
         }
     }
-    let _ = lienard::MAX_COEFFICIENTS;
     Ok(params)
 }
 
