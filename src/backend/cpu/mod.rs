@@ -21,7 +21,7 @@ use crate::models::Flows;
 use crate::plan::observations::Observations;
 use crate::plan::Plan;
 pub use kernels::{isa, Isa};
-use observe::{BlockObservers, StepStart};
+use observe::{BlockObservers, BlockStep};
 use program::{CpuOp, Program};
 use sink::Sink;
 
@@ -80,12 +80,23 @@ fn run_block<R: Flows>(
     if p.needs_field {
         eval_field(p, l, 0);
     }
-    let initial = StepStart {
-        prev: &prev,
-        dprev: &dprev,
-        status: &status,
-    };
-    obs.observe(p, l, sink, base, count, &initial, 0);
+    // The observers' view of the block after step n1.
+    macro_rules! after {
+        ($n1:expr) => {
+            BlockStep {
+                p,
+                l: &*l,
+                sink,
+                base,
+                count,
+                prev: &prev,
+                dprev: &dprev,
+                status: &status,
+                n1: $n1,
+            }
+        };
+    }
+    obs.observe(&after!(0));
 
     let mut reported = 0u64;
     for n in 0..plan.steps {
@@ -102,13 +113,9 @@ fn run_block<R: Flows>(
         if p.needs_field {
             eval_field(p, l, n + 1);
         }
-        let start = StepStart {
-            prev: &prev,
-            dprev: &dprev,
-            status: &status,
-        };
-        obs.observe(p, l, sink, base, count, &start, n + 1);
-        obs.cycle(p, l, count, &start, n);
+        let view = after!(n + 1);
+        obs.observe(&view);
+        obs.cycle(&view);
         if (n + 1) % 1024 == 0 {
             if let Some(pr) = progress {
                 pr.fetch_add(count as u64 * (n + 1 - reported), Ordering::Relaxed);

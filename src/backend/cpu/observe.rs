@@ -15,13 +15,29 @@ use crate::plan::ObsVar;
 use super::program::Program;
 use super::sink::Sink;
 
-/// The block's state at the start of the current step (and the vector field
-/// there), for interpolation inside the step; and which lanes stopped.
-pub struct StepStart<'a, R> {
+/// A block right after step `n1` (0: the initial state), as the observers
+/// see it: the program, the lanes, where its rows go, the state at the
+/// step's start (and the vector field there) for interpolation inside the
+/// step, and which lanes stopped.
+pub struct BlockStep<'a, R> {
+    pub p: &'a Program<'a, R>,
+    pub l: &'a Lanes<R>,
+    pub sink: &'a Sink<R>,
+    /// The block's first row, and its trajectories (the rest is padding).
+    pub base: usize,
+    pub count: usize,
     pub prev: &'a [[R; LANES]],
     pub dprev: &'a [[R; LANES]],
     /// 0: running; k > 0: a variable became non-finite at step k.
     pub status: &'a [u64; LANES],
+    pub n1: u64,
+}
+
+impl<R> BlockStep<'_, R> {
+    /// The lanes still running.
+    fn running(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.count).filter(|i| self.status[*i] == 0)
+    }
 }
 
 /// Per-lane observer state of one block (the GPU kernel keeps the same
@@ -77,48 +93,27 @@ impl<R: Flows> BlockObservers<R> {
 
     /// Trajectory frames and Poincaré points after step `n1` (0: the initial
     /// state), for the first `count` lanes of the block at row `base`.
-    #[allow(clippy::too_many_arguments)]
-    pub fn observe(
-        &mut self,
-        p: &Program<R>,
-        l: &Lanes<R>,
-        sink: &Sink<R>,
-        base: usize,
-        count: usize,
-        at: &StepStart<R>,
-        n1: u64,
-    ) {
-        record_frame(p, l, sink, base, count, at, n1);
-        let Some(pc) = &p.plan.observers.poincare else {
+    pub fn observe(&mut self, s: &BlockStep<R>) {
+        record_frame(s);
+        let Some(pc) = &s.p.plan.observers.poincare else {
             return;
         };
         match &pc.section {
-            Section::Stroboscopic { .. } | Section::Forced { .. } => {
-                self.strobe(p, l, sink, base, count, at, n1)
-            }
+            Section::Stroboscopic { .. } | Section::Forced { .. } => self.strobe(s),
             Section::Crossing {
                 value, direction, ..
-            } => self.crossing(p, l, sink, base, count, at, n1, *value, *direction),
+            } => self.crossing(s, *value, *direction),
         }
     }
 
     /// Stroboscopic samples due in the step that ends at `n1`.
-    #[allow(clippy::too_many_arguments)]
-    fn strobe(
-        &mut self,
-        p: &Program<R>,
-        l: &Lanes<R>,
-        sink: &Sink<R>,
-        base: usize,
-        count: usize,
-        at: &StepStart<R>,
-        n1: u64,
-    ) {
+    fn strobe(&mut self, s: &BlockStep<R>) {
+        let (l, n1) = (s.l, s.n1);
         let (n1r, one) = (R::from_f64(n1 as f64), R::from_f64(1.0));
-        for i in (0..count).filter(|i| at.status[*i] == 0) {
+        for i in s.running() {
             if let Some((every, first)) = &self.strobe_exact {
                 if R::strobe_exact_due(n1 as i32, every[i], first[i]) {
-                    self.record(p, l, sink, base, i, at, n1, one, None);
+                    self.record(s, i, one, None);
                 }
                 continue;
             }
@@ -132,58 +127,36 @@ impl<R: Flows> BlockObservers<R> {
                 n1 == 0,
                 &mut th,
             ) {
-                self.record(p, l, sink, base, i, at, n1, th, None);
+                self.record(s, i, th, None);
                 self.strobe_next[i] += 1;
             }
         }
     }
 
     /// Event-section crossings inside the step that ends at `n1`.
-    #[allow(clippy::too_many_arguments)]
-    fn crossing(
-        &mut self,
-        p: &Program<R>,
-        l: &Lanes<R>,
-        sink: &Sink<R>,
-        base: usize,
-        count: usize,
-        at: &StepStart<R>,
-        n1: u64,
-        value: f64,
-        direction: Direction,
-    ) {
-        if n1 == 0 {
+    fn crossing(&mut self, s: &BlockStep<R>, value: f64, direction: Direction) {
+        if s.n1 == 0 {
             return;
         }
+        let (p, l) = (s.p, s.l);
         let cv = p.plan.crossing_var.expect("planned");
         let level = R::from_f64(value);
         let dir = direction_code(direction);
-        for i in (0..count).filter(|i| at.status[*i] == 0) {
-            let y0 = at.prev[cv][i] - level;
+        for i in s.running() {
+            let y0 = s.prev[cv][i] - level;
             let y1 = l.at(p.var[cv])[i] - level;
             if R::crossing_due(y0, y1, dir) {
                 let dy1 = l.at(p.dvar[cv])[i];
-                let th = R::crossing_theta(y0, y1, at.dprev[cv][i], dy1, l.dt[i]);
-                self.record(p, l, sink, base, i, at, n1, th, Some((cv, level)));
+                let th = R::crossing_theta(y0, y1, s.dprev[cv][i], dy1, l.dt[i]);
+                self.record(s, i, th, Some((cv, level)));
             }
         }
     }
 
     /// Stores Poincaré point number `points[i]` of lane `i` (if kept) at θ
     /// inside the step; the crossing variable sits on the section exactly.
-    #[allow(clippy::too_many_arguments)]
-    fn record(
-        &mut self,
-        p: &Program<R>,
-        l: &Lanes<R>,
-        sink: &Sink<R>,
-        base: usize,
-        i: usize,
-        at: &StepStart<R>,
-        n1: u64,
-        th: R,
-        crossing: Option<(usize, R)>,
-    ) {
+    fn record(&mut self, s: &BlockStep<R>, i: usize, th: R, crossing: Option<(usize, R)>) {
+        let p = s.p;
         let max_points = p
             .plan
             .observers
@@ -195,29 +168,30 @@ impl<R: Flows> BlockObservers<R> {
             for (j, v) in p.plan.poincare_vars.iter().enumerate() {
                 let x = match (crossing, v) {
                     (Some((cv, level)), ObsVar::State(s)) if *s == cv => level,
-                    _ => value_at(p, l, *v, i, n1, th, at),
+                    _ => value_at(s, *v, i, th),
                 };
-                sink.poincare[j].set((base + i) * max_points + k, x);
+                s.sink.poincare[j].set((s.base + i) * max_points + k, x);
             }
         }
         self.points[i] = self.points[i].saturating_add(1);
     }
 
     /// Cycle statistics over step `n → n+1`, inside the measuring window.
-    pub fn cycle(&mut self, p: &Program<R>, l: &Lanes<R>, count: usize, at: &StepStart<R>, n: u64) {
+    pub fn cycle(&mut self, s: &BlockStep<R>) {
+        let (p, l) = (s.p, s.l);
         let Some(k) = p.plan.cycle_var else { return };
-        if n + 1 < self.cycle_start {
+        if s.n1 < self.cycle_start {
             return;
         }
         let level = R::from_f64(p.plan.observers.cycle.as_ref().map_or(0.0, |cy| cy.level));
-        let nf = R::from_f64(n as f64);
-        for i in (0..count).filter(|i| at.status[*i] == 0) {
+        let nf = R::from_f64((s.n1 - 1) as f64);
+        for i in s.running() {
             let x = l.at(p.var[k])[i];
             R::cycle_step(
                 x,
-                at.prev[k][i] - level,
+                s.prev[k][i] - level,
                 x - level,
-                at.dprev[k][i],
+                s.dprev[k][i],
                 l.at(p.dvar[k])[i],
                 l.dt[i],
                 l.t0[i] + nf * l.dt[i],
@@ -284,55 +258,40 @@ impl<R: Flows> BlockObservers<R> {
 }
 
 /// A trajectory frame, if step `n1` is one: the state at the step's end.
-fn record_frame<R: Flows>(
-    p: &Program<R>,
-    l: &Lanes<R>,
-    sink: &Sink<R>,
-    base: usize,
-    count: usize,
-    at: &StepStart<R>,
-    n1: u64,
-) {
-    let plan = p.plan;
+fn record_frame<R: Flows>(s: &BlockStep<R>) {
+    let plan = s.p.plan;
     let Some(tr) = &plan.observers.trajectory else {
         return;
     };
-    if !R::frame_due(n1 as i32, tr.every as i32) {
+    if !R::frame_due(s.n1 as i32, tr.every as i32) {
         return;
     }
-    let frame = (n1 / tr.every) as usize;
+    let frame = (s.n1 / tr.every) as usize;
     let frames = (plan.steps / tr.every) as usize + 1;
     let one = R::from_f64(1.0);
     for (j, v) in plan.trajectory_vars.iter().enumerate() {
-        for i in 0..count {
-            let x = if at.status[i] != 0 {
+        for i in 0..s.count {
+            let x = if s.status[i] != 0 {
                 R::nan()
             } else {
-                value_at(p, l, *v, i, n1, one, at)
+                value_at(s, *v, i, one)
             };
-            sink.trajectory[j].set((base + i) * frames + frame, x);
+            s.sink.trajectory[j].set((s.base + i) * frames + frame, x);
         }
     }
 }
 
 /// An observed variable of lane `i` at θ inside step `n1 − 1 → n1`.
-fn value_at<R: Flows>(
-    p: &Program<R>,
-    l: &Lanes<R>,
-    v: ObsVar,
-    i: usize,
-    n1: u64,
-    th: R,
-    at: &StepStart<R>,
-) -> R {
+fn value_at<R: Flows>(s: &BlockStep<R>, v: ObsVar, i: usize, th: R) -> R {
+    let (p, l) = (s.p, s.l);
     match v {
-        ObsVar::Time => R::observed_time(l.t0[i], R::from_f64(n1 as f64), l.dt[i], th),
+        ObsVar::Time => R::observed_time(l.t0[i], R::from_f64(s.n1 as f64), l.dt[i], th),
         // At the step's end the state itself (no slopes needed).
         ObsVar::State(k) if th == R::from_f64(1.0) => l.at(p.var[k])[i],
         ObsVar::State(k) => R::observed_state(
-            at.prev[k][i],
+            s.prev[k][i],
             l.at(p.var[k])[i],
-            at.dprev[k][i],
+            s.dprev[k][i],
             l.at(p.dvar[k])[i],
             l.dt[i],
             th,
