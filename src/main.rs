@@ -212,8 +212,7 @@ fn bench(
     repeats: usize,
     json: Option<PathBuf>,
 ) -> Result<ExitCode> {
-    use reeb::bench::{rate, seconds, Scenario, SCENARIOS};
-    use std::io::Write;
+    use reeb::bench::{Scenario, SCENARIOS};
     let scenarios: Vec<Scenario> = if scenarios.is_empty() {
         SCENARIOS.to_vec()
     } else {
@@ -223,24 +222,16 @@ fn bench(
             .collect::<Result<_>>()?
     };
     let all = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let threads = if threads.is_empty() {
-        if all > 1 {
-            vec![1, all]
-        } else {
-            vec![1]
-        }
-    } else {
-        threads
+    let threads = match (threads.is_empty(), all > 1) {
+        (false, _) => threads,
+        (true, true) => vec![1, all],
+        (true, false) => vec![1],
     };
     let gpu = GpuContext::new().ok().map(|c| Engine::Gpu(Box::new(c)));
-    let backends = if backends.is_empty() {
-        if gpu.is_some() {
-            vec!["cpu".to_string(), "gpu".to_string()]
-        } else {
-            vec!["cpu".to_string()]
-        }
-    } else {
-        backends
+    let backends = match (backends.is_empty(), gpu.is_some()) {
+        (false, _) => backends,
+        (true, true) => vec!["cpu".to_string(), "gpu".to_string()],
+        (true, false) => vec!["cpu".to_string()],
     };
     let mut out = json.map(std::fs::File::create).transpose()?;
     println!(
@@ -256,74 +247,114 @@ fn bench(
             for p in &precisions {
                 for n in &sizes {
                     let plan = s.plan(*n, steps);
-                    let rows: Vec<(String, usize, f64)> = match b.as_str() {
-                        "cpu" => threads
-                            .iter()
-                            .map(|t| {
-                                let pool = rayon::ThreadPoolBuilder::new()
-                                    .num_threads(*t)
-                                    .build()
-                                    .expect("thread pool");
-                                (
-                                    "cpu".to_string(),
-                                    *t,
-                                    pool.install(|| {
-                                        rate(&plan, repeats, |pl| {
-                                            seconds(&Engine::Cpu, pl, *p).unwrap_or(f64::NAN)
-                                        })
-                                    }),
-                                )
-                            })
-                            .collect(),
-                        "gpu" => match &gpu {
-                            Some(Engine::Gpu(c)) if *p == Precision::F32 || c.shader_f64 => {
-                                let mut err = None;
-                                let r = rate(&plan, repeats, |pl| {
-                                    seconds(gpu.as_ref().expect("matched"), pl, *p).unwrap_or_else(
-                                        |e| {
-                                            err = Some(e.to_string());
-                                            f64::NAN
-                                        },
-                                    )
-                                });
-                                if let Some(e) = err {
-                                    anyhow::bail!("gpu {}: {e}", s.label());
-                                }
-                                vec![(format!("gpu: {}", c.info.name), 0, r)]
-                            }
-                            Some(_) => vec![],
-                            None => anyhow::bail!("no GPU adapter for --backend gpu"),
-                        },
+                    let rows = match b.as_str() {
+                        "cpu" => bench_cpu(&plan, *p, &threads, repeats),
+                        "gpu" => bench_gpu(gpu.as_ref(), &plan, *p, repeats, s.label())?,
                         other => anyhow::bail!("unknown backend `{other}` (cpu or gpu)"),
                     };
                     for (name, t, r) in rows {
-                        let th = if t == 0 {
-                            "-".to_string()
-                        } else {
-                            t.to_string()
-                        };
-                        println!(
-                            "{:<40} {:<24} {:>9} {:>10} {:>8} {:>16.4e}",
+                        let row = BenchRow {
                             name,
-                            s.label(),
-                            p,
-                            n,
-                            th,
-                            r
-                        );
-                        if let Some(f) = &mut out {
-                            writeln!(
-                                f,
-                                "{}",
-                                serde_json::json!({"backend": name, "scenario": s.label(), "precision": p.name(), "n": n, "steps": steps, "threads": t, "traj_steps_per_s": r})
-                            )?;
-                        }
+                            scenario: s.label().to_string(),
+                            precision: *p,
+                            n: *n,
+                            steps,
+                            threads: t,
+                            rate: r,
+                        };
+                        row.print(out.as_mut())?;
                     }
                 }
             }
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// (backend, threads, trajectory-steps/s) per thread count, on the CPU.
+fn bench_cpu(
+    plan: &reeb::plan::Plan,
+    p: Precision,
+    threads: &[usize],
+    repeats: usize,
+) -> Vec<(String, usize, f64)> {
+    use reeb::bench::{rate, seconds};
+    threads
+        .iter()
+        .map(|t| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(*t)
+                .build()
+                .expect("thread pool");
+            let r = pool.install(|| {
+                rate(plan, repeats, |pl| {
+                    seconds(&Engine::Cpu, pl, p).unwrap_or(f64::NAN)
+                })
+            });
+            ("cpu".to_string(), *t, r)
+        })
+        .collect()
+}
+
+/// (backend, 0, trajectory-steps/s) on the GPU, if it runs this precision.
+fn bench_gpu(
+    gpu: Option<&Engine>,
+    plan: &reeb::plan::Plan,
+    p: Precision,
+    repeats: usize,
+    label: &str,
+) -> Result<Vec<(String, usize, f64)>> {
+    use reeb::bench::{rate, seconds};
+    let Some(engine @ Engine::Gpu(c)) = gpu else {
+        anyhow::bail!("no GPU adapter for --backend gpu");
+    };
+    if p == Precision::F64 && !c.shader_f64 {
+        return Ok(vec![]);
+    }
+    let mut err = None;
+    let r = rate(plan, repeats, |pl| {
+        seconds(engine, pl, p).unwrap_or_else(|e| {
+            err = Some(e.to_string());
+            f64::NAN
+        })
+    });
+    if let Some(e) = err {
+        anyhow::bail!("gpu {label}: {e}");
+    }
+    Ok(vec![(format!("gpu: {}", c.info.name), 0, r)])
+}
+
+/// One line of `reeb bench` (and of its JSON lines).
+struct BenchRow {
+    name: String,
+    scenario: String,
+    precision: Precision,
+    n: usize,
+    steps: u64,
+    threads: usize,
+    rate: f64,
+}
+
+impl BenchRow {
+    fn print(&self, json: Option<&mut std::fs::File>) -> Result<()> {
+        use std::io::Write;
+        let th = match self.threads {
+            0 => "-".to_string(),
+            t => t.to_string(),
+        };
+        println!(
+            "{:<40} {:<24} {:>9} {:>10} {:>8} {:>16.4e}",
+            self.name, self.scenario, self.precision, self.n, th, self.rate
+        );
+        if let Some(f) = json {
+            writeln!(
+                f,
+                "{}",
+                serde_json::json!({"backend": self.name, "scenario": self.scenario, "precision": self.precision.name(), "n": self.n, "steps": self.steps, "threads": self.threads, "traj_steps_per_s": self.rate})
+            )?;
+        }
+        Ok(())
+    }
 }
 
 fn report(kind: ReportKind) -> Result<ExitCode> {
