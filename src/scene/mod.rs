@@ -22,6 +22,7 @@
 //! is always an axis; the ensemble is the cartesian product of the axes in the
 //! order they appear in the file. Every error names the file, line and field.
 
+mod error;
 mod parse;
 mod plans;
 pub mod tables;
@@ -36,17 +37,8 @@ use crate::models::Model;
 use crate::num::precision::Precision;
 use crate::plan::observers::{CycleObs, Section};
 use crate::plan::Plan;
+pub use error::SceneError;
 pub use values::splitmix64;
-
-/// A scene error: file, line, field and what is wrong.
-#[derive(Debug, Clone, thiserror::Error)]
-#[error("{}{}: {field}: {message}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
-pub struct SceneError {
-    pub path: PathBuf,
-    pub line: Option<usize>,
-    pub field: String,
-    pub message: String,
-}
 
 /// An axis of the ensemble, as the scene names it.
 #[derive(Debug, Clone, serde::Serialize)]

@@ -10,7 +10,7 @@ use std::path::Path;
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
-use super::SceneError;
+use super::error::SceneError;
 
 /// SplitMix64: the stream of `random = { … seed }` axes (documented, so that
 /// others can reproduce the samples).
