@@ -2,7 +2,7 @@
 //! count (`dt` or `t0` with `t_end`), each a [`Plan`] of the scene's
 //! problem with those axes held fixed.
 
-use crate::plan::observers::{PoincareObs, TrajectoryObs};
+use crate::plan::observers::{Observers, PoincareObs, TrajectoryObs};
 use crate::plan::{Plan, Problem, Source};
 
 use super::{Horizon, Input, OutVar, Scene, SceneError, SubRun};
@@ -70,25 +70,7 @@ impl Scene {
                 });
             }
         }
-        let source = |input: &Input| -> Source {
-            match input {
-                Input::Const(v) => Source::Const(*v),
-                Input::Axis(k) => match axis_map[*k] {
-                    Some(a) => Source::Axis {
-                        axis: a,
-                        values: self.axes[*k].values.clone(),
-                    },
-                    None => {
-                        let idx = fixed
-                            .iter()
-                            .find(|(f, _)| f == k)
-                            .map(|(_, i)| *i)
-                            .expect("fixed");
-                        Source::Const(self.axes[*k].values[idx])
-                    }
-                },
-            }
-        };
+        let source = |input: &Input| self.source(input, &axis_map, fixed);
         for (k, v) in &self.params {
             problem.params.insert(k.clone(), source(v));
         }
@@ -98,53 +80,86 @@ impl Scene {
         problem.dt = source(&self.dt);
         problem.steps = match self.horizon {
             Horizon::Steps(s) => s,
-            Horizon::TEnd(t_end) => {
-                let (Source::Const(dt), Source::Const(t0)) =
-                    (source(&self.dt), source(&self.t0_input()))
-                else {
-                    unreachable!("dt and t0 are fixed in every sub-run when t_end is given")
-                };
-                if dt <= 0.0 {
-                    // Refused by the plan, with the other step checks.
-                    1
-                } else if t_end <= t0 {
-                    return Err(self.error(
-                        "integrator.t_end",
-                        format!("{t_end} is not after t0 = {t0}"),
-                    ));
-                } else {
-                    let steps = ((t_end - t0) / dt).round();
-                    if steps > 4e9 {
-                        return Err(self.error(
-                            "integrator.t_end",
-                            format!("{steps:e} steps of dt = {dt}: too many (at most 4·10⁹)"),
-                        ));
-                    }
-                    (steps as u64).max(1)
-                }
-            }
+            Horizon::TEnd(t_end) => match (source(&self.dt), source(&self.t0_input())) {
+                (Source::Const(dt), Source::Const(t0)) => self.steps_to(t_end, t0, dt)?,
+                _ => unreachable!("dt and t0 are fixed in every sub-run when t_end is given"),
+            },
         };
         if let Some(cap) = self.step_cap {
             problem.steps = problem.steps.min(cap);
         }
+        problem.observers = self.observers();
+        Plan::new(&problem).map_err(|e| self.error(&e.field, e.message))
+    }
+
+    /// The source of an input in a sub-run: a constant, a value of a fixed
+    /// axis, or the values of a free one (`axis_map`: scene axis → plan axis).
+    fn source(
+        &self,
+        input: &Input,
+        axis_map: &[Option<usize>],
+        fixed: &[(usize, usize)],
+    ) -> Source {
+        match input {
+            Input::Const(v) => Source::Const(*v),
+            Input::Axis(k) => match axis_map[*k] {
+                Some(a) => Source::Axis {
+                    axis: a,
+                    values: self.axes[*k].values.clone(),
+                },
+                None => {
+                    let idx = fixed
+                        .iter()
+                        .find(|(f, _)| f == k)
+                        .map(|(_, i)| *i)
+                        .expect("fixed");
+                    Source::Const(self.axes[*k].values[idx])
+                }
+            },
+        }
+    }
+
+    /// Steps from t0 to t_end with step dt (a dt ≤ 0 is refused by the plan).
+    fn steps_to(&self, t_end: f64, t0: f64, dt: f64) -> Result<u64, SceneError> {
+        if dt <= 0.0 {
+            return Ok(1);
+        }
+        if t_end <= t0 {
+            return Err(self.error(
+                "integrator.t_end",
+                format!("{t_end} is not after t0 = {t0}"),
+            ));
+        }
+        let steps = ((t_end - t0) / dt).round();
+        if steps > 4e9 {
+            return Err(self.error(
+                "integrator.t_end",
+                format!("{steps:e} steps of dt = {dt}: too many (at most 4·10⁹)"),
+            ));
+        }
+        Ok((steps as u64).max(1))
+    }
+
+    /// The scene's observers, vectors expanded into their components.
+    fn observers(&self) -> Observers {
         let comps = |vars: &[OutVar]| -> Vec<String> {
             vars.iter().flat_map(|v| v.components.clone()).collect()
         };
-        problem.observers.final_vars = comps(&self.final_vars);
-        problem.observers.trajectory =
-            self.trajectory.as_ref().map(|(every, vars)| TrajectoryObs {
+        Observers {
+            final_vars: comps(&self.final_vars),
+            trajectory: self.trajectory.as_ref().map(|(every, vars)| TrajectoryObs {
                 every: *every,
                 vars: comps(vars),
-            });
-        problem.observers.poincare =
-            self.poincare
+            }),
+            poincare: self
+                .poincare
                 .as_ref()
                 .map(|(section, vars, max_points)| PoincareObs {
                     section: section.clone(),
                     vars: comps(vars),
                     max_points: *max_points,
-                });
-        problem.observers.cycle = self.cycle.clone();
-        Plan::new(&problem).map_err(|e| self.error(&e.field, e.message))
+                }),
+            cycle: self.cycle.clone(),
+        }
     }
 }

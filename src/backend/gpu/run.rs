@@ -604,51 +604,16 @@ fn collect<R: Flows>(
     let nv = plan.vars.len() as u64;
     let state: Vec<R> = read(ctx, &bufs.state, &bufs.staging, nv * cap * b)?;
     let status: Vec<u32> = read(ctx, &bufs.status, &bufs.staging, 4 * cap)?;
-    let uses_aux = plan.observers.poincare.is_some() || plan.cycle_var.is_some();
-    let (aux_r, aux_u): (Vec<R>, Vec<u32>) = if uses_aux {
-        (
-            read(
-                ctx,
-                &bufs.aux_r,
-                &bufs.staging,
-                AUX_R.len() as u64 * cap * b,
-            )?,
-            read(
-                ctx,
-                &bufs.aux_u,
-                &bufs.staging,
-                AUX_U.len() as u64 * cap * 4,
-            )?,
-        )
-    } else {
-        (vec![], vec![])
-    };
-    let pv = plan.poincare_vars.len() as u64;
-    let mp = out.max_points as u64;
-    let points: Vec<R> = if mp > 0 {
-        read(ctx, &bufs.points, &bufs.staging, mp * pv * cap * b)?
-    } else {
-        vec![]
-    };
-    let steps = R::from_f64(plan.steps as f64);
     let every = plan.observers.trajectory.as_ref().map_or(0, |t| t.every);
     for i in 0..count {
         let g = (base + i) as usize;
-        let ix = i as usize;
-        let st = status[ix] as u64;
+        let st = status[i as usize] as u64;
         out.nonfinite_step[g] = st as u32;
         for (j, v) in plan.final_vars.iter().enumerate() {
-            out.final_values[j].1[g] = if st != 0 {
-                R::nan()
-            } else {
-                match v {
-                    ObsVar::State(k) => state[(*k as u64 * cap + i) as usize],
-                    ObsVar::Time => {
-                        let t0 = R::from_f64(plan.binding("t0").value_at(g, &plan.strides));
-                        let dt = R::from_f64(plan.binding("dt").value_at(g, &plan.strides));
-                        t0 + steps * dt
-                    }
-                }
+            out.final_values[j].1[g] = match (st, v) {
+                (0, ObsVar::State(k)) => state[(*k as u64 * cap + i) as usize],
+                (0, ObsVar::Time) => final_time(plan, g),
+                _ => R::nan(),
             };
         }
         // Frames recorded at or after the step where it stopped are NaN (as on the CPU).
@@ -659,34 +624,80 @@ fn collect<R: Flows>(
                 }
             }
         }
-        if uses_aux {
-            let a = |k: usize| aux_r[(k as u64 * cap + i) as usize];
-            let au = |k: usize| aux_u[(k as u64 * cap + i) as usize];
-            if plan.observers.poincare.is_some() {
-                let n = au(1);
-                out.poincare_count[g] = n;
-                for k in 0..(n as u64).min(mp) {
-                    for j in 0..pv {
-                        out.poincare[j as usize].1[g * mp as usize + k as usize] =
-                            points[((k * pv + j) * cap + i) as usize];
-                    }
-                }
-            }
-            if plan.cycle_var.is_some() {
-                let crossings = a(5);
-                let ok = st == 0;
-                out.cycle_amplitude[g] = if ok {
-                    R::cycle_amplitude(a(0), a(1))
-                } else {
-                    R::nan()
-                };
-                out.cycle_period[g] = if ok && crossings >= R::from_f64(2.0) {
-                    R::cycle_period(a(4), crossings)
-                } else {
-                    R::nan()
-                };
-            }
-        }
+    }
+    if plan.observers.poincare.is_some() || plan.cycle_var.is_some() {
+        collect_observers(ctx, plan, bufs, out, base, count, cap, b, &status)?;
     }
     check(ctx)
+}
+
+/// `t0 + steps·dt` of trajectory `g`, in the working precision.
+fn final_time<R: Flows>(plan: &Plan, g: usize) -> R {
+    let t0 = R::from_f64(plan.binding("t0").value_at(g, &plan.strides));
+    let dt = R::from_f64(plan.binding("dt").value_at(g, &plan.strides));
+    t0 + R::from_f64(plan.steps as f64) * dt
+}
+
+/// Poincaré points and cycle statistics of a finished chunk, from the
+/// observer state the kernel kept (`AUX_R`, `AUX_U`).
+#[allow(clippy::too_many_arguments)]
+fn collect_observers<R: Flows>(
+    ctx: &GpuContext,
+    plan: &Plan,
+    bufs: &Buffers,
+    out: &mut Observations<R>,
+    base: u64,
+    count: u64,
+    cap: u64,
+    b: u64,
+    status: &[u32],
+) -> Result<(), GpuError> {
+    let aux_r: Vec<R> = read(
+        ctx,
+        &bufs.aux_r,
+        &bufs.staging,
+        AUX_R.len() as u64 * cap * b,
+    )?;
+    let aux_u: Vec<u32> = read(
+        ctx,
+        &bufs.aux_u,
+        &bufs.staging,
+        AUX_U.len() as u64 * cap * 4,
+    )?;
+    let pv = plan.poincare_vars.len() as u64;
+    let mp = out.max_points as u64;
+    let points: Vec<R> = if mp > 0 {
+        read(ctx, &bufs.points, &bufs.staging, mp * pv * cap * b)?
+    } else {
+        vec![]
+    };
+    for i in 0..count {
+        let g = (base + i) as usize;
+        let a = |k: usize| aux_r[(k as u64 * cap + i) as usize];
+        if plan.observers.poincare.is_some() {
+            let n = aux_u[(cap + i) as usize]; // AUX_U[1]: npoints
+            out.poincare_count[g] = n;
+            for k in 0..(n as u64).min(mp) {
+                for j in 0..pv {
+                    out.poincare[j as usize].1[g * mp as usize + k as usize] =
+                        points[((k * pv + j) * cap + i) as usize];
+                }
+            }
+        }
+        if plan.cycle_var.is_some() {
+            // AUX_R: cyc_max, cyc_min, cyc_first, cyc_mean, cyc_com, cyc_count.
+            let (crossings, ok) = (a(5), status[i as usize] == 0);
+            out.cycle_amplitude[g] = if ok {
+                R::cycle_amplitude(a(0), a(1))
+            } else {
+                R::nan()
+            };
+            out.cycle_period[g] = if ok && crossings >= R::from_f64(2.0) {
+                R::cycle_period(a(4), crossings)
+            } else {
+                R::nan()
+            };
+        }
+    }
+    Ok(())
 }
