@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use reeb::plan::scheme::Scheme;
 use reeb::report::{stability, work_precision, ReportOptions};
 use reeb::scene::{BackendChoice, Scene};
 
@@ -22,7 +23,7 @@ fn work_precision_measures_the_orders() {
     .unwrap();
     let r = scene.report.as_mut().unwrap();
     r.schemes = ["s2", "triple_jump4", "yoshida6a", "yoshida8a"]
-        .map(String::from)
+        .map(|s| Scheme::by_name(s).unwrap())
         .to_vec();
     r.precisions = vec![reeb::num::precision::Precision::F64];
     let out = tmp("wp");

@@ -296,7 +296,7 @@ fn summary<R>(
         "integration_seconds": run.seconds,
         "timing": run.timing,
         "traj_steps_per_s": run.rate(),
-        "evaluations_per_step": crate::plan::scheme::Scheme::by_name(&scene.scheme).map(|s| s.evaluations()),
+        "evaluations_per_step": Some(scene.scheme.evaluations()),
         "status": {"ok": ok, "non_finite": n - ok},
         "files": files,
     })

@@ -109,6 +109,11 @@ impl Problem {
                 ),
             )
         })?;
+        Ok(Problem::with_scheme(model, scheme))
+    }
+
+    /// [`Problem::new`] with the scheme already chosen.
+    pub fn with_scheme(model: Model, scheme: Scheme) -> Problem {
         let spec = model.spec();
         let final_vars = spec
             .vars
@@ -116,7 +121,7 @@ impl Problem {
             .filter(|v| Some(**v) != spec.optional_var)
             .map(|v| v.to_string())
             .collect();
-        Ok(Problem {
+        Problem {
             model,
             scheme,
             order: None,
@@ -129,7 +134,7 @@ impl Problem {
                 final_vars,
                 ..Observers::default()
             },
-        })
+        }
     }
 
     /// Adds an axis and returns the source that runs along it.

@@ -136,6 +136,19 @@ pub struct Scheme {
     pub order: u32,
 }
 
+impl std::fmt::Display for Scheme {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.name)
+    }
+}
+
+/// A scheme is written (summary.json, report settings) by its name.
+impl serde::Serialize for Scheme {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&self.name)
+    }
+}
+
 /// Every scheme name a scene may use.
 pub const SCHEME_NAMES: &[&str] = &[
     "s2",

@@ -93,7 +93,7 @@ pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
 
     let title = scene.title.clone().unwrap_or_else(|| scene.name.clone());
     let groups = by_configuration(&rows);
-    let (orders_md, slope_lines) = fit_orders(&groups, reference_error)?;
+    let (orders_md, slope_lines) = fit_orders(&groups, &set.schemes, reference_error)?;
     let (series_t, series_dt) = diagram_series(&groups);
     let panels = panels(&rows, set.schemes.len());
     let mut pictures = draw_diagrams(&out, &title, &panels, &series_t, &series_dt, &slope_lines)?;
@@ -233,12 +233,11 @@ fn configurations<'a>(
 
 /// The scheme and the scene's runs with it, one per step of the `dt` axis;
 /// `None`, with a note, where the scheme cannot run the scene.
-fn scheme_runs(base: &Scene, scheme: &str) -> Result<Option<(Scheme, Vec<SubRun>)>> {
+fn scheme_runs(base: &Scene, scheme: &Scheme) -> Result<Option<(Scheme, Vec<SubRun>)>> {
     let mut sc = base.clone();
-    sc.scheme = scheme.to_string();
-    let s = Scheme::by_name(scheme).context("scheme")?;
+    sc.scheme = scheme.clone();
     match sc.sub_runs() {
-        Ok(subs) => Ok(Some((s, subs))),
+        Ok(subs) => Ok(Some((scheme.clone(), subs))),
         Err(e) => {
             eprintln!("note: skipping {scheme}: {e}");
             Ok(None)
@@ -556,14 +555,21 @@ fn by_configuration(rows: &[Row]) -> Vec<Group<'_>> {
 /// The measured order of each scheme configuration, as rows of report.md's
 /// table; and a reference slope of the nominal order (one per distinct
 /// order) for the picture of error against dt.
-fn fit_orders(groups: &[Group], reference_error: f64) -> Result<(String, Vec<Slope>)> {
+fn fit_orders(
+    groups: &[Group],
+    schemes: &[Scheme],
+    reference_error: f64,
+) -> Result<(String, Vec<Slope>)> {
     let mut table = String::new();
     let mut lines: Vec<Slope> = vec![];
     for (key, rs) in groups {
         if key.starts_with("dop853") {
             continue;
         }
-        let scheme = Scheme::by_name(&rs[0].scheme).context("scheme")?;
+        let scheme = schemes
+            .iter()
+            .find(|s| s.name == rs[0].scheme)
+            .context("a measured scheme of the settings")?;
         // Unit roundoff of the precision: the error floor is 10⁴ of it.
         let u = if rs[0].precision == "f32" {
             f32::EPSILON as f64 / 2.0

@@ -36,6 +36,7 @@ pub use crate::backend::BackendChoice;
 use crate::models::Model;
 use crate::num::precision::Precision;
 use crate::plan::observers::{CycleObs, Section};
+use crate::plan::scheme::Scheme;
 use crate::plan::Plan;
 pub use error::SceneError;
 pub use values::splitmix64;
@@ -87,7 +88,7 @@ pub struct PlotSettings {
 /// What `reeb report` reads from `[report]` (see `reeb report --help`).
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct ReportSettings {
-    pub schemes: Vec<String>,
+    pub schemes: Vec<Scheme>,
     pub backends: Vec<BackendChoice>,
     pub precisions: Vec<Precision>,
     /// Variables whose error is measured (default: the recorded final variables).
@@ -103,9 +104,9 @@ pub struct ReportSettings {
 impl ReportSettings {
     /// The settings of a scene without a `[report]` table (or before it is read):
     /// the scene's scheme on the CPU in f64.
-    pub fn defaults(scheme: &str) -> ReportSettings {
+    pub fn defaults(scheme: &Scheme) -> ReportSettings {
         ReportSettings {
-            schemes: vec![scheme.to_string()],
+            schemes: vec![scheme.clone()],
             backends: vec![BackendChoice::Cpu],
             precisions: vec![Precision::F64],
             error_vars: vec![],
@@ -129,7 +130,8 @@ pub struct Scene {
     pub initial: BTreeMap<String, Input>,
     pub dt: Input,
     pub horizon: Horizon,
-    pub scheme: String,
+    /// Parsed once, here; everything downstream takes the `Scheme`.
+    pub scheme: Scheme,
     pub order: Option<String>,
     pub final_vars: Vec<OutVar>,
     pub trajectory: Option<(u64, Vec<OutVar>)>,

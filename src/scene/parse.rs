@@ -347,7 +347,7 @@ fn initial(
 
 /// What `[integrator]` gives.
 struct Integ {
-    scheme: String,
+    scheme: Scheme,
     order: Option<String>,
     dt: (usize, Input),
     horizon: Horizon,
@@ -368,7 +368,7 @@ fn integrator(p: &mut Parser, doc: &Doc, inputs: &mut Inputs) -> Result<Integ, S
         .scheme
         .as_ref()
         .map_or("s2".into(), |s| s.get_ref().0.clone());
-    if Scheme::by_name(&scheme).is_none() {
+    let Some(parsed) = Scheme::by_name(&scheme) else {
         return Err(p.err(
             "integrator.scheme",
             table.scheme.as_ref().map(|s| s.span()).as_ref(),
@@ -378,7 +378,8 @@ fn integrator(p: &mut Parser, doc: &Doc, inputs: &mut Inputs) -> Result<Integ, S
                 SCHEME_NAMES.join(", ")
             ),
         ));
-    }
+    };
+    let scheme = parsed;
     let dt_v = entries
         .iter()
         .find(|(k, _)| k.get_ref() == "dt")
@@ -773,7 +774,11 @@ fn plot(p: &mut Parser, doc: &Doc, model: &Model) -> Result<PlotSettings, SceneE
 }
 
 /// `[report]`, if given: what `reeb report` runs.
-fn report(p: &mut Parser, doc: &Doc, scheme: &str) -> Result<Option<ReportSettings>, SceneError> {
+fn report(
+    p: &mut Parser,
+    doc: &Doc,
+    scheme: &Scheme,
+) -> Result<Option<ReportSettings>, SceneError> {
     let Some(t) = doc.table(p, "report")? else {
         return Ok(None);
     };
@@ -781,16 +786,20 @@ fn report(p: &mut Parser, doc: &Doc, scheme: &str) -> Result<Option<ReportSettin
     let t: tables::Report = deserialize(p, doc.get("report"))?;
     let mut r = ReportSettings::defaults(scheme);
     if let Some(s) = &t.schemes {
-        for name in &s.get_ref().0 {
-            if Scheme::by_name(name).is_none() {
-                return Err(p.err(
-                    "report.schemes",
-                    Some(&s.span()),
-                    format!("unknown scheme `{name}`{}", suggest(name, SCHEME_NAMES)),
-                ));
-            }
-        }
-        r.schemes = s.get_ref().0.clone();
+        r.schemes = s
+            .get_ref()
+            .0
+            .iter()
+            .map(|name| {
+                Scheme::by_name(name).ok_or_else(|| {
+                    p.err(
+                        "report.schemes",
+                        Some(&s.span()),
+                        format!("unknown scheme `{name}`{}", suggest(name, SCHEME_NAMES)),
+                    )
+                })
+            })
+            .collect::<Result<_, _>>()?;
     }
     if let Some(b) = &t.backends {
         r.backends = each(p, "report.backends", b)?;

@@ -56,8 +56,7 @@ impl Scene {
 
     /// The plan with the axes in `fixed` held at one value.
     fn plan_for(&self, fixed: &[(usize, usize)]) -> Result<Plan, SceneError> {
-        let mut problem = Problem::new(self.model.clone(), &self.scheme)
-            .map_err(|e| self.error(&e.field, e.message))?;
+        let mut problem = Problem::with_scheme(self.model.clone(), self.scheme.clone());
         problem.order = self.order.clone();
         // Free axes keep their order; fixed ones become constants.
         let mut axis_map = vec![None; self.axes.len()];
