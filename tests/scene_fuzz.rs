@@ -1044,7 +1044,7 @@ fn huge_counts_refused_before_allocating() {
 /// `cargo test --release --test scene_fuzz -- --ignored huge_axis_counts`.
 #[cfg(unix)]
 #[test]
-#[ignore = "the parser allocates huge axes before refusing them: a known finding"]
+#[ignore = "issue 10 (checked sizes): the parser allocates huge axes before refusing them"]
 fn huge_axis_counts_neither_panic_nor_abort() {
     use std::os::unix::process::ExitStatusExt;
     let cases = huge_cases();
