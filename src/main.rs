@@ -121,6 +121,10 @@ fn main() -> ExitCode {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     let cli = Cli::parse();
+    if let Some(e) = reeb::backend::cpu::kernels::isa_cap_error() {
+        eprintln!("error: {e}");
+        return ExitCode::FAILURE;
+    }
     let result = match cli.command {
         Command::Run {
             scene,
@@ -213,6 +217,7 @@ fn bench(
     json: Option<PathBuf>,
 ) -> Result<ExitCode> {
     use reeb::bench::{Scenario, SCENARIOS};
+    check_bench_args(&sizes, steps, &threads, repeats)?;
     let scenarios: Vec<Scenario> = if scenarios.is_empty() {
         SCENARIOS.to_vec()
     } else {
@@ -269,6 +274,39 @@ fn bench(
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Sizes, steps, threads and repeats a benchmark can run (each ≥ 1; the
+/// largest ensemble's final values fit in memory).
+fn check_bench_args(sizes: &[usize], steps: u64, threads: &[usize], repeats: usize) -> Result<()> {
+    if let Some(n) = sizes.iter().find(|n| **n == 0) {
+        anyhow::bail!("--n: an ensemble needs at least 1 trajectory (got {n})");
+    }
+    if steps == 0 || steps >= reeb::plan::MAX_STEPS {
+        anyhow::bail!(
+            "--steps: {steps} is not between 1 and {}",
+            reeb::plan::MAX_STEPS - 1
+        );
+    }
+    if threads.contains(&0) {
+        anyhow::bail!("--threads: a thread count must be at least 1");
+    }
+    if repeats == 0 {
+        anyhow::bail!("--repeats: must be at least 1");
+    }
+    // Two f64 final values per trajectory, and the plan's inputs: 32 bytes each.
+    let largest = sizes.iter().copied().max().unwrap_or(0) as u64;
+    let need = largest.saturating_mul(32);
+    if let Some(avail) = reeb::output::run::available_memory() {
+        if need > avail / 2 {
+            anyhow::bail!(
+                "--n: {largest} trajectories need about {} GiB and {} GiB is available; use a smaller --n",
+                need >> 30,
+                avail >> 30
+            );
+        }
+    }
+    Ok(())
 }
 
 /// (backend, threads, trajectory-steps/s) per thread count, on the CPU.

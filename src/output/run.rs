@@ -40,7 +40,7 @@ pub struct RunOptions {
 }
 
 /// Available memory in bytes (Linux `/proc/meminfo`), if known.
-fn available_memory() -> Option<u64> {
+pub fn available_memory() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
     line.split_whitespace()

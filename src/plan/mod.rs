@@ -91,6 +91,7 @@ impl Plan {
         bindings.push(("t0", t0));
         bindings.push(("dt", problem.dt.clone()));
         bindings.extend(section_inputs(problem, &bindings)?);
+        check_section_period(&bindings)?;
         for (name, _) in &bindings {
             debug_assert!(
                 lane_name(name).is_some(),
@@ -370,6 +371,32 @@ fn check_steps(problem: &Problem) -> Result<(), PlanError> {
 /// functions (both backends) and `u32` on the GPU.
 pub const MAX_STEPS: u64 = i32::MAX as u64;
 
+/// A stroboscopic section samples at most once per step: a shorter period
+/// would make the observers' work per step unbounded (a period of 1e-300
+/// would never finish a step).
+fn check_section_period(bindings: &Bindings) -> Result<(), PlanError> {
+    let values = |name: &str| {
+        bindings
+            .iter()
+            .find(|(b, _)| *b == name)
+            .map(|(_, s)| s.values())
+            .unwrap_or_default()
+    };
+    let shortest = values("strobe_period")
+        .into_iter()
+        .fold(f64::INFINITY, f64::min);
+    let longest_step = values("dt").into_iter().fold(0.0, f64::max);
+    if shortest < longest_step {
+        return Err(err(
+            "output.poincare.period",
+            format!(
+                "a period of {shortest:?} is shorter than the step dt = {longest_step:?}; a section samples at most once per step: lengthen the period or lower dt"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Lane parameters derived from the scene's (spin–orbit weights) or from
 /// model data (Liénard coefficients).
 fn derived_params(problem: &Problem, params: &Bindings) -> Bindings {
@@ -533,6 +560,31 @@ mod tests {
             .sum();
         // Each stage moves C by w (two halves), B by w and A by w: total 3.
         assert!((total - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_section_period_below_the_step_is_refused() {
+        let mut p = vdp();
+        p.dt = Source::Const(0.01);
+        p.steps = 10;
+        p.observers.poincare = Some(observers::PoincareObs {
+            section: Section::Stroboscopic {
+                period: 1e-300,
+                phase: 0.0,
+            },
+            vars: vec!["q".into()],
+            max_points: 10,
+        });
+        let e = Plan::new(&p).unwrap_err();
+        assert_eq!(e.field, "output.poincare.period");
+        assert!(e.message.contains("shorter than the step"), "{e}");
+        if let Some(pc) = p.observers.poincare.as_mut() {
+            pc.section = Section::Stroboscopic {
+                period: 0.01,
+                phase: 0.0,
+            };
+        }
+        assert!(Plan::new(&p).is_ok());
     }
 
     #[test]

@@ -133,6 +133,20 @@ pub enum Isa {
     V4,
 }
 
+/// The values `REEB_CPU_ISA` may take.
+pub const ISA_CAPS: &[&str] = &["baseline", "v3", "v4"];
+
+/// Why `REEB_CPU_ISA` is unusable, if it is set to something unknown.
+pub fn isa_cap_error() -> Option<String> {
+    let cap = std::env::var("REEB_CPU_ISA").ok()?;
+    (!cap.is_empty() && !ISA_CAPS.contains(&cap.as_str())).then(|| {
+        format!(
+            "REEB_CPU_ISA={cap:?} is not one of {} (unset it to use the best level this CPU runs)",
+            ISA_CAPS.join(", ")
+        )
+    })
+}
+
 /// The best kernel level this CPU runs; `REEB_CPU_ISA=baseline|v3|v4` caps it.
 pub fn isa() -> Isa {
     let cap = std::env::var("REEB_CPU_ISA").unwrap_or_default();

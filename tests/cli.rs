@@ -1,0 +1,83 @@
+//! The command line refuses what it cannot do, with a message naming the
+//! argument or field, instead of panicking, aborting or hanging.
+
+use std::process::Command;
+
+fn reeb(args: &[&str], env: &[(&str, &str)]) -> (bool, String) {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_reeb"));
+    c.args(args);
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    let out = c.output().expect("reeb runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn bench_refuses_arguments_it_cannot_run() {
+    for (arg, value, says) in [
+        ("--n", "0", "--n: an ensemble needs at least 1"),
+        (
+            "--n",
+            "1000000000000000",
+            "--n: 1000000000000000 trajectories need about",
+        ),
+        ("--steps", "0", "--steps: 0 is not between 1"),
+        ("--threads", "0", "--threads:"),
+        ("--repeats", "0", "--repeats:"),
+    ] {
+        let (ok, err) = reeb(
+            &[
+                "bench",
+                "--backend",
+                "cpu",
+                "--scenario",
+                "van_der_pol/s2",
+                arg,
+                value,
+            ],
+            &[],
+        );
+        assert!(!ok, "{arg} {value} was accepted");
+        assert!(err.contains(says), "{arg} {value}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}
+
+#[test]
+fn an_unknown_cpu_isa_is_refused() {
+    let (ok, err) = reeb(&["info"], &[("REEB_CPU_ISA", "bogus")]);
+    assert!(!ok);
+    assert!(
+        err.contains("REEB_CPU_ISA=\"bogus\" is not one of baseline, v3, v4"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_section_period_below_the_step_is_refused_not_run_forever() {
+    let dir = std::env::temp_dir().join(format!("reeb-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("hang.toml");
+    std::fs::write(
+        &scene,
+        "model = \"van_der_pol\"\n[params]\nepsilon = 1.0\n[initial]\nq = 2.0\n\
+         [integrator]\ndt = 0.05\nsteps = 100\n[output]\n\
+         poincare = { period = 1e-300, vars = [\"q\"] }\n",
+    )
+    .unwrap();
+    for verb in ["check", "run"] {
+        let (ok, err) = reeb(&[verb, scene.to_str().unwrap()], &[]);
+        assert!(!ok);
+        assert!(
+            err.contains(
+                "hang.toml:10: output.poincare.period: a period of 1e-300 is shorter than the step"
+            ),
+            "{verb}: {err}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
