@@ -493,12 +493,10 @@ pub fn dop853<F: FnMut(f64, &[f64], &mut [f64])>(
     opts: &Dop853Options,
 ) -> Result<(Vec<Vec<f64>>, Dop853Stats), Dop853Error> {
     validate(t0, times, opts)?;
-    let mut stats = Dop853Stats::default();
     let mut out = Vec::with_capacity(times.len());
-    let n = y0.len();
-    if n == 0 {
+    if y0.is_empty() {
         out.resize(times.len(), Vec::new());
-        return Ok((out, stats));
+        return Ok((out, Dop853Stats::default()));
     }
     if !all_finite(y0) {
         return Err(Dop853Error::NonFinite { t: t0 });
@@ -507,126 +505,238 @@ pub fn dop853<F: FnMut(f64, &[f64], &mut [f64])>(
     let mut next = times.iter().take_while(|&&t| t == t0).count();
     out.resize(next, y0.to_vec());
     let Some(&t_end) = times.last() else {
-        return Ok((out, stats));
+        return Ok((out, Dop853Stats::default()));
     };
     if next == times.len() {
-        return Ok((out, stats));
+        return Ok((out, Dop853Stats::default()));
     }
 
-    // Same clamp as scipy's `validate_tol`.
-    let rtol = opts.rtol.max(100.0 * f64::EPSILON);
-    let atol = opts.atol;
-
-    let mut k: Stages = std::array::from_fn(|_| vec![0.0; n]);
-    let mut y = y0.to_vec();
-    let mut y_new = vec![0.0; n];
-    let mut ytmp = vec![0.0; n];
-    let mut dense = DenseStep::new(n);
-
-    f(t0, &y, &mut k[0]);
-    stats.evaluations += 1;
-    if !all_finite(&k[0]) {
-        return Err(Dop853Error::NonFinite { t: t0 });
+    let mut run = Run::start(&mut f, t0, y0, t_end, opts)?;
+    while run.t < t_end {
+        let (t_new, h) = run.accepted_step(&mut f)?;
+        run.serve_outputs(&mut f, t_new, h, times, &mut next, &mut out)?;
+        run.advance(t_new);
     }
+    Ok((out, run.stats))
+}
 
-    let mut h_abs = match opts.h_initial {
-        Some(h) => h,
-        None => {
-            stats.evaluations += 1;
-            select_initial_step(&mut f, t0, &y, &k[0], t_end, opts.h_max, rtol, atol)
-        }
+/// Step-size factor after an accepted step with error norm `err < 1`, as
+/// scipy: grow by at most `MAX_FACTOR`, and not at all right after a
+/// rejection (the controller just learned the step was too large).
+fn accepted_step_factor(err: f64, after_rejection: bool) -> f64 {
+    let factor = if err == 0.0 {
+        MAX_FACTOR
+    } else {
+        MAX_FACTOR.min(SAFETY * err.powf(ERROR_EXPONENT))
     };
-    if h_abs.is_nan() {
-        // Cannot happen with finite f0, but never propagate a NaN time.
-        h_abs = 0.0;
+    if after_rejection {
+        factor.min(1.0)
+    } else {
+        factor
+    }
+}
+
+/// Step-size factor after a rejected step. A non-finite trial is treated
+/// as a maximal rejection (scipy's behaviour with a NaN error norm), so that
+/// overflow caused by an overly large step is recovered from by shrinking
+/// the step.
+fn rejected_step_factor(err: f64, finite: bool) -> f64 {
+    if finite {
+        MIN_FACTOR.max(SAFETY * err.powf(ERROR_EXPONENT))
+    } else {
+        MIN_FACTOR
+    }
+}
+
+/// State of an integration between accepted steps: time, state, stages,
+/// step-size controller and statistics.
+struct Run<'o> {
+    opts: &'o Dop853Options,
+    rtol: f64,
+    atol: f64,
+    t_end: f64,
+    t: f64,
+    /// Size of the next step attempt.
+    h_abs: f64,
+    /// Step attempts so far, accepted and rejected, against `max_steps`.
+    attempts: u64,
+    y: Vec<f64>,
+    y_new: Vec<f64>,
+    ytmp: Vec<f64>,
+    k: Stages,
+    dense: DenseStep,
+    stats: Dop853Stats,
+}
+
+impl<'o> Run<'o> {
+    /// Evaluates `f(t0, y0)` and chooses the first step size.
+    fn start<F: FnMut(f64, &[f64], &mut [f64])>(
+        f: &mut F,
+        t0: f64,
+        y0: &[f64],
+        t_end: f64,
+        opts: &'o Dop853Options,
+    ) -> Result<Self, Dop853Error> {
+        let n = y0.len();
+        let mut stats = Dop853Stats::default();
+        // Same clamp as scipy's `validate_tol`.
+        let rtol = opts.rtol.max(100.0 * f64::EPSILON);
+        let atol = opts.atol;
+
+        let mut k: Stages = std::array::from_fn(|_| vec![0.0; n]);
+        let y = y0.to_vec();
+        f(t0, &y, &mut k[0]);
+        stats.evaluations += 1;
+        if !all_finite(&k[0]) {
+            return Err(Dop853Error::NonFinite { t: t0 });
+        }
+
+        let mut h_abs = match opts.h_initial {
+            Some(h) => h,
+            None => {
+                stats.evaluations += 1;
+                select_initial_step(f, t0, &y, &k[0], t_end, opts.h_max, rtol, atol)
+            }
+        };
+        if h_abs.is_nan() {
+            // Cannot happen with finite f0, but never propagate a NaN time.
+            h_abs = 0.0;
+        }
+        Ok(Self {
+            opts,
+            rtol,
+            atol,
+            t_end,
+            t: t0,
+            h_abs,
+            attempts: 0,
+            y,
+            y_new: vec![0.0; n],
+            ytmp: vec![0.0; n],
+            k,
+            dense: DenseStep::new(n),
+            stats,
+        })
     }
 
-    let mut t = t0;
-    let mut attempts: u64 = 0;
-    while t < t_end {
-        // Step attempt loop, as scipy's `RungeKutta._step_impl`.
+    /// Attempts steps from `t`, shrinking after each rejection, until one is
+    /// accepted (scipy's `RungeKutta._step_impl`). Leaves the new state in
+    /// `y_new`, its stages in `k`, and the size of the next attempt in
+    /// `h_abs`; returns the step's end time and signed size.
+    fn accepted_step<F: FnMut(f64, &[f64], &mut [f64])>(
+        &mut self,
+        f: &mut F,
+    ) -> Result<(f64, f64), Dop853Error> {
+        let t = self.t;
+        // Steps below ten ulps of `t` would not advance time reliably.
         let min_step = 10.0 * (next_up(t) - t);
-        if h_abs > opts.h_max {
-            h_abs = opts.h_max;
-        } else if h_abs < min_step {
-            h_abs = min_step;
+        if self.h_abs > self.opts.h_max {
+            self.h_abs = self.opts.h_max;
+        } else if self.h_abs < min_step {
+            self.h_abs = min_step;
         }
         let mut step_rejected = false;
         let mut saw_non_finite = false;
-        let (t_new, h) = loop {
-            if h_abs < min_step {
+        loop {
+            if self.h_abs < min_step {
                 return Err(if saw_non_finite {
                     Dop853Error::NonFinite { t }
                 } else {
                     Dop853Error::StepTooSmall { t }
                 });
             }
-            if attempts >= opts.max_steps {
+            if self.attempts >= self.opts.max_steps {
                 return Err(Dop853Error::TooManySteps { t });
             }
-            attempts += 1;
-            let t_new = (t + h_abs).min(t_end);
+            self.attempts += 1;
+            // The last step lands exactly on `t_end`.
+            let t_new = (t + self.h_abs).min(self.t_end);
             let h = t_new - t;
-            h_abs = h.abs();
+            self.h_abs = h.abs();
 
-            rk_step(&mut f, t, &y, h, &mut k, &mut ytmp, &mut y_new);
-            stats.evaluations += N_STAGES as u64;
-            let err = error_norm(&k, h, &y, &y_new, rtol, atol);
-            let finite = err.is_finite() && all_finite(&y_new) && all_finite(&k[N_STAGES]);
-
+            let (err, finite) = self.trial_step(f, h);
             if finite && err < 1.0 {
-                let mut factor = if err == 0.0 {
-                    MAX_FACTOR
-                } else {
-                    MAX_FACTOR.min(SAFETY * err.powf(ERROR_EXPONENT))
-                };
-                if step_rejected {
-                    factor = factor.min(1.0);
-                }
-                h_abs *= factor;
-                break (t_new, h);
+                self.h_abs *= accepted_step_factor(err, step_rejected);
+                self.stats.steps += 1;
+                return Ok((t_new, h));
             }
-            // A non-finite trial is treated as a maximal rejection (scipy's
-            // behaviour with a NaN error norm), so that overflow caused by an
-            // overly large step is recovered from by shrinking the step.
-            if finite {
-                h_abs *= MIN_FACTOR.max(SAFETY * err.powf(ERROR_EXPONENT));
-            } else {
-                saw_non_finite = true;
-                h_abs *= MIN_FACTOR;
-            }
+            saw_non_finite |= !finite;
+            self.h_abs *= rejected_step_factor(err, finite);
             step_rejected = true;
-            stats.rejected += 1;
-        };
-        stats.steps += 1;
+            self.stats.rejected += 1;
+        }
+    }
 
-        // Serve the requested times inside (t, t_new].
+    /// One step of size `h` from `(t, y)` into `y_new`; returns its error
+    /// norm and whether the error, the new state and its derivative are all
+    /// finite.
+    fn trial_step<F: FnMut(f64, &[f64], &mut [f64])>(&mut self, f: &mut F, h: f64) -> (f64, bool) {
+        rk_step(
+            f,
+            self.t,
+            &self.y,
+            h,
+            &mut self.k,
+            &mut self.ytmp,
+            &mut self.y_new,
+        );
+        self.stats.evaluations += N_STAGES as u64;
+        let err = error_norm(&self.k, h, &self.y, &self.y_new, self.rtol, self.atol);
+        let finite = err.is_finite() && all_finite(&self.y_new) && all_finite(&self.k[N_STAGES]);
+        (err, finite)
+    }
+
+    /// Appends to `out` the states at the requested times inside the
+    /// accepted step `(t, t_new]`, from `times[*next]` on. Times at the step
+    /// end get `y_new` itself; the others the continuous extension, built
+    /// only for steps that need it.
+    fn serve_outputs<F: FnMut(f64, &[f64], &mut [f64])>(
+        &mut self,
+        f: &mut F,
+        t_new: f64,
+        h: f64,
+        times: &[f64],
+        next: &mut usize,
+        out: &mut Vec<Vec<f64>>,
+    ) -> Result<(), Dop853Error> {
         let mut dense_built = false;
-        while next < times.len() && times[next] <= t_new {
-            let ti = times[next];
+        while *next < times.len() && times[*next] <= t_new {
+            let ti = times[*next];
             if ti == t_new {
-                out.push(y_new.clone());
+                out.push(self.y_new.clone());
             } else {
                 if !dense_built {
-                    dense.build(&mut f, t, h, &y, &y_new, &mut k, &mut ytmp);
-                    stats.evaluations += (N_STAGES_EXTENDED - N_STAGES - 1) as u64;
+                    self.dense.build(
+                        f,
+                        self.t,
+                        h,
+                        &self.y,
+                        &self.y_new,
+                        &mut self.k,
+                        &mut self.ytmp,
+                    );
+                    self.stats.evaluations += (N_STAGES_EXTENDED - N_STAGES - 1) as u64;
                     dense_built = true;
                 }
-                let mut yi = vec![0.0; n];
-                dense.eval(ti, &y, &mut yi);
+                let mut yi = vec![0.0; self.y.len()];
+                self.dense.eval(ti, &self.y, &mut yi);
                 if !all_finite(&yi) {
                     return Err(Dop853Error::NonFinite { t: ti });
                 }
                 out.push(yi);
             }
-            next += 1;
+            *next += 1;
         }
-
-        t = t_new;
-        std::mem::swap(&mut y, &mut y_new);
-        k.swap(0, N_STAGES);
+        Ok(())
     }
-    Ok((out, stats))
+
+    /// Moves to the end of the accepted step; its last stage is the next
+    /// step's first (first same as last).
+    fn advance(&mut self, t_new: f64) {
+        self.t = t_new;
+        std::mem::swap(&mut self.y, &mut self.y_new);
+        self.k.swap(0, N_STAGES);
+    }
 }
 
 /// Fixed-step integration with the main 8th-order formula (no error control),

@@ -5,8 +5,8 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use super::axis::{merge, Axis};
-use super::canvas::render;
-use super::chart::{blit, build_chart, chart_ticks, draw_frame, no_data, split_side};
+use super::canvas::{render, Area, Style};
+use super::chart::{blit, build_chart, chart_ticks, draw_frame, no_data, split_side, Chart, Frame};
 use super::colorbar::ColorBar;
 use super::colour::{blend, put, rgb, viridis, BG, GRID};
 use super::figure::{check_series, palette, Figure, PlotError, Rgb, Series};
@@ -14,11 +14,9 @@ use super::legend::{legend_box, legend_position, Occupancy};
 
 /// Fixed range from the caller if usable, otherwise the padded data extent.
 fn cloud_axis(fixed: Option<(f64, f64)>, data: Option<(f64, f64)>) -> Axis {
-    match fixed {
-        Some((a, b)) if a.is_finite() && b.is_finite() && a != b => {
-            Axis::new(false, Some((a, b)), 0.0)
-        }
-        _ => Axis::new(false, data, 0.03),
+    match fixed_range(fixed) {
+        Some(range) => Axis::new(false, Some(range), 0.0),
+        None => Axis::new(false, data, 0.03),
     }
 }
 
@@ -41,88 +39,198 @@ fn bin_points(s: &Series, xa: &Axis, ya: &Axis, w: usize, h: usize, mut hit: imp
     }
 }
 
-pub(super) fn point_cloud_impl(
-    path: &Path,
-    fig: &Figure,
-    series: &[Series],
-    x_range: Option<(f64, f64)>,
-    y_range: Option<(f64, f64)>,
-) -> Result<(), PlotError> {
-    check_series(series)?;
-    let need_x = !matches!(x_range, Some((a, b)) if a.is_finite() && b.is_finite() && a != b);
-    let need_y = !matches!(y_range, Some((a, b)) if a.is_finite() && b.is_finite() && a != b);
-    // Extents only over points with both coordinates finite, so that a
-    // diverged trajectory (x finite, y = NaN) does not stretch the axes.
+/// A data range `(lo, hi)`, `None` when there is no data.
+type Extent = Option<(f64, f64)>;
+
+/// `range` if it can be used as an axis range as given: finite, not empty.
+fn fixed_range(range: Option<(f64, f64)>) -> Option<(f64, f64)> {
+    range.filter(|&(a, b)| a.is_finite() && b.is_finite() && a != b)
+}
+
+/// Extents over the points with both coordinates finite, so that a diverged
+/// trajectory (x finite, y = NaN) does not stretch the axes.
+fn finite_extents(series: &[Series]) -> (Extent, Extent) {
     let mut ext_x = None;
     let mut ext_y = None;
-    if need_x || need_y {
-        for s in series {
-            let (mut xl, mut xh, mut yl, mut yh) = (
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-            );
-            for (&x, &y) in s.x.iter().zip(s.y.iter()) {
-                if x.is_finite() && y.is_finite() {
-                    xl = xl.min(x);
-                    xh = xh.max(x);
-                    yl = yl.min(y);
-                    yh = yh.max(y);
-                }
-            }
-            if xl <= xh {
-                ext_x = merge(ext_x, Some((xl, xh)));
-                ext_y = merge(ext_y, Some((yl, yh)));
+    for s in series {
+        let (mut xl, mut xh, mut yl, mut yh) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for (&x, &y) in s.x.iter().zip(s.y.iter()) {
+            if x.is_finite() && y.is_finite() {
+                xl = xl.min(x);
+                xh = xh.max(x);
+                yl = yl.min(y);
+                yh = yh.max(y);
             }
         }
+        if xl <= xh {
+            ext_x = merge(ext_x, Some((xl, xh)));
+            ext_y = merge(ext_y, Some((yl, yh)));
+        }
     }
-    let xa = cloud_axis(x_range, ext_x);
-    let ya = cloud_axis(y_range, ext_y);
-    let density = series.len() == 1 && series.iter().all(|s| s.color.is_none());
-    let colours: Vec<Rgb> = series
-        .iter()
-        .enumerate()
-        .map(|(i, s)| s.color.unwrap_or_else(|| palette(i)))
-        .collect();
+    (ext_x, ext_y)
+}
 
-    render(path, fig, |body, st| {
-        // The count range is only known after binning, which needs the
-        // layout; size the colour bar for labels up to "10⁹".
-        let (main, side) = if density {
-            let probe = ColorBar::new(
-                Axis::new(true, Some((0.0, 9.0)), 0.0),
-                "points per pixel",
-                false,
-                750.0,
-                st,
-            );
-            let w = probe.width(body, st);
-            let (m, s) = split_side(body, w);
-            (m, Some(s))
+/// Hits per pixel of the plotting area (row-major, `w`×`h`) and, when
+/// colouring by series, the count-weighted sums of the series colours.
+struct Bins {
+    w: usize,
+    h: usize,
+    counts: Vec<u32>,
+    sums: Vec<[f64; 3]>,
+}
+
+impl Bins {
+    fn max(&self) -> u32 {
+        self.counts.iter().copied().max().unwrap_or(0)
+    }
+
+    fn occupied(&self) -> usize {
+        self.counts.iter().filter(|&&c| c > 0).count()
+    }
+
+    /// Index of the fullest pixel among `(i, j)` and its eight neighbours,
+    /// if any of them is hit; the first one in row order wins ties.
+    fn fullest_around(&self, i: usize, j: usize) -> Option<usize> {
+        let (w, h) = (self.w, self.h);
+        let mut best: Option<(u32, usize)> = None;
+        for dj in [-1i64, 0, 1] {
+            for di in [-1i64, 0, 1] {
+                let (ni, nj) = (i as i64 + di, j as i64 + dj);
+                if ni < 0 || nj < 0 || ni >= w as i64 || nj >= h as i64 {
+                    continue;
+                }
+                let nk = nj as usize * w + ni as usize;
+                if self.counts[nk] > best.map_or(0, |b| b.0) {
+                    best = Some((self.counts[nk], nk));
+                }
+            }
+        }
+        best.map(|(_, nk)| nk)
+    }
+}
+
+/// Axis of the colour bar: log10 of the points per pixel, up to `max`.
+fn count_axis(max: u32) -> Axis {
+    Axis {
+        log: true,
+        lo: 0.0,
+        hi: f64::from(max.max(2)).log10(),
+    }
+}
+
+/// A point cloud ready to draw: axes fixed before the layout, one colour
+/// per series.
+struct Cloud<'s, 'a> {
+    series: &'s [Series<'a>],
+    colours: Vec<Rgb>,
+    xa: Axis,
+    ya: Axis,
+    /// A single uncoloured series is shaded by density (with a colour bar);
+    /// otherwise each pixel takes the mean colour of the series hitting it.
+    density: bool,
+}
+
+impl<'s, 'a> Cloud<'s, 'a> {
+    fn new(
+        series: &'s [Series<'a>],
+        x_range: Option<(f64, f64)>,
+        y_range: Option<(f64, f64)>,
+    ) -> Self {
+        // The data extents are only scanned when some axis needs them.
+        let (ext_x, ext_y) = if fixed_range(x_range).is_none() || fixed_range(y_range).is_none() {
+            finite_extents(series)
         } else {
-            (body.clone(), None)
+            (None, None)
         };
-        let (mut chart, f) = build_chart(&main, st, fig, &xa, &ya, true, st.px(28.0))?;
+        Self {
+            series,
+            colours: series
+                .iter()
+                .enumerate()
+                .map(|(i, s)| s.color.unwrap_or_else(|| palette(i)))
+                .collect(),
+            xa: cloud_axis(x_range, ext_x),
+            ya: cloud_axis(y_range, ext_y),
+            density: series.len() == 1 && series.iter().all(|s| s.color.is_none()),
+        }
+    }
+
+    /// Lays out, rasterises and decorates the cloud on `body`.
+    fn draw(&self, body: &Area, st: &Style, fig: &Figure) -> Result<(), PlotError> {
+        let (main, side) = self.split_off_colour_bar(body, st);
+        let (mut chart, f) = build_chart(&main, st, fig, &self.xa, &self.ya, true, st.px(28.0))?;
         let (w, h) = (f.w(), f.h());
         if w == 0 || h == 0 {
             return Ok(());
         }
+        let bins = self.bin(w, h);
+        let max = bins.max();
+        let occupied = bins.occupied();
+        let bg = self.grid_background(&main, st, w, h);
+        blit(&main, &f, self.paint(&bins, &bg, max, occupied))?;
+        if occupied == 0 {
+            no_data(&main, &f, st)?;
+        }
+        draw_frame(&main, &f)?;
+
+        let named = self.series.iter().any(|s| !s.name.is_empty());
+        if !self.density && self.series.len() > 1 && named && occupied > 0 {
+            self.draw_legend(&mut chart, &main, st, &f, &bins)?;
+        }
+        if let Some(side) = side {
+            let height = f.h() as f64 + 110.0 * st.s;
+            let cb = ColorBar::new(count_axis(max), "points per pixel", false, height, st);
+            cb.draw(&side, st, &f)?;
+        }
+        Ok(())
+    }
+
+    /// The chart area and, for a density image, the colour bar's side panel.
+    /// The count range is only known after binning, which needs the layout;
+    /// the bar is sized for labels up to "10⁹".
+    fn split_off_colour_bar<'b>(
+        &self,
+        body: &Area<'b>,
+        st: &Style,
+    ) -> (Area<'b>, Option<Area<'b>>) {
+        if !self.density {
+            return (body.clone(), None);
+        }
+        let probe = ColorBar::new(
+            Axis::new(true, Some((0.0, 9.0)), 0.0),
+            "points per pixel",
+            false,
+            750.0,
+            st,
+        );
+        let w = probe.width(body, st);
+        let (m, s) = split_side(body, w);
+        (m, Some(s))
+    }
+
+    /// Counts the points per pixel of a `w`×`h` plotting area.
+    fn bin(&self, w: usize, h: usize) -> Bins {
+        let (xa, ya) = (&self.xa, &self.ya);
         let mut counts = vec![0u32; w * h];
         // Count-weighted colour sums, only needed when colouring by series.
-        let mut sums: Vec<[f64; 3]> = if density {
+        let mut sums: Vec<[f64; 3]> = if self.density {
             vec![]
         } else {
             vec![[0.0; 3]; w * h]
         };
-        for (s, c) in series.iter().zip(&colours) {
-            if density {
-                bin_points(s, &xa, &ya, w, h, |k| {
+        for (s, c) in self.series.iter().zip(&self.colours) {
+            if self.density {
+                bin_points(s, xa, ya, w, h, |k| {
                     counts[k] = counts[k].saturating_add(1);
                 });
             } else {
                 let cf = [f64::from(c.0), f64::from(c.1), f64::from(c.2)];
-                bin_points(s, &xa, &ya, w, h, |k| {
+                bin_points(s, xa, ya, w, h, |k| {
                     counts[k] = counts[k].saturating_add(1);
                     let acc = &mut sums[k];
                     acc[0] += cf[0];
@@ -131,15 +239,17 @@ pub(super) fn point_cloud_impl(
                 });
             }
         }
-        let max = counts.iter().copied().max().unwrap_or(0);
-        let occupied = counts.iter().filter(|&&c| c > 0).count();
+        Bins { w, h, counts, sums }
+    }
 
-        // Background with the grid lines, since the blit covers the mesh.
+    /// Background with the major grid lines, since the blit covers the
+    /// chart's own mesh.
+    fn grid_background(&self, main: &Area, st: &Style, w: usize, h: usize) -> Vec<Rgb> {
         let mut bg = vec![BG; w * h];
-        let (xt, yt) = chart_ticks(&main, st, &xa, &ya);
+        let (xt, yt) = chart_ticks(main, st, &self.xa, &self.ya);
         let grid = (GRID.0, GRID.1, GRID.2);
         for &t in &xt.major {
-            let i = (xa.frac(t) * (w - 1) as f64 + 1e-3).floor();
+            let i = (self.xa.frac(t) * (w - 1) as f64 + 1e-3).floor();
             if (0.0..w as f64).contains(&i) {
                 for j in 0..h {
                     bg[j * w + i as usize] = grid;
@@ -147,34 +257,45 @@ pub(super) fn point_cloud_impl(
             }
         }
         for &t in &yt.major {
-            let j = ((1.0 - ya.frac(t)) * (h - 1) as f64 + 1e-3).floor();
+            let j = ((1.0 - self.ya.frac(t)) * (h - 1) as f64 + 1e-3).floor();
             if (0.0..h as f64).contains(&j) {
                 let j = j as usize;
                 bg[j * w..(j + 1) * w].fill(grid);
             }
         }
+        bg
+    }
 
+    /// Colour of pixel `k`, `None` when empty: viridis of the log count for
+    /// a density image, otherwise the mean series colour laid over the
+    /// background, more opaque where the count is higher.
+    fn pixel_colour(&self, bins: &Bins, bg: &[Rgb], lmax: f64, k: usize) -> Option<Rgb> {
+        let n = bins.counts[k];
+        if n == 0 {
+            return None;
+        }
+        let t = f64::from(n).ln() / lmax;
+        if self.density {
+            Some(viridis(t))
+        } else {
+            let a = bins.sums[k];
+            let nf = f64::from(n);
+            let mean = (
+                (a[0] / nf).round() as u8,
+                (a[1] / nf).round() as u8,
+                (a[2] / nf).round() as u8,
+            );
+            Some(blend(bg[k], mean, 0.45 + 0.55 * t))
+        }
+    }
+
+    /// The RGB raster of the plotting area.
+    fn paint(&self, bins: &Bins, bg: &[Rgb], max: u32, occupied: usize) -> Vec<u8> {
+        let (w, h) = (bins.w, bins.h);
         let lmax = f64::from(max.max(2)).ln();
-        let colour_of = |k: usize| -> Option<Rgb> {
-            let n = counts[k];
-            if n == 0 {
-                return None;
-            }
-            let t = f64::from(n).ln() / lmax;
-            if density {
-                Some(viridis(t))
-            } else {
-                let a = sums[k];
-                let nf = f64::from(n);
-                let mean = (
-                    (a[0] / nf).round() as u8,
-                    (a[1] / nf).round() as u8,
-                    (a[2] / nf).round() as u8,
-                );
-                Some(blend(bg[k], mean, 0.45 + 0.55 * t))
-            }
-        };
-        // Sparse clouds: paint empty neighbours of occupied pixels too.
+        let colour_of = |k: usize| self.pixel_colour(bins, bg, lmax, k);
+        // Sparse clouds: paint empty neighbours of occupied pixels too, so
+        // that isolated points stay visible.
         let splat = occupied > 0 && (occupied as f64) < 0.01 * (w * h) as f64;
         let mut buf = vec![0u8; 3 * w * h];
         for j in 0..h {
@@ -184,74 +305,55 @@ pub(super) fn point_cloud_impl(
                     if !splat {
                         return None;
                     }
-                    let mut best: Option<(u32, usize)> = None;
-                    for dj in [-1i64, 0, 1] {
-                        for di in [-1i64, 0, 1] {
-                            let (ni, nj) = (i as i64 + di, j as i64 + dj);
-                            if ni < 0 || nj < 0 || ni >= w as i64 || nj >= h as i64 {
-                                continue;
-                            }
-                            let nk = nj as usize * w + ni as usize;
-                            if counts[nk] > best.map_or(0, |b| b.0) {
-                                best = Some((counts[nk], nk));
-                            }
-                        }
-                    }
-                    best.and_then(|(_, nk)| colour_of(nk))
+                    bins.fullest_around(i, j).and_then(colour_of)
                 });
                 put(&mut buf, k, c.unwrap_or(bg[k]));
             }
         }
-        blit(&main, &f, buf)?;
-        if occupied == 0 {
-            no_data(&main, &f, st)?;
-        }
-        draw_frame(&main, &f)?;
+        buf
+    }
 
-        let named = series.iter().any(|s| !s.name.is_empty());
-        if !density && series.len() > 1 && named && occupied > 0 {
-            let r = st.px(6.0);
-            for (s, c) in series.iter().zip(&colours) {
-                if s.name.is_empty() {
-                    continue;
-                }
-                let c = rgb(*c);
-                chart
-                    .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-                    .label(s.name)
-                    .legend(move |(x, y)| {
-                        Rectangle::new([(x, y - r), (x + 2 * r, y + r)], c.filled())
-                    });
+    /// Legend of the named series (colour squares), placed where it hides
+    /// the fewest hit pixels.
+    fn draw_legend<'c, 'b: 'c>(
+        &self,
+        chart: &mut Chart<'c, 'b>,
+        main: &Area,
+        st: &Style,
+        f: &Frame,
+        bins: &Bins,
+    ) -> Result<(), PlotError> {
+        let r = st.px(6.0);
+        for (s, c) in self.series.iter().zip(&self.colours) {
+            if s.name.is_empty() {
+                continue;
             }
-            let names: Vec<&str> = series
-                .iter()
-                .map(|s| s.name)
-                .filter(|n| !n.is_empty())
-                .collect();
-            let pos = legend_position(
-                &Occupancy::from_counts(&counts, w, h),
-                &names,
-                &main,
-                st,
-                &f,
-            );
-            legend_box(&mut chart, st, pos)?;
+            let c = rgb(*c);
+            chart
+                .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+                .label(s.name)
+                .legend(move |(x, y)| Rectangle::new([(x, y - r), (x + 2 * r, y + r)], c.filled()));
         }
-        if let Some(side) = side {
-            let ca = Axis {
-                log: true,
-                lo: 0.0,
-                hi: f64::from(max.max(2)).log10(),
-            };
-            let cb = ColorBar::new(
-                ca,
-                "points per pixel",
-                false,
-                f.h() as f64 + 110.0 * st.s,
-                st,
-            );
-            cb.draw(&side, st, &f)?;
-        }
-        Ok(())
-    })
+        let names: Vec<&str> = self
+            .series
+            .iter()
+            .map(|s| s.name)
+            .filter(|n| !n.is_empty())
+            .collect();
+        let occ = Occupancy::from_counts(&bins.counts, bins.w, bins.h);
+        let pos = legend_position(&occ, &names, main, st, f);
+        legend_box(chart, st, pos)
+    }
+}
+
+pub(super) fn point_cloud_impl(
+    path: &Path,
+    fig: &Figure,
+    series: &[Series],
+    x_range: Option<(f64, f64)>,
+    y_range: Option<(f64, f64)>,
+) -> Result<(), PlotError> {
+    check_series(series)?;
+    let cloud = Cloud::new(series, x_range, y_range);
+    render(path, fig, |body, st| cloud.draw(body, st, fig))
 }
