@@ -586,71 +586,14 @@ fn poincare(
     model: &Model,
     pc: Spanned<Table<tables::Poincare>>,
 ) -> Result<(Section, Vec<OutVar>, usize), SceneError> {
-    let field = "output.poincare";
     let span = pc.span();
     let Table(pc) = pc.into_inner();
     let section = match (&pc.period, &pc.crossing) {
-        (Some(per), None) => {
-            let skip = pc.skip.as_ref().map_or(0.0, |s| s.get_ref().0);
-            check_skip(skip).map_err(|m| {
-                p.err(
-                    "output.poincare.skip",
-                    pc.skip.as_ref().map(|s| s.span()).as_ref(),
-                    m,
-                )
-            })?;
-            let period = match per.get_ref() {
-                Period::Named(s) if s != "forcing" => return Err(p.err(
-                    "output.poincare.period",
-                    Some(&per.span()),
-                    "expected a number or \"forcing\" (the forcing period 2π/ω of each trajectory)",
-                )),
-                Period::Named(_) if model.forcing_frequency_param().is_none() => {
-                    return Err(p.err(
-                        "output.poincare.period",
-                        Some(&per.span()),
-                        format!("model `{}` has no forcing period", model.name()),
-                    ))
-                }
-                Period::Named(_) => None,
-                Period::Number(x) => Some(*x),
-            };
-            let phase =
-                pc.phase.as_ref().map_or(0.0, |x| x.get_ref().0) + skip * period.unwrap_or(1.0);
-            check_strobe(period.unwrap_or(1.0), phase)
-                .map_err(|(f, m)| p.err(&f, Some(&per.span()), m))?;
-            match period {
-                None => Section::Forced { skip },
-                Some(period) => Section::Stroboscopic { period, phase },
-            }
-        }
-        (None, Some(c)) => {
-            let var = c.get_ref().0.clone();
-            ov.one(p, "output.poincare.crossing", &var, &c.span())?;
-            let direction = match &pc.direction {
-                None => Direction::Up,
-                Some(d) => match d.get_ref().0.as_str() {
-                    "up" => Direction::Up,
-                    "down" => Direction::Down,
-                    "both" => Direction::Both,
-                    o => {
-                        return Err(p.err(
-                            "output.poincare.direction",
-                            Some(&d.span()),
-                            format!("`{o}` is not up, down or both"),
-                        ))
-                    }
-                },
-            };
-            Section::Crossing {
-                var,
-                value: pc.value.as_ref().map_or(0.0, |x| x.get_ref().0),
-                direction,
-            }
-        }
+        (Some(per), None) => stroboscopic(p, model, &pc, per)?,
+        (None, Some(c)) => crossing(p, ov, &pc, c)?,
         _ => {
             return Err(p.err(
-                field,
+                "output.poincare",
                 Some(&span),
                 "give either period (stroboscopic) or crossing (event section)",
             ))
@@ -662,6 +605,79 @@ fn poincare(
     };
     let max_points = pc.max_points.map_or(1000, |m| m.into_inner().0 as usize);
     Ok((section, vars, max_points))
+}
+
+/// A stroboscopic section: a period (or each trajectory's forcing period),
+/// a phase, and whole periods skipped before it starts.
+fn stroboscopic(
+    p: &Parser,
+    model: &Model,
+    pc: &tables::Poincare,
+    per: &Spanned<Period>,
+) -> Result<Section, SceneError> {
+    let skip = pc.skip.as_ref().map_or(0.0, |s| s.get_ref().0);
+    check_skip(skip).map_err(|m| {
+        p.err(
+            "output.poincare.skip",
+            pc.skip.as_ref().map(|s| s.span()).as_ref(),
+            m,
+        )
+    })?;
+    let period = match per.get_ref() {
+        Period::Named(s) if s != "forcing" => {
+            return Err(p.err(
+                "output.poincare.period",
+                Some(&per.span()),
+                "expected a number or \"forcing\" (the forcing period 2π/ω of each trajectory)",
+            ))
+        }
+        Period::Named(_) if model.forcing_frequency_param().is_none() => {
+            return Err(p.err(
+                "output.poincare.period",
+                Some(&per.span()),
+                format!("model `{}` has no forcing period", model.name()),
+            ))
+        }
+        Period::Named(_) => None,
+        Period::Number(x) => Some(*x),
+    };
+    let phase = pc.phase.as_ref().map_or(0.0, |x| x.get_ref().0) + skip * period.unwrap_or(1.0);
+    check_strobe(period.unwrap_or(1.0), phase).map_err(|(f, m)| p.err(&f, Some(&per.span()), m))?;
+    Ok(match period {
+        None => Section::Forced { skip },
+        Some(period) => Section::Stroboscopic { period, phase },
+    })
+}
+
+/// An event section: where a variable crosses a value, in a direction.
+fn crossing(
+    p: &Parser,
+    ov: &OutVars,
+    pc: &tables::Poincare,
+    c: &Spanned<Str>,
+) -> Result<Section, SceneError> {
+    let var = c.get_ref().0.clone();
+    ov.one(p, "output.poincare.crossing", &var, &c.span())?;
+    let direction = match &pc.direction {
+        None => Direction::Up,
+        Some(d) => match d.get_ref().0.as_str() {
+            "up" => Direction::Up,
+            "down" => Direction::Down,
+            "both" => Direction::Both,
+            o => {
+                return Err(p.err(
+                    "output.poincare.direction",
+                    Some(&d.span()),
+                    format!("`{o}` is not up, down or both"),
+                ))
+            }
+        },
+    };
+    Ok(Section::Crossing {
+        var,
+        value: pc.value.as_ref().map_or(0.0, |x| x.get_ref().0),
+        direction,
+    })
 }
 
 /// Checks the keys of `table` (and of its inline tables in `nested`),
