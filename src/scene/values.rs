@@ -147,13 +147,6 @@ impl<'a> Parser<'a> {
             _ => Err(self.mismatch(field, v, "a string")),
         }
     }
-    pub fn strings(&self, field: &str, v: &Spanned<DeValue>) -> Result<Vec<String>, SceneError> {
-        match v.get_ref() {
-            DeValue::Array(a) => a.iter().map(|x| self.string(field, x)).collect(),
-            DeValue::String(s) => Ok(vec![s.to_string()]),
-            _ => Err(self.mismatch(field, v, "a list of strings")),
-        }
-    }
     pub fn numbers(&self, field: &str, v: &Spanned<DeValue>) -> Result<Vec<f64>, SceneError> {
         match v.get_ref() {
             DeValue::Array(a) => a.iter().map(|x| self.number(field, x)).collect(),
