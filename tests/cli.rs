@@ -81,3 +81,45 @@ fn a_section_period_below_the_step_is_refused_not_run_forever() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `reeb check` on a scene written to a temporary file.
+fn check(name: &str, text: &str) -> (bool, String) {
+    let dir = std::env::temp_dir().join(format!("reeb-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join(format!("{name}.toml"));
+    std::fs::write(&scene, text).unwrap();
+    let r = reeb(&["check", scene.to_str().unwrap()], &[]);
+    std::fs::remove_dir_all(&dir).unwrap();
+    r
+}
+
+#[test]
+fn surprising_scenes_are_refused_with_the_field() {
+    let cases = [
+        (
+            "kepler",
+            "model = \"kepler\"\n[initial]\neccentricity = 0.5\nq1 = 0.3\n[integrator]\ndt = 0.01\nsteps = 10\n",
+            "kepler.toml:4: initial.q1: conflicts with initial.eccentricity, which sets q1 and p2",
+        ),
+        (
+            "order",
+            "model = \"van_der_pol\"\n[integrator]\nscheme = \"rk4\"\norder = \"BCACB\"\ndt = 0.01\nsteps = 10\n",
+            "order.toml:4: integrator.order: `rk4` has no piece order",
+        ),
+        (
+            "phase",
+            "model = \"van_der_pol\"\n[integrator]\ndt = 0.01\nsteps = 10\n[output]\ntrajectory = { every = 1, vars = [\"q\"] }\n[plot]\nphase = [\"q\", \"s\"]\n",
+            "phase.toml:8: plot.phase: `s` is not recorded by output.trajectory; it records: q",
+        ),
+        (
+            "section",
+            "model = \"van_der_pol\"\n[integrator]\ndt = 0.01\nsteps = 10\n[plot]\npoincare = [\"q\", \"s\"]\n",
+            "section.toml:6: plot.poincare: draws output.poincare, which this scene does not record",
+        ),
+    ];
+    for (name, text, says) in cases {
+        let (ok, err) = check(name, text);
+        assert!(!ok, "{name} was accepted");
+        assert!(err.contains(says), "{name}: {err}");
+    }
+}

@@ -188,7 +188,18 @@ pub fn resolve_initial(
                 return Err(err(field, format!("{v} is not in {}", alias.range)));
             }
             for (var, f) in alias.sets {
-                initial.entry(var.to_string()).or_insert_with(|| e.map(f));
+                if initial.contains_key(*var) {
+                    let sets: Vec<&str> = alias.sets.iter().map(|(v, _)| *v).collect();
+                    return Err(err(
+                        format!("initial.{var}"),
+                        format!(
+                            "conflicts with initial.{}, which sets {}: give one or the other",
+                            alias.key,
+                            sets.join(" and ")
+                        ),
+                    ));
+                }
+                initial.insert(var.to_string(), e.map(f));
             }
         }
     }

@@ -55,6 +55,13 @@ pub fn step_ops(
             let ops = splitting_ops(spec, weights, &half, time, with_optional, is_zero);
             Ok((ops, stages))
         }
+        SchemeKind::Method(m) if order.is_some() => Err(err(
+            "integrator.order",
+            format!(
+                "`{}` has no piece order; only the splitting schemes (s2 and its compositions) take one",
+                m.name()
+            ),
+        )),
         SchemeKind::Method(m) => {
             let op = spec.method_op(*m).ok_or_else(|| {
                 err(

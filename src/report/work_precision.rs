@@ -236,6 +236,10 @@ fn configurations<'a>(
 fn scheme_runs(base: &Scene, scheme: &Scheme) -> Result<Option<(Scheme, Vec<SubRun>)>> {
     let mut sc = base.clone();
     sc.scheme = scheme.clone();
+    // The scene's piece order is for its splitting schemes.
+    if !scheme.is_splitting() {
+        sc.order = None;
+    }
     match sc.sub_runs() {
         Ok(subs) => Ok(Some((scheme.clone(), subs))),
         Err(e) => {

@@ -189,6 +189,7 @@ impl Scene {
         let plot = plot(&mut p, &doc, &model)?;
         let report = report(&mut p, &doc, &integ.scheme)?;
         check_bifurcation(&p, &plot, &axes, out.poincare.is_some())?;
+        check_plot_vars(&p, &plot, &out)?;
         let scene = Scene {
             path: path.to_path_buf(),
             name,
@@ -852,6 +853,53 @@ fn each<T: std::str::FromStr<Err = String>>(
                 .map_err(|m: String| p.err(field, Some(&v.span()), m))
         })
         .collect()
+}
+
+/// The portraits' variables are recorded: `plot.phase` by the trajectory
+/// observer, `plot.poincare` by the section (else the picture could not be drawn).
+fn check_plot_vars(p: &Parser, plot: &PlotSettings, out: &Out) -> Result<(), SceneError> {
+    let components = |vars: &[OutVar]| -> Vec<String> {
+        vars.iter().flat_map(|v| v.components.clone()).collect()
+    };
+    let checks = [
+        (
+            "plot.phase",
+            &plot.phase,
+            "output.trajectory",
+            out.trajectory.as_ref().map(|(_, v)| components(v)),
+        ),
+        (
+            "plot.poincare",
+            &plot.poincare,
+            "output.poincare",
+            out.poincare.as_ref().map(|(_, v, _)| components(v)),
+        ),
+    ];
+    for (field, pair, observer, recorded) in checks {
+        let Some((x, y)) = pair else { continue };
+        let Some(recorded) = recorded else {
+            return Err(p.err(
+                field,
+                p.span_of(field),
+                format!("draws {observer}, which this scene does not record"),
+            ));
+        };
+        // An observer that records nothing is refused by the plan, by name.
+        if recorded.is_empty() {
+            continue;
+        }
+        if let Some(missing) = [x, y].into_iter().find(|v| !recorded.contains(v)) {
+            return Err(p.err(
+                field,
+                p.span_of(field),
+                format!(
+                    "`{missing}` is not recorded by {observer}; it records: {}",
+                    recorded.join(", ")
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The bifurcation diagram's axis is an axis of the scene, and there is a
