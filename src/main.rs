@@ -43,6 +43,9 @@ enum Command {
         /// Quick look: at most 4 values per axis and 2000 steps per plan, into runs/<name>-preview.
         #[arg(long)]
         preview: bool,
+        /// Replace the output directory even when it holds files reeb did not write (they are deleted).
+        #[arg(long)]
+        force: bool,
     },
     /// Reports: work-precision (error against run time per scheme, backend,
     /// precision and step) or stability (accurate / distorted / diverged over a 2-D grid).
@@ -110,6 +113,9 @@ struct ReportArgs {
     backend: Option<BackendChoice>,
     #[arg(long)]
     precision: Option<Precision>,
+    /// Replace the output directory even when it holds files reeb did not write (they are deleted).
+    #[arg(long)]
+    force: bool,
 }
 
 fn main() -> ExitCode {
@@ -132,7 +138,8 @@ fn main() -> ExitCode {
             backend,
             precision,
             preview,
-        } => run(scene, out, backend, precision, preview),
+            force,
+        } => run(scene, out, backend, precision, preview, force),
         Command::Check { scene } => Scene::load(&scene)
             .map(|s| {
                 let runs = s.sub_runs().map(|r| r.len()).unwrap_or(0);
@@ -188,6 +195,7 @@ fn run(
     backend: Option<BackendChoice>,
     precision: Option<Precision>,
     preview: bool,
+    force: bool,
 ) -> Result<ExitCode> {
     let mut scene = Scene::load(&scene)?;
     if preview {
@@ -199,6 +207,7 @@ fn run(
         precision,
         progress: std::io::stderr().is_terminal(),
         max_output_bytes: None,
+        force,
     };
     let report = run_scene(&scene, &opts)?;
     println!("{}", report.line);
@@ -408,6 +417,7 @@ fn report(kind: ReportKind) -> Result<ExitCode> {
             out: args.out,
             backend: args.backend,
             precision: args.precision,
+            force: args.force,
         },
     )?;
     println!("{}", written.display());

@@ -33,6 +33,7 @@ fn work_precision_measures_the_orders() {
             out: Some(out.clone()),
             backend: Some(BackendChoice::Cpu),
             precision: None,
+            force: false,
         },
     )
     .unwrap();
@@ -93,15 +94,21 @@ precisions = ["f32", "f64"]
     )
     .unwrap();
     let out = tmp("st");
-    let csv = stability(
-        &scene,
-        &ReportOptions {
-            out: Some(out.clone()),
-            backend: Some(BackendChoice::Cpu),
-            precision: None,
-        },
-    )
-    .unwrap();
+    let opts = ReportOptions {
+        out: Some(out.clone()),
+        backend: Some(BackendChoice::Cpu),
+        precision: None,
+        force: false,
+    };
+    let csv = stability(&scene, &opts).unwrap();
+    // A report replaces its own earlier output (its summary.json lists every file).
+    let listed = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    assert!(listed.contains("stability.csv") && listed.contains("stability.png"));
+    let csv = stability(&scene, &opts).map(|again| {
+        assert_eq!(again, csv);
+        again
+    });
+    let csv = csv.unwrap();
     let text = std::fs::read_to_string(csv).unwrap();
     let rows: Vec<Vec<&str>> = text
         .lines()

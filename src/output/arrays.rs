@@ -20,14 +20,16 @@ pub fn write_npy<T: npyz::AutoSerialize + npyz::Serialize>(
 ) -> Result<()> {
     let file =
         std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let mut w = npyz::WriteOptions::new()
-        .default_dtype()
-        .shape(shape)
-        .writer(BufWriter::new(file))
-        .begin_nd()?;
-    w.extend(data)?;
-    w.finish()?;
-    Ok(())
+    let write = || -> std::io::Result<()> {
+        let mut w = npyz::WriteOptions::new()
+            .default_dtype()
+            .shape(shape)
+            .writer(BufWriter::new(file))
+            .begin_nd()?;
+        w.extend(data)?;
+        w.finish()
+    };
+    write().with_context(|| format!("writing {}", path.display()))
 }
 
 /// Writes every array of `obs` into `dir`; returns the file names.

@@ -1,9 +1,11 @@
 //! `reeb run`: a scene through a backend into a directory of arrays, a
 //! summary and pictures.
 //!
-//! The directory is written as `<dir>.partial` and renamed into place at the
-//! end, so a run that fails or is killed never leaves a directory that looks
-//! complete; `summary.json` is the last file written.
+//! The directory is claimed before any work and written as `<dir>.partial`
+//! (`directory.rs`), then swapped into place: a run that fails or is killed
+//! never leaves a directory that looks complete, and nothing the user did
+//! not ask reeb to replace is touched; `summary.json` is the last file
+//! written.
 
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -11,6 +13,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
+
+use crate::output::directory::{self, Claim};
 
 use crate::backend::Engine;
 use crate::models::Flows;
@@ -37,6 +41,8 @@ pub struct RunOptions {
     pub progress: bool,
     /// Largest output size accepted before running (default: 70 % of available memory).
     pub max_output_bytes: Option<u64>,
+    /// Replace `out` even when it holds files reeb did not write.
+    pub force: bool,
 }
 
 /// Available memory in bytes (Linux `/proc/meminfo`), if known.
@@ -85,47 +91,40 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
             bytes(limit)
         );
     }
+    let out = opts
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("runs").join(&scene.name));
+    let claim = directory::claim(&out, &[&scene.path], opts.force)?;
+    claim.check_space(need / 2)?;
     let (engine, notice) = Engine::resolve(choice, precision)?;
     if let Some(n) = notice {
         eprintln!("{n}");
     }
     match precision {
-        Precision::F32 => run_typed::<f32>(scene, subs, opts, &engine, precision),
-        Precision::F64 => run_typed::<f64>(scene, subs, opts, &engine, precision),
+        Precision::F32 => run_typed::<f32>(scene, subs, claim, opts, &engine, precision),
+        Precision::F64 => run_typed::<f64>(scene, subs, claim, opts, &engine, precision),
     }
 }
 
 fn run_typed<R: Flows>(
     scene: &Scene,
     subs: Vec<SubRun>,
+    claim: Claim,
     opts: &RunOptions,
     engine: &Engine,
     precision: Precision,
 ) -> Result<RunReport> {
     let run = integrate_scene::<R>(scene, &subs, engine, opts.progress)?;
-    // Write into <out>.partial, then move into place.
-    let out = opts
-        .out
-        .clone()
-        .unwrap_or_else(|| Path::new("runs").join(&scene.name));
-    let partial = fresh_partial(&out)?;
-    let mut files = write_arrays(scene, &partial, &run.observations)?;
-    match crate::output::pictures::draw(scene, &partial, &run.observations) {
+    let partial = claim.dir();
+    let mut files = write_arrays(scene, partial, &run.observations)?;
+    match crate::output::pictures::draw(scene, partial, &run.observations) {
         Ok(p) => files.extend(p),
         Err(e) => eprintln!("warning: pictures not drawn: {e:#}"),
     }
     let summary = summary(scene, &subs, engine, precision, &run, &files);
-    {
-        let mut f = BufWriter::new(std::fs::File::create(partial.join("summary.json"))?);
-        serde_json::to_writer_pretty(&mut f, &summary)?;
-        f.write_all(b"\n")?;
-        f.flush()?;
-    }
-    if out.exists() {
-        std::fs::remove_dir_all(&out).with_context(|| format!("replacing {}", out.display()))?;
-    }
-    std::fs::rename(&partial, &out)
-        .with_context(|| format!("moving {} to {}", partial.display(), out.display()))?;
+    write_json(&partial.join("summary.json"), &summary)?;
+    let out = claim.commit()?;
     let n = scene.ensemble_size();
     let ok = run.observations.count_ok();
     let line = format!(
@@ -245,15 +244,32 @@ fn progress_bar(total: u64, message: String) -> indicatif::ProgressBar {
     b
 }
 
-/// `<out>.partial`, empty and ready to write.
-fn fresh_partial(out: &Path) -> Result<PathBuf> {
-    let partial = partial_dir(out);
-    if partial.exists() {
-        std::fs::remove_dir_all(&partial)
-            .with_context(|| format!("removing {}", partial.display()))?;
-    }
-    std::fs::create_dir_all(&partial).with_context(|| format!("creating {}", partial.display()))?;
-    Ok(partial)
+/// Writes `value` as pretty JSON to `path`.
+pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+    let write = || -> std::io::Result<()> {
+        let mut f = BufWriter::new(std::fs::File::create(path)?);
+        serde_json::to_writer_pretty(&mut f, value)?;
+        f.write_all(b"\n")?;
+        f.flush()
+    };
+    write().with_context(|| format!("writing {}", path.display()))
+}
+
+/// Where and how a run was made: the command line, the host, the UTC time
+/// and the CPU kernels' instruction set.
+/// `cpu_isa` is null when the CPU kernels did not run.
+pub fn provenance(cpu_ran: bool) -> serde_json::Map<String, serde_json::Value> {
+    let args: Vec<String> = std::env::args_os()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect();
+    let isa = cpu_ran.then(|| crate::backend::cpu::kernels::isa().name());
+    let utc = humantime::format_rfc3339_seconds(std::time::SystemTime::now());
+    let mut map = serde_json::Map::new();
+    map.insert("command_line".into(), args.into());
+    map.insert("host".into(), directory::hostname().into());
+    map.insert("utc".into(), utc.to_string().into());
+    map.insert("cpu_isa".into(), isa.into());
+    map
 }
 
 /// The contents of summary.json.
@@ -272,7 +288,7 @@ fn summary<R>(
         .iter()
         .filter(|s| **s == 0)
         .count();
-    serde_json::json!({
+    let mut value = serde_json::json!({
         "reeb_version": env!("CARGO_PKG_VERSION"),
         "scene": {
             "name": scene.name,
@@ -299,14 +315,9 @@ fn summary<R>(
         "evaluations_per_step": Some(scene.scheme.evaluations()),
         "status": {"ok": ok, "non_finite": n - ok},
         "files": files,
-    })
-}
-
-fn partial_dir(out: &Path) -> PathBuf {
-    let mut name = out
-        .file_name()
-        .map(|s| s.to_os_string())
-        .unwrap_or_else(|| "run".into());
-    name.push(".partial");
-    out.with_file_name(name)
+    });
+    if let serde_json::Value::Object(map) = &mut value {
+        map.extend(provenance(matches!(engine, Engine::Cpu)));
+    }
+    value
 }

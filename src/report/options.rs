@@ -7,6 +7,8 @@ use anyhow::{Context, Result};
 
 use crate::backend::BackendChoice;
 use crate::num::precision::Precision;
+use crate::output::directory::{self, Claim};
+use crate::output::run::{provenance, write_json};
 use crate::scene::{ReportSettings, Scene};
 
 /// Options of `reeb report`.
@@ -16,6 +18,8 @@ pub struct ReportOptions {
     /// Restrict the scene's backends / precisions.
     pub backend: Option<BackendChoice>,
     pub precision: Option<Precision>,
+    /// Replace `out` even when it holds files reeb did not write.
+    pub force: bool,
 }
 
 /// The scene's `[report]` table, or the defaults for its scheme.
@@ -26,14 +30,41 @@ pub(super) fn settings(scene: &Scene) -> ReportSettings {
         .unwrap_or_else(|| ReportSettings::defaults(&scene.scheme))
 }
 
-/// The report's directory (`--out`, or `runs/<scene>-<what>`), created.
-pub(super) fn out_dir(scene: &Scene, opts: &ReportOptions, what: &str) -> Result<PathBuf> {
+/// Claims the report's directory (`--out`, or `runs/<scene>-<what>`)
+/// before any work, under the rules of `reeb run` (`output/directory.rs`);
+/// the report is written into the claim's `.partial`.
+pub(super) fn claim_dir(scene: &Scene, opts: &ReportOptions, what: &str) -> Result<Claim> {
     let out = opts
         .out
         .clone()
         .unwrap_or_else(|| Path::new("runs").join(format!("{}-{what}", scene.name)));
-    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-    Ok(out)
+    directory::claim(&out, &[&scene.path], opts.force)
+}
+
+/// Lists the report's files in its summary.json and swaps its directory
+/// into place; returns the path of `main` there.
+pub(super) fn finish(claim: Claim, scene: &Scene, what: &str, main: &str) -> Result<PathBuf> {
+    let mut files = vec![];
+    for e in std::fs::read_dir(claim.dir())
+        .with_context(|| format!("reading {}", claim.dir().display()))?
+    {
+        let name = e?.file_name().to_string_lossy().into_owned();
+        if !name.starts_with('.') {
+            files.push(name);
+        }
+    }
+    files.sort();
+    let mut summary = serde_json::json!({
+        "reeb_version": env!("CARGO_PKG_VERSION"),
+        "report": what,
+        "scene": {"name": scene.name, "path": scene.path.display().to_string(), "text": scene.text},
+        "files": files,
+    });
+    if let serde_json::Value::Object(map) = &mut summary {
+        map.extend(provenance(true));
+    }
+    write_json(&claim.dir().join("summary.json"), &summary)?;
+    Ok(claim.commit()?.join(main))
 }
 
 /// The precisions to run: the one asked for on the command line, or the scene's.

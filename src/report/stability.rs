@@ -6,7 +6,6 @@
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
@@ -20,7 +19,7 @@ use crate::plan::Plan;
 use crate::reference::truth::{dop853_of, lane_of};
 use crate::scene::{OutVar, ReportSettings, Scene, SubRun};
 
-use super::options::{out_dir, precisions, settings, ReportOptions};
+use super::options::{claim_dir, finish, precisions, settings, ReportOptions};
 
 /// Class of a stability cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -43,7 +42,8 @@ impl Class {
 /// Runs the stability report of `scene`; returns the path of stability.csv.
 pub fn stability(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
     let set = settings(scene);
-    let out = out_dir(scene, opts, "stability")?;
+    let claim = claim_dir(scene, opts, "stability")?;
+    let out = claim.dir().to_path_buf();
     let map = Map::of(scene)?;
     let (sc, cycle) = cycle_scene(scene);
     let precisions = precisions(opts, &set);
@@ -53,7 +53,9 @@ pub fn stability(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
         .unwrap_or(BackendChoice::Cpu);
     let subs = sc.sub_runs()?;
     let mut references = CycleReferences::new(cycle, set.reference_rtol.max(1e-10));
-    let mut csv = csv::Writer::from_path(out.join("stability.csv"))?;
+    let csv_path = out.join("stability.csv");
+    let mut csv = csv::Writer::from_path(&csv_path)
+        .with_context(|| format!("creating {}", csv_path.display()))?;
     csv.write_record([
         scene.axes[map.ka].name.as_str(),
         scene.axes[map.kb].name.as_str(),
@@ -89,11 +91,13 @@ pub fn stability(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
             )?;
         }
     }
-    csv.flush()?;
-    let mut f = std::fs::File::create(out.join("summary.txt"))?;
-    f.write_all(summary.as_bytes())?;
+    csv.flush()
+        .with_context(|| format!("writing {}", csv_path.display()))?;
+    let txt = out.join("summary.txt");
+    std::fs::write(&txt, summary.as_bytes())
+        .with_context(|| format!("writing {}", txt.display()))?;
     print!("{summary}");
-    Ok(out.join("stability.csv"))
+    finish(claim, scene, "stability", "stability.csv")
 }
 
 /// The two axes a stability map spans, and where a scene row sits on them.

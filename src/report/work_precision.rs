@@ -21,7 +21,7 @@ use crate::plan::Plan;
 use crate::reference::truth::{dop853_of, truth, Truth};
 use crate::scene::{Horizon, OutVar, ReportSettings, Scene, SubRun};
 
-use super::options::{out_dir, precisions, settings, ReportOptions};
+use super::options::{claim_dir, finish, precisions, settings, ReportOptions};
 
 /// One measured point of a work–precision diagram.
 #[derive(Debug, Clone)]
@@ -74,7 +74,8 @@ type Curve = (String, Vec<f64>, Vec<f64>);
 /// Runs the work–precision report of `scene`; returns the path of report.md.
 pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
     let set = settings(scene);
-    let out = out_dir(scene, opts, "work-precision")?;
+    let claim = claim_dir(scene, opts, "work-precision")?;
+    let out = claim.dir().to_path_buf();
     let error_vars = error_vars(scene, &set)?;
     let base = measured_scene(scene, &error_vars);
     let engines = engines(opts, &set);
@@ -126,8 +127,9 @@ pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
     let _ = writeln!(md, "## Measured order\n\nSlope of log error against log dt over the last four points between 10⁻² and the floor (10⁴ unit roundoffs, or 100× the reference's estimated error, {reference_error:.1e}).\n\n| configuration | nominal | measured | points |\n|---|---|---|---|\n{orders_md}");
     fastest_per_target(&mut md, &rows, &set.targets, time_span(scene, &first.plan));
     let _ = writeln!(md, "\nAll points: `work_precision.csv`.");
-    std::fs::write(out.join("report.md"), md)?;
-    Ok(out.join("report.md"))
+    let md_path = out.join("report.md");
+    std::fs::write(&md_path, md).with_context(|| format!("writing {}", md_path.display()))?;
+    finish(claim, scene, "work-precision", "report.md")
 }
 
 // ---------------------------------------------------------------------------

@@ -133,6 +133,17 @@ pub enum Isa {
     V4,
 }
 
+impl Isa {
+    /// The level's name, as `REEB_CPU_ISA` spells it, with its features.
+    pub fn name(self) -> &'static str {
+        match self {
+            Isa::Baseline => "baseline (x86-64 SSE2, or the target's default)",
+            Isa::V3 => "v3 (AVX2 + FMA)",
+            Isa::V4 => "v4 (AVX-512)",
+        }
+    }
+}
+
 /// The values `REEB_CPU_ISA` may take.
 pub const ISA_CAPS: &[&str] = &["baseline", "v3", "v4"];
 
