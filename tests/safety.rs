@@ -255,3 +255,36 @@ fn reports_use_the_same_rules_and_leave_nothing_when_they_fail() {
         "is the working directory",
     );
 }
+
+#[test]
+fn a_full_disk_is_reported_with_the_path() {
+    // /dev/full answers every write with ENOSPC.
+    let full = Path::new("/dev/full");
+    if !full.exists() {
+        return;
+    }
+    let e = reeb::output::run::write_npy(full, &[4], [1.0f64; 4])
+        .err()
+        .expect("writing to /dev/full fails");
+    let e = format!("{e:#}");
+    assert!(
+        e.contains("/dev/full") && e.contains("No space left"),
+        "{e}"
+    );
+}
+
+#[test]
+fn free_disk_space_is_compared_with_the_estimate_before_the_work() {
+    let s = Sandbox::new("space");
+    let out = s.path("res");
+    let claim = reeb::output::directory::claim(&out, &[], false).unwrap();
+    assert!(claim.check_space(1).is_ok());
+    let e = format!("{:#}", claim.check_space(u64::MAX).err().unwrap());
+    assert!(e.contains("on disk") && e.contains("free there"), "{e}");
+    assert!(e.contains(&out.display().to_string()), "{e}");
+    let partial = claim.dir().to_path_buf();
+    assert!(partial.exists());
+    drop(claim);
+    // A claim given up removes its partial and creates nothing.
+    assert!(!partial.exists() && !out.exists());
+}
