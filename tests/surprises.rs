@@ -358,3 +358,14 @@ fn shipped_scenes_check_without_spurious_warnings() {
     }
     assert!(n > 10);
 }
+
+#[test]
+fn a_preview_says_nothing_of_the_t_end_it_stops_before() {
+    let s = parse(
+        "preview",
+        &scene("epsilon = 1.0", "q = 2.0", "dt = 0.3\nt_end = 10000.0"),
+    );
+    assert_eq!(s.checks(Precision::F32).unwrap().len(), 1);
+    let w = s.preview(4, 2000).checks(Precision::F32).unwrap();
+    assert!(w.is_empty(), "{w:?}");
+}

@@ -331,7 +331,12 @@ fn check_time(
 ) -> Result<(), PlanError> {
     let p = lim.0;
     let dts = plan.binding("dt").values();
+    // The time scale max(|t0|, |t0 + steps·dt|) is largest at an extreme t0.
     let t0s = plan.binding("t0").values();
+    let t0s = [
+        t0s.iter().copied().fold(f64::INFINITY, f64::min),
+        t0s.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    ];
     let steps = plan.steps as f64;
     // (dt / spacing, dt, time scale) of the worst trajectory.
     let mut worst: Option<(f64, f64, f64)> = None;

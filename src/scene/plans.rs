@@ -211,9 +211,14 @@ impl Scene {
         };
         // (t0, dt, steps, final time) of the plans that miss t_end.
         let mut missed: Vec<(f64, f64, u64, f64)> = vec![];
+        let mut considered = 0;
         for sub in subs {
             let (t0, dt) = (constant("t0", sub), constant("dt", sub));
             let steps = self.steps_to(t_end, t0, dt)?;
+            if self.step_cap.is_some_and(|cap| steps > cap) {
+                continue; // a preview: it stops before t_end anyway
+            }
+            considered += 1;
             let r = (t_end - t0) / dt;
             if (r - steps as f64).abs() > 1e-6f64.max(r * 1e-14) {
                 missed.push((t0, dt, steps, t0 + steps as f64 * dt));
@@ -232,7 +237,7 @@ impl Scene {
             format!("t_end − t0 = {} (t0 = {t0:?})", short(t_end - t0, 10))
         };
         let ends = format!("{steps} steps end at t = {}", apart(end, t_end));
-        let message = if subs.len() == 1 {
+        let message = if considered == 1 {
             format!("{span} is not a multiple of dt = {}: {ends}", short(dt, 10))
         } else {
             let names: Vec<&str> = self
@@ -253,7 +258,7 @@ impl Scene {
                     format!("t_end − t0 (t_end = {t_end:?})")
                 },
                 missed.len(),
-                subs.len(),
+                considered,
                 match names[..] {
                     [one] => format!("values of {one}"),
                     _ => format!("pairs of {}", names.join(" and ")),
