@@ -53,8 +53,14 @@ enum Command {
         #[command(subcommand)]
         kind: ReportKind,
     },
-    /// Check a scene file without running it.
-    Check { scene: PathBuf },
+    /// Check a scene file without running it: errors refuse it; warnings
+    /// (on stderr) say what is merely surprising.
+    Check {
+        scene: PathBuf,
+        /// Check for this precision (f32 or f64) instead of the scene's.
+        #[arg(long)]
+        precision: Option<Precision>,
+    },
     /// List GPU adapters, their type, limits, and whether f64 and timestamps are available.
     Info,
     /// Measure trajectory-steps per second on this machine (median of repeats).
@@ -140,17 +146,30 @@ fn main() -> ExitCode {
             preview,
             force,
         } => run(scene, out, backend, precision, preview, force),
-        Command::Check { scene } => Scene::load(&scene)
-            .map(|s| {
+        Command::Check { scene, precision } => Scene::load(&scene)
+            .and_then(|s| {
+                let precision = precision.unwrap_or(s.precision);
+                let warnings = s.checks(precision)?;
+                Ok((s, precision, warnings))
+            })
+            .map(|(s, precision, warnings)| {
+                for w in &warnings {
+                    eprintln!("warning: {w}");
+                }
                 let runs = s.sub_runs().map(|r| r.len()).unwrap_or(0);
                 println!(
-                    "{}: ok: model {}, scheme {}, {} trajectories over {} axes, {} plan(s)",
+                    "{}: ok: model {}, scheme {}, {precision}, {} trajectories over {} axes, {} plan(s){}",
                     s.path.display(),
                     s.model.name(),
                     s.scheme,
                     s.ensemble_size(),
                     s.axes.len(),
-                    runs
+                    runs,
+                    match warnings.len() {
+                        0 => String::new(),
+                        1 => ", 1 warning".into(),
+                        n => format!(", {n} warnings"),
+                    }
                 );
                 ExitCode::SUCCESS
             })

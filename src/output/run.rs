@@ -22,7 +22,7 @@ use crate::num::precision::Precision;
 use crate::output::arrays::write_arrays;
 pub use crate::output::arrays::write_npy;
 use crate::plan::observations::{estimate_bytes, Observations};
-use crate::scene::{BackendChoice, Scene, SubRun};
+use crate::scene::{BackendChoice, Scene, SceneWarning, SubRun};
 
 /// What a finished run reports.
 pub struct RunReport {
@@ -72,6 +72,11 @@ pub fn bytes(b: u64) -> String {
 pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
     let precision = opts.precision.unwrap_or(scene.precision);
     let choice = opts.backend.unwrap_or(scene.backend);
+    // The checks that depend on the working precision (refusals, warnings).
+    let warnings = scene.checks(precision)?;
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
     let subs = scene.sub_runs()?;
     // Memory before any work: the observations of every sub-run, twice over
     // while they are assembled into the scene's arrays.
@@ -101,10 +106,22 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
     if let Some(n) = notice {
         eprintln!("{n}");
     }
+    let made = Made {
+        engine: &engine,
+        precision,
+        warnings: &warnings,
+    };
     match precision {
-        Precision::F32 => run_typed::<f32>(scene, subs, claim, opts, &engine, precision),
-        Precision::F64 => run_typed::<f64>(scene, subs, claim, opts, &engine, precision),
+        Precision::F32 => run_typed::<f32>(scene, subs, claim, opts, &made),
+        Precision::F64 => run_typed::<f64>(scene, subs, claim, opts, &made),
     }
+}
+
+/// How a run is made: engine, precision, and the warnings it was given.
+struct Made<'a> {
+    engine: &'a Engine,
+    precision: Precision,
+    warnings: &'a [SceneWarning],
 }
 
 fn run_typed<R: Flows>(
@@ -112,9 +129,9 @@ fn run_typed<R: Flows>(
     subs: Vec<SubRun>,
     claim: Claim,
     opts: &RunOptions,
-    engine: &Engine,
-    precision: Precision,
+    made: &Made,
 ) -> Result<RunReport> {
+    let (engine, precision) = (made.engine, made.precision);
     let run = integrate_scene::<R>(scene, &subs, engine, opts.progress)?;
     let partial = claim.dir();
     let mut files = write_arrays(scene, partial, &run.observations)?;
@@ -122,7 +139,7 @@ fn run_typed<R: Flows>(
         Ok(p) => files.extend(p),
         Err(e) => eprintln!("warning: pictures not drawn: {e:#}"),
     }
-    let summary = summary(scene, &subs, engine, precision, &run, &files);
+    let summary = summary(scene, &subs, made, &run, &files);
     write_json(&partial.join("summary.json"), &summary)?;
     let out = claim.commit()?;
     let n = scene.ensemble_size();
@@ -276,11 +293,11 @@ pub fn provenance(cpu_ran: bool) -> serde_json::Map<String, serde_json::Value> {
 fn summary<R>(
     scene: &Scene,
     subs: &[SubRun],
-    engine: &Engine,
-    precision: Precision,
+    made: &Made,
     run: &SceneRun<R>,
     files: &[String],
 ) -> serde_json::Value {
+    let (engine, precision) = (made.engine, made.precision);
     let n = scene.ensemble_size();
     let ok = run
         .observations
@@ -314,6 +331,7 @@ fn summary<R>(
         "traj_steps_per_s": run.rate(),
         "evaluations_per_step": Some(scene.scheme.evaluations()),
         "status": {"ok": ok, "non_finite": n - ok},
+        "warnings": made.warnings.iter().map(|w| w.to_string()).collect::<Vec<_>>(),
         "files": files,
     });
     if let serde_json::Value::Object(map) = &mut value {

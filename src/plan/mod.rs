@@ -12,6 +12,7 @@
 pub mod observations;
 pub mod observed;
 pub mod observers;
+pub mod precision;
 pub mod problem;
 pub mod scheme;
 pub mod step;
@@ -22,7 +23,7 @@ pub use observed::ObsVar;
 use observed::Observed;
 use observers::{Observers, Section};
 use problem::{check_coefficients, check_sources, err, resolve_initial};
-pub use problem::{row_major_strides, Axis, PlanError, Problem, Source};
+pub use problem::{row_major_strides, Axis, PlanError, PlanWarning, Problem, Source};
 use scheme::{Scheme, SchemeKind};
 pub use step::{Op, Stages};
 

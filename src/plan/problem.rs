@@ -89,6 +89,27 @@ pub struct PlanError {
     pub message: String,
 }
 
+/// What is merely surprising about a problem (it runs, but perhaps not as
+/// meant); the message names the field, like [`PlanError`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanWarning {
+    pub field: String,
+    pub message: String,
+}
+
+impl std::fmt::Display for PlanWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.field, self.message)
+    }
+}
+
+pub fn warn(field: impl Into<String>, message: impl Into<String>) -> PlanWarning {
+    PlanWarning {
+        field: field.into(),
+        message: message.into(),
+    }
+}
+
 pub fn err(field: impl Into<String>, message: impl Into<String>) -> PlanError {
     PlanError {
         field: field.into(),

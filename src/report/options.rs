@@ -67,10 +67,21 @@ pub(super) fn finish(claim: Claim, scene: &Scene, what: &str, main: &str) -> Res
     Ok(claim.commit()?.join(main))
 }
 
-/// The precisions to run: the one asked for on the command line, or the scene's.
-pub(super) fn precisions(opts: &ReportOptions, set: &ReportSettings) -> Vec<Precision> {
-    match opts.precision {
+/// The precisions to run: the one asked for on the command line, or the
+/// scene's; each passes the scene's precision checks (its warnings printed).
+pub(super) fn precisions(
+    scene: &Scene,
+    opts: &ReportOptions,
+    set: &ReportSettings,
+) -> Result<Vec<Precision>> {
+    let precisions = match opts.precision {
         Some(p) => vec![p],
         None => set.precisions.clone(),
+    };
+    for p in &precisions {
+        for w in scene.checks(*p)? {
+            eprintln!("warning ({p}): {w}");
+        }
     }
+    Ok(precisions)
 }

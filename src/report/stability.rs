@@ -46,7 +46,7 @@ pub fn stability(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
     let out = claim.dir().to_path_buf();
     let map = Map::of(scene)?;
     let (sc, cycle) = cycle_scene(scene);
-    let precisions = precisions(opts, &set);
+    let precisions = precisions(scene, opts, &set)?;
     let backend = opts
         .backend
         .or(set.backends.first().copied())

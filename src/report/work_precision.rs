@@ -79,7 +79,7 @@ pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
     let error_vars = error_vars(scene, &set)?;
     let base = measured_scene(scene, &error_vars);
     let engines = engines(opts, &set);
-    let precisions = precisions(opts, &set);
+    let precisions = precisions(scene, opts, &set)?;
     let measured = measure_schemes(&base, &set, &engines, &precisions, &error_vars)?;
     let mut rows = measured.rows;
 

@@ -11,3 +11,24 @@ pub struct SceneError {
     pub field: String,
     pub message: String,
 }
+
+/// What is merely surprising about a scene (it runs, perhaps not as meant):
+/// located like a [`SceneError`]; printed as `warning: file:line: field: message`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SceneWarning {
+    pub path: PathBuf,
+    pub line: Option<usize>,
+    pub field: String,
+    pub message: String,
+}
+
+impl std::fmt::Display for SceneWarning {
+    // `file:line: field: message`, as a `SceneError` (without `warning: `).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.path.display())?;
+        if let Some(l) = self.line {
+            write!(f, ":{l}")?;
+        }
+        write!(f, ": {}: {}", self.field, self.message)
+    }
+}

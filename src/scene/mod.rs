@@ -39,6 +39,7 @@ use crate::plan::observers::{CycleObs, Section};
 use crate::plan::scheme::Scheme;
 use crate::plan::Plan;
 pub use error::SceneError;
+pub use error::SceneWarning;
 pub use values::splitmix64;
 
 /// An axis of the ensemble, as the scene names it.

@@ -2,10 +2,12 @@
 //! count (`dt` or `t0` with `t_end`), each a [`Plan`] of the scene's
 //! problem with those axes held fixed.
 
+use crate::num::precision::Precision;
 use crate::plan::observers::{Observers, PoincareObs, TrajectoryObs};
-use crate::plan::{Plan, Problem, Source};
+use crate::plan::precision::{self as fits, apart, short, Limits};
+use crate::plan::{Plan, PlanError, PlanWarning, Problem, Source};
 
-use super::{Horizon, Input, OutVar, Scene, SceneError, SubRun};
+use super::{Horizon, Input, OutVar, Scene, SceneError, SceneWarning, SubRun};
 
 impl Scene {
     pub(crate) fn t0_input(&self) -> Input {
@@ -52,6 +54,221 @@ impl Scene {
             });
         }
         Ok(out)
+    }
+
+    /// The checks that depend on the working precision, which `reeb run
+    /// --precision` may change after the scene is read: what `precision`
+    /// cannot hold is refused (a value beyond its range, a `dt` that is 0 in
+    /// it); what is merely surprising comes back as warnings (a value that
+    /// underflows, axis values that become equal, a `dt` below the resolution
+    /// of time at the run's time scale, a `t_end` that is not a multiple of
+    /// `dt`, a section that starts after the run ends), in line order.
+    pub fn checks(&self, precision: Precision) -> Result<Vec<SceneWarning>, SceneError> {
+        let lim = Limits(precision);
+        let mut found: Vec<PlanWarning> = vec![];
+        if let Horizon::TEnd(t_end) = self.horizon {
+            fits::check_values(lim, "integrator.t_end", None, &[t_end], &mut found)
+                .map_err(|e| self.plan_error(e))?;
+        }
+        let subs = self.sub_runs()?;
+        let mut per_plan: Vec<Vec<PlanWarning>> = vec![];
+        for sub in &subs {
+            per_plan.push(fits::check(&sub.plan, precision).map_err(|e| self.plan_error(e))?);
+        }
+        found.extend(self.merged(per_plan));
+        found.extend(self.equal_in(lim));
+        found.extend(self.t_end_missed(&subs)?);
+        let mut out: Vec<SceneWarning> = found
+            .into_iter()
+            .map(|w| SceneWarning {
+                path: self.path.clone(),
+                line: self.line_of(&w.field),
+                field: w.field,
+                message: w.message,
+            })
+            .collect();
+        out.sort_by_key(|w| w.line.unwrap_or(usize::MAX));
+        Ok(out)
+    }
+
+    /// A plan's error at the scene's line (the final time of a `t_end`
+    /// scene is its `t_end`).
+    fn plan_error(&self, e: PlanError) -> SceneError {
+        let field = match (e.field.as_str(), self.horizon) {
+            ("integrator.steps", Horizon::TEnd(_)) => "integrator.t_end",
+            (f, _) => f,
+        };
+        self.error(field, e.message)
+    }
+
+    /// The plans' warnings, each once: plans that differ only in their `dt`
+    /// or `t0` warn alike (the same field, the same words, other numbers), so
+    /// the first stands for the others.
+    fn merged(&self, per_plan: Vec<Vec<PlanWarning>>) -> Vec<PlanWarning> {
+        // The message without its numbers.
+        let shape = |m: &str| {
+            let mut out = String::new();
+            for c in m.chars() {
+                if "0123456789.e+-".contains(c) {
+                    if !out.ends_with('#') {
+                        out.push('#');
+                    }
+                } else {
+                    out.push(c);
+                }
+            }
+            out
+        };
+        let mut out: Vec<(PlanWarning, usize)> = vec![];
+        for w in per_plan.into_iter().flatten() {
+            let like =
+                |o: &PlanWarning| o.field == w.field && shape(&o.message) == shape(&w.message);
+            match out.iter_mut().find(|(o, _)| like(o)) {
+                Some((o, n)) if *o != w => *n += 1,
+                Some(_) => {}
+                None => out.push((w, 0)),
+            }
+        }
+        let names: Vec<&str> = self
+            .step_axes()
+            .iter()
+            .map(|k| self.axes[*k].name.as_str())
+            .collect();
+        out.into_iter()
+            .map(|(mut w, n)| {
+                if n > 0 {
+                    w.message += &format!(
+                        " (and {n} more like it for other values of {})",
+                        names.join(" and ")
+                    );
+                }
+                w
+            })
+            .collect()
+    }
+
+    /// Axes whose distinct values are fewer in the precision than in the
+    /// file: trajectories meant to differ that are the same.
+    fn equal_in(&self, lim: Limits) -> Vec<PlanWarning> {
+        let mut out = vec![];
+        for a in &self.axes {
+            let rounded = |x: &f64| lim.round(*x);
+            // Values that become 0 have their own warning.
+            let mut v: Vec<f64> = a
+                .values
+                .iter()
+                .copied()
+                .filter(|x| *x == 0.0 || rounded(x) != 0.0)
+                .collect();
+            v.sort_by(f64::total_cmp);
+            v.dedup();
+            let mut r: Vec<f64> = v.iter().map(rounded).collect();
+            r.dedup();
+            if r.len() < v.len() {
+                let pair = v.windows(2).find(|w| rounded(&w[0]) == rounded(&w[1]));
+                let example = pair.map_or(String::new(), |w| {
+                    format!(
+                        " ({:?} and {:?} are both {})",
+                        w[0],
+                        w[1],
+                        lim.show(rounded(&w[0]))
+                    )
+                });
+                out.push(PlanWarning {
+                    field: a.field.clone(),
+                    message: format!(
+                        "its {} distinct values are only {} in {}{example}: trajectories meant to differ are the same; {}",
+                        v.len(),
+                        match r.len() {
+                            1 => "1 number".to_string(),
+                            n => format!("{n} distinct numbers"),
+                        },
+                        lim.0,
+                        if lim.0 == Precision::F32 {
+                            "use f64 or spread the values"
+                        } else {
+                            "spread the values"
+                        }
+                    ),
+                });
+            }
+        }
+        out
+    }
+
+    /// `t_end` that a whole number of steps `dt` from `t0` does not reach:
+    /// the run ends at `t0 + steps·dt`, the nearest (for the plan with the
+    /// largest miss, when `dt` or `t0` runs along an axis).
+    fn t_end_missed(&self, subs: &[SubRun]) -> Result<Vec<PlanWarning>, SceneError> {
+        let Horizon::TEnd(t_end) = self.horizon else {
+            return Ok(vec![]);
+        };
+        let constant = |name: &str, sub: &SubRun| match sub.plan.binding(name) {
+            Source::Const(v) => *v,
+            Source::Axis { .. } => {
+                unreachable!("dt and t0 are fixed in every sub-run of a t_end scene")
+            }
+        };
+        // (t0, dt, steps, final time) of the plans that miss t_end.
+        let mut missed: Vec<(f64, f64, u64, f64)> = vec![];
+        let mut considered = 0;
+        for sub in subs {
+            let (t0, dt) = (constant("t0", sub), constant("dt", sub));
+            let steps = self.steps_to(t_end, t0, dt)?;
+            if self.step_cap.is_some_and(|cap| steps > cap) {
+                continue; // a preview: it stops before t_end anyway
+            }
+            considered += 1;
+            let r = (t_end - t0) / dt;
+            if (r - steps as f64).abs() > 1e-6f64.max(r * 1e-14) {
+                missed.push((t0, dt, steps, t0 + steps as f64 * dt));
+            }
+        }
+        let Some(&(t0, dt, steps, end)) = missed
+            .iter()
+            .max_by(|a, b| (a.3 - t_end).abs().total_cmp(&(b.3 - t_end).abs()))
+        else {
+            return Ok(vec![]);
+        };
+        let from_zero = missed.iter().all(|m| m.0 == 0.0);
+        let span = if t0 == 0.0 {
+            format!("t_end = {t_end:?}")
+        } else {
+            format!("t_end − t0 = {} (t0 = {t0:?})", short(t_end - t0, 10))
+        };
+        let ends = format!("{steps} steps end at t = {}", apart(end, t_end));
+        let message = if considered == 1 {
+            format!("{span} is not a multiple of dt = {}: {ends}", short(dt, 10))
+        } else {
+            let names: Vec<&str> = self
+                .step_axes()
+                .iter()
+                .map(|k| self.axes[*k].name.as_str())
+                .collect();
+            let at = if t0 == 0.0 {
+                format!("dt = {}", short(dt, 10))
+            } else {
+                format!("t0 = {t0:?}, dt = {}", short(dt, 10))
+            };
+            format!(
+                "{} is not a multiple of dt for {} of the {} {}; the farthest: {at}: {ends}",
+                if from_zero {
+                    format!("t_end = {t_end:?}")
+                } else {
+                    format!("t_end − t0 (t_end = {t_end:?})")
+                },
+                missed.len(),
+                considered,
+                match names[..] {
+                    [one] => format!("values of {one}"),
+                    _ => format!("pairs of {}", names.join(" and ")),
+                }
+            )
+        };
+        Ok(vec![PlanWarning {
+            field: "integrator.t_end".into(),
+            message,
+        }])
     }
 
     /// The plan with the axes in `fixed` held at one value.
