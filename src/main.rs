@@ -133,21 +133,26 @@ fn main() -> ExitCode {
             precision,
             preview,
         } => run(scene, out, backend, precision, preview),
+        // The gates of `run`, with the same limit: the scene's (names, sizes
+        // before any axis exists) in Scene::load, then its outputs.
         Command::Check { scene } => Scene::load(&scene)
-            .map(|s| {
-                let runs = s.sub_runs().map(|r| r.len()).unwrap_or(0);
+            .map_err(anyhow::Error::from)
+            .and_then(|s| {
+                let runs = s.sub_runs()?;
+                let estimate = s.size_gate(&runs, s.precision, None)?;
                 println!(
-                    "{}: ok: model {}, scheme {}, {} trajectories over {} axes, {} plan(s)",
+                    "{}: ok: model {}, scheme {}, {} trajectories over {} axes, {} plan(s), outputs about {} ({})",
                     s.path.display(),
                     s.model.name(),
                     s.scheme,
-                    s.ensemble_size(),
+                    estimate.trajectories,
                     s.axes.len(),
-                    runs
+                    runs.len(),
+                    reeb::plan::size::bytes(estimate.bytes),
+                    s.precision,
                 );
-                ExitCode::SUCCESS
-            })
-            .map_err(anyhow::Error::from),
+                Ok(ExitCode::SUCCESS)
+            }),
         Command::Info => info(),
         Command::Report { kind } => report(kind),
         Command::Bench {

@@ -14,6 +14,7 @@ pub mod observed;
 pub mod observers;
 pub mod problem;
 pub mod scheme;
+pub mod size;
 pub mod step;
 
 use crate::models::spec::{ModelSpec, TimeDependence};
