@@ -40,7 +40,7 @@ use crate::plan::scheme::Scheme;
 use crate::plan::size::{self, Estimate, SizeError};
 use crate::plan::Plan;
 pub use error::SceneError;
-pub use values::splitmix64;
+pub use values::{splitmix64, AxisValues};
 
 /// An axis of the ensemble, as the scene names it.
 #[derive(Debug, Clone, serde::Serialize)]
