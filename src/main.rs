@@ -60,6 +60,12 @@ enum Command {
         /// Check for this precision (f32 or f64) instead of the scene's.
         #[arg(long)]
         precision: Option<Precision>,
+        /// Check that `reeb run` could write this directory (default: runs/<scene name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Check as `reeb run --force` would run.
+        #[arg(long)]
+        force: bool,
     },
     /// List GPU adapters, their type, limits, and whether f64 and timestamps are available.
     Info,
@@ -146,34 +152,12 @@ fn main() -> ExitCode {
             preview,
             force,
         } => run(scene, out, backend, precision, preview, force),
-        Command::Check { scene, precision } => Scene::load(&scene)
-            .and_then(|s| {
-                let precision = precision.unwrap_or(s.precision);
-                let warnings = s.checks(precision)?;
-                Ok((s, precision, warnings))
-            })
-            .map(|(s, precision, warnings)| {
-                for w in &warnings {
-                    eprintln!("warning: {w}");
-                }
-                let runs = s.sub_runs().map(|r| r.len()).unwrap_or(0);
-                println!(
-                    "{}: ok: model {}, scheme {}, {precision}, {} trajectories over {} axes, {} plan(s){}",
-                    s.path.display(),
-                    s.model.name(),
-                    s.scheme,
-                    s.ensemble_size(),
-                    s.axes.len(),
-                    runs,
-                    match warnings.len() {
-                        0 => String::new(),
-                        1 => ", 1 warning".into(),
-                        n => format!(", {n} warnings"),
-                    }
-                );
-                ExitCode::SUCCESS
-            })
-            .map_err(anyhow::Error::from),
+        Command::Check {
+            scene,
+            precision,
+            out,
+            force,
+        } => check(scene, precision, out, force),
         Command::Info => info(),
         Command::Report { kind } => report(kind),
         Command::Bench {
@@ -230,6 +214,44 @@ fn run(
     };
     let report = run_scene(&scene, &opts)?;
     println!("{}", report.line);
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `reeb check`: every gate of `reeb run` (the scene's names and sizes
+/// in `Scene::load`, the precision's checks, the outputs' size against the
+/// same limit, the output directory), without running or writing anything.
+fn check(
+    scene: PathBuf,
+    precision: Option<Precision>,
+    out: Option<PathBuf>,
+    force: bool,
+) -> Result<ExitCode> {
+    let s = Scene::load(&scene)?;
+    let precision = precision.unwrap_or(s.precision);
+    let warnings = s.checks(precision)?;
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
+    let runs = s.sub_runs()?;
+    let estimate = s.size_gate(&runs, precision, None)?;
+    let out = out.unwrap_or_else(|| PathBuf::from("runs").join(&s.name));
+    reeb::output::directory::check(&out, &[&s.path], force)?;
+    println!(
+        "{}: ok: model {}, scheme {}, {precision}, {} trajectories over {} axes, {} plan(s), outputs about {} into {}{}",
+        s.path.display(),
+        s.model.name(),
+        s.scheme,
+        s.ensemble_size(),
+        s.axes.len(),
+        runs.len(),
+        reeb::plan::size::bytes(estimate.bytes),
+        out.display(),
+        match warnings.len() {
+            0 => String::new(),
+            1 => ", 1 warning".into(),
+            n => format!(", {n} warnings"),
+        }
+    );
     Ok(ExitCode::SUCCESS)
 }
 

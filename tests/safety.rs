@@ -264,8 +264,7 @@ fn a_full_disk_is_reported_with_the_path() {
         return;
     }
     let e = reeb::output::run::write_npy(full, &[4], [1.0f64; 4])
-        .err()
-        .expect("writing to /dev/full fails");
+        .expect_err("writing to /dev/full fails");
     let e = format!("{e:#}");
     assert!(
         e.contains("/dev/full") && e.contains("No space left"),
@@ -287,4 +286,32 @@ fn free_disk_space_is_compared_with_the_estimate_before_the_work() {
     drop(claim);
     // A claim given up removes its partial and creates nothing.
     assert!(!partial.exists() && !out.exists());
+}
+
+#[test]
+fn check_applies_the_output_gate_of_run_without_writing() {
+    let s = Sandbox::new("check");
+    let (ok, err) = s.reeb(&["check", "scene.toml", "--out", "res"]);
+    assert!(ok, "{err}");
+    assert!(!s.path("res").exists() && !s.path("res.partial").exists());
+    assert!(s.run_into("res", &[]).0);
+    assert!(s.reeb(&["check", "scene.toml", "--out", "res"]).0);
+    s.write("res/notes.txt", "mine");
+    refused(
+        s.reeb(&["check", "scene.toml", "--out", "res"]),
+        "notes.txt",
+    );
+    assert!(
+        s.reeb(&["check", "scene.toml", "--out", "res", "--force"])
+            .0
+    );
+    refused(
+        s.reeb(&["check", "scene.toml", "--out", "."]),
+        "working directory",
+    );
+    refused(
+        s.reeb(&["check", "scene.toml", "--out", "scene.toml"]),
+        "is a file",
+    );
+    assert!(s.path("res/notes.txt").exists());
 }

@@ -102,6 +102,8 @@ impl Engine {
     ) -> Result<Integration<R>, GpuError> {
         Ok(match self {
             Engine::Cpu => {
+                // Arrays whose lengths overflow are refused, not allocated.
+                Observations::<R>::lengths(plan).map_err(GpuError::TooLarge)?;
                 let t = Instant::now();
                 let observations = cpu::run::<R>(plan, progress);
                 Integration {

@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use crate::output::run::bytes; // TODO(size): plan::size::bytes
+use crate::plan::size::bytes;
 
 /// The file in `DIR.partial` that names its owner (removed before commit).
 const OWNER_FILE: &str = ".reeb-owner";

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 
 use crate::output::directory::{self, Claim};
 
@@ -21,7 +21,8 @@ use crate::models::Flows;
 use crate::num::precision::Precision;
 use crate::output::arrays::write_arrays;
 pub use crate::output::arrays::write_npy;
-use crate::plan::observations::{estimate_bytes, Observations};
+use crate::plan::observations::Observations;
+pub use crate::plan::size::{available_memory, bytes};
 use crate::scene::{BackendChoice, Scene, SceneWarning, SubRun};
 
 /// What a finished run reports.
@@ -45,29 +46,6 @@ pub struct RunOptions {
     pub force: bool,
 }
 
-/// Available memory in bytes (Linux `/proc/meminfo`), if known.
-pub fn available_memory() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    line.split_whitespace()
-        .nth(1)?
-        .parse::<u64>()
-        .ok()
-        .map(|kb| kb * 1024)
-}
-
-/// Human-readable bytes.
-pub fn bytes(b: u64) -> String {
-    let units = ["B", "KiB", "MiB", "GiB", "TiB"];
-    let mut x = b as f64;
-    let mut u = 0;
-    while x >= 1024.0 && u + 1 < units.len() {
-        x /= 1024.0;
-        u += 1;
-    }
-    format!("{x:.1} {}", units[u])
-}
-
 /// Runs `scene` and writes its directory.
 pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
     let precision = opts.precision.unwrap_or(scene.precision);
@@ -79,29 +57,16 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
     }
     let subs = scene.sub_runs()?;
     // Memory before any work: the observations of every sub-run, twice over
-    // while they are assembled into the scene's arrays.
-    let need: u64 = 2 * subs
-        .iter()
-        .map(|s| estimate_bytes(&s.plan, precision))
-        .sum::<u64>();
-    let limit = opts
-        .max_output_bytes
-        .or_else(|| available_memory().map(|m| m / 10 * 7))
-        .unwrap_or(u64::MAX);
-    if need > limit {
-        bail!(
-            "{}: the outputs need about {} and {} is available; record less: a larger output.trajectory.every, fewer output.trajectory.vars or output.poincare.vars, a smaller output.poincare.max_points, or fewer values along an axis",
-            scene.path.display(),
-            bytes(need),
-            bytes(limit)
-        );
-    }
+    // while they are assembled into the scene's arrays (the gate `reeb
+    // check` applies too).
+    let estimate = scene.size_gate(&subs, precision, opts.max_output_bytes)?;
     let out = opts
         .out
         .clone()
         .unwrap_or_else(|| Path::new("runs").join(&scene.name));
     let claim = directory::claim(&out, &[&scene.path], opts.force)?;
-    claim.check_space(need / 2)?;
+    // On disk the scene's arrays once: half the memory estimate.
+    claim.check_space(estimate.bytes / 2)?;
     let (engine, notice) = Engine::resolve(choice, precision)?;
     if let Some(n) = notice {
         eprintln!("{n}");
@@ -188,7 +153,11 @@ fn integrate_scene<R: Flows>(
     engine: &Engine,
     progress: bool,
 ) -> Result<SceneRun<R>> {
-    let total: u64 = subs.iter().map(|s| s.plan.traj_steps()).sum();
+    // Saturating: a count for the progress bar and the rate, never a size.
+    let total: u64 = subs
+        .iter()
+        .map(|s| (s.plan.n as u64).saturating_mul(s.plan.steps))
+        .fold(0, u64::saturating_add);
     let done = AtomicU64::new(0);
     let bar = (progress && total > 0)
         .then(|| progress_bar(total, format!("{} on {}", scene.name, engine.name())));

@@ -15,6 +15,7 @@ pub mod observers;
 pub mod precision;
 pub mod problem;
 pub mod scheme;
+pub mod size;
 pub mod step;
 
 use crate::models::spec::{ModelSpec, TimeDependence};

@@ -48,17 +48,27 @@ fn var_name(plan: &Plan, v: ObsVar) -> String {
 
 impl<R: Real> Observations<R> {
     /// Arrays for `plan`, filled with NaN (counts and status with 0).
+    ///
+    /// Panics if an array's length overflows `usize`; [`Self::try_for_plan`]
+    /// says so instead. The backends are reached through
+    /// [`crate::plan::size::output_gate`] or [`Self::lengths`], which refuse
+    /// such plans first.
     pub fn for_plan(plan: &Plan) -> Self {
-        let n = plan.n;
+        Self::try_for_plan(plan).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`Self::for_plan`], or why its arrays cannot be sized.
+    pub fn try_for_plan(plan: &Plan) -> Result<Self, String> {
+        let Lengths {
+            n,
+            frames,
+            max_points,
+            trajectory,
+            poincare,
+        } = Self::lengths(plan)?;
         let nan = |len: usize| vec![R::nan(); len];
-        let frames = plan
-            .observers
-            .trajectory
-            .as_ref()
-            .map_or(0, |t| (plan.steps / t.every) as usize + 1);
-        let max_points = plan.observers.poincare.as_ref().map_or(0, |p| p.max_points);
         let has_cycle = plan.cycle_var.is_some();
-        Observations {
+        Ok(Observations {
             n,
             final_values: plan
                 .final_vars
@@ -69,19 +79,50 @@ impl<R: Real> Observations<R> {
             trajectory: plan
                 .trajectory_vars
                 .iter()
-                .map(|v| (var_name(plan, *v), nan(n * frames)))
+                .map(|v| (var_name(plan, *v), nan(trajectory)))
                 .collect(),
             max_points,
             poincare: plan
                 .poincare_vars
                 .iter()
-                .map(|v| (var_name(plan, *v), nan(n * max_points)))
+                .map(|v| (var_name(plan, *v), nan(poincare)))
                 .collect(),
             poincare_count: if max_points > 0 { vec![0; n] } else { vec![] },
             cycle_amplitude: if has_cycle { nan(n) } else { vec![] },
             cycle_period: if has_cycle { nan(n) } else { vec![] },
             nonfinite_step: vec![0; n],
-        }
+        })
+    }
+
+    /// The lengths of the arrays of `plan`, counted with checked arithmetic
+    /// (nothing is allocated).
+    pub fn lengths(plan: &Plan) -> Result<Lengths, String> {
+        let n = plan.n;
+        let frames = plan
+            .observers
+            .trajectory
+            .as_ref()
+            .map_or(Some(0), |t| {
+                (plan.steps / t.every)
+                    .checked_add(1)
+                    .and_then(|f| usize::try_from(f).ok())
+            })
+            .ok_or("the trajectory frames per trajectory do not fit in 64 bits")?;
+        let max_points = plan.observers.poincare.as_ref().map_or(0, |p| p.max_points);
+        let too_many = |what: &str, per: usize| {
+            format!("{n} trajectories × {per} {what} do not fit in 64 bits: record less (a larger output.trajectory.every, a smaller output.poincare.max_points) or use fewer values along an axis")
+        };
+        Ok(Lengths {
+            n,
+            frames,
+            max_points,
+            trajectory: n
+                .checked_mul(frames)
+                .ok_or_else(|| too_many("trajectory frames", frames))?,
+            poincare: n
+                .checked_mul(max_points)
+                .ok_or_else(|| too_many("Poincaré points", max_points))?,
+        })
     }
 
     /// Copies the rows of `src` (a sub-run's) to rows `rows` of `self` (the
@@ -144,27 +185,49 @@ impl<R: Real> Observations<R> {
     }
 }
 
-/// Bytes the observations of `plan` take in `precision`, before running.
-pub fn estimate_bytes(plan: &Plan, precision: Precision) -> u64 {
-    let n = plan.n as u64;
+/// The lengths of the arrays of a plan's [`Observations`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Lengths {
+    /// Trajectories (the length of the per-trajectory arrays).
+    pub n: usize,
+    /// Frames per trajectory, and the length of each trajectory array.
+    pub frames: usize,
+    pub trajectory: usize,
+    /// Points kept per trajectory, and the length of each Poincaré array.
+    pub max_points: usize,
+    pub poincare: usize,
+}
+
+/// Bytes the observations of `plan` take in `precision`, before running;
+/// `None` if they do not fit in 64 bits (every count is checked).
+pub fn estimate_bytes(plan: &Plan, precision: Precision) -> Option<u64> {
+    (plan.n as u64).checked_mul(bytes_per_trajectory(plan, precision)?)
+}
+
+/// Bytes of one trajectory's observations of `plan` in `precision`; `None`
+/// if they do not fit in 64 bits.
+pub fn bytes_per_trajectory(plan: &Plan, precision: Precision) -> Option<u64> {
     let b = precision.bytes() as u64;
-    let frames = plan
-        .observers
-        .trajectory
-        .as_ref()
-        .map_or(0, |t| plan.steps / t.every + 1);
+    let frames = match &plan.observers.trajectory {
+        Some(t) => (plan.steps / t.every).checked_add(1)?,
+        None => 0,
+    };
     let points = plan
         .observers
         .poincare
         .as_ref()
         .map_or(0, |p| p.max_points as u64);
-    let per_traj = plan.final_vars.len() as u64 * b
-        + plan.trajectory_vars.len() as u64 * frames * b
-        + plan.poincare_vars.len() as u64 * points * b
-        + if points > 0 { 4 } else { 0 }
-        + if plan.cycle_var.is_some() { 2 * b } else { 0 }
-        + 8;
-    n * per_traj
+    let vars = |k: usize, per: u64| (k as u64).checked_mul(per)?.checked_mul(b);
+    [
+        vars(plan.final_vars.len(), 1)?,
+        vars(plan.trajectory_vars.len(), frames)?,
+        vars(plan.poincare_vars.len(), points)?,
+        if points > 0 { 4 } else { 0 },
+        if plan.cycle_var.is_some() { 2 * b } else { 0 },
+        8,
+    ]
+    .into_iter()
+    .try_fold(0u64, u64::checked_add)
 }
 
 impl<R: Real> Observations<R> {

@@ -180,17 +180,31 @@ impl Problem {
         self
     }
 
-    /// Number of trajectories: the product of the axis lengths.
+    /// Number of trajectories: the product of the axis lengths, if it fits.
+    pub fn checked_ensemble_size(&self) -> Option<usize> {
+        self.axes
+            .iter()
+            .try_fold(1usize, |n, a| n.checked_mul(a.len))
+    }
+
+    /// Number of trajectories: the product of the axis lengths
+    /// ([`check_sources`], which `Plan::new` runs first, refuses a product
+    /// that overflows; here it fails loudly instead of wrapping).
     pub fn ensemble_size(&self) -> usize {
-        self.axes.iter().map(|a| a.len).product()
+        self.checked_ensemble_size()
+            .expect("check_sources refuses an ensemble beyond usize")
     }
 }
 
-/// Row-major strides of axes of lengths `lens` (first axis slowest).
+/// Row-major strides of axes of lengths `lens` (first axis slowest). Each
+/// stride is a product of lengths no larger than the ensemble's, which the
+/// callers have checked; an overflow fails loudly instead of wrapping.
 pub fn row_major_strides(lens: &[usize]) -> Vec<usize> {
     let mut strides = vec![1usize; lens.len()];
     for k in (0..lens.len().saturating_sub(1)).rev() {
-        strides[k] = strides[k + 1] * lens[k + 1];
+        strides[k] = strides[k + 1]
+            .checked_mul(lens[k + 1])
+            .expect("the ensemble's size was checked");
     }
     strides
 }
@@ -282,6 +296,20 @@ pub fn check_sources(problem: &Problem) -> Result<(), PlanError> {
     }
     if problem.axes.iter().any(|a| a.len == 0) {
         return Err(err("axes", "an axis has no values"));
+    }
+    if problem.checked_ensemble_size().is_none() {
+        let counts: Vec<String> = problem
+            .axes
+            .iter()
+            .map(|a| format!("{} {}", a.name, a.len))
+            .collect();
+        return Err(err(
+            "axes",
+            format!(
+                "the ensemble has more than 2^64 trajectories ({} values); use fewer values along an axis",
+                counts.join(" × ")
+            ),
+        ));
     }
     Ok(())
 }

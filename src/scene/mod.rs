@@ -37,10 +37,11 @@ use crate::models::Model;
 use crate::num::precision::Precision;
 use crate::plan::observers::{CycleObs, Section};
 use crate::plan::scheme::Scheme;
+use crate::plan::size::{self, Estimate, SizeError};
 use crate::plan::Plan;
 pub use error::SceneError;
 pub use error::SceneWarning;
-pub use values::splitmix64;
+pub use values::{splitmix64, AxisValues};
 
 /// An axis of the ensemble, as the scene names it.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -250,9 +251,15 @@ impl Scene {
         }
     }
 
-    /// Number of trajectories.
+    /// Number of trajectories. The size gate of [`Scene::parse`] refuses an
+    /// ensemble whose count overflows (or whose status alone exceeds the
+    /// memory), and [`Scene::preview`] only thins axes, so the product is
+    /// checked here only to fail loudly instead of wrapping.
     pub fn ensemble_size(&self) -> usize {
-        self.axes.iter().map(|a| a.values.len()).product()
+        self.axes
+            .iter()
+            .try_fold(1usize, |n, a| n.checked_mul(a.values.len()))
+            .expect("the size gate of Scene::parse bounds the ensemble")
     }
 
     /// Shape of the output arrays' leading dimensions (the axes, in order).
@@ -261,9 +268,26 @@ impl Scene {
     }
 
     /// Row-major strides of the axes: trajectory i has index
-    /// (i / strides[k]) % shape[k] on axis k.
+    /// (i / strides[k]) % shape[k] on axis k. Each stride is a product of
+    /// axis counts no larger than [`Scene::ensemble_size`], which fits.
     pub fn strides(&self) -> Vec<usize> {
         crate::plan::row_major_strides(&self.shape())
+    }
+
+    /// The second stage of the size gate, which `reeb run` and `reeb check`
+    /// both apply: the outputs of the plans `subs` (this scene's
+    /// [`Scene::sub_runs`]) in `precision` against `max_output_bytes`, or
+    /// by default 70 % of the available memory. Refused with the estimate
+    /// and the knobs to change.
+    pub fn size_gate(
+        &self,
+        subs: &[SubRun],
+        precision: Precision,
+        max_output_bytes: Option<u64>,
+    ) -> Result<Estimate, SizeError> {
+        let limit = max_output_bytes.unwrap_or_else(size::default_limit);
+        let plans: Vec<&Plan> = subs.iter().map(|s| &s.plan).collect();
+        size::output_gate(&self.path, &plans, precision, limit)
     }
 }
 

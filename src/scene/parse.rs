@@ -17,9 +17,10 @@ use crate::models::{Model, MODEL_NAMES};
 use crate::num::precision::Precision;
 use crate::plan::observers::{check_skip, check_strobe, CycleObs, Direction, Section};
 use crate::plan::scheme::{Scheme, SCHEME_NAMES};
+use crate::plan::size;
 
 use super::tables::{self, Cycle, Period, Str, Strs, Table};
-use super::values::{integ_span, suggest, Entry, Parser};
+use super::values::{integ_span, suggest, AxisValues, Entry, Parser};
 use super::{
     BackendChoice, Horizon, Input, OutVar, PlotSettings, ReportSettings, Scene, SceneAxis,
     SceneError,
@@ -95,11 +96,19 @@ impl<'i> Doc<'i> {
     }
 }
 
+/// An axis as the file gives it, before the size gate lets it be materialised.
+struct PendingAxis {
+    span: Range<usize>,
+    name: String,
+    field: String,
+    values: AxisValues,
+}
+
 /// Inputs given so far, and the axes they open (keyed by where their value
 /// starts in the file, which fixes the axes' order).
 #[derive(Default)]
 struct Inputs {
-    axes: Vec<(usize, SceneAxis)>,
+    axes: Vec<PendingAxis>,
 }
 
 impl Inputs {
@@ -115,25 +124,105 @@ impl Inputs {
         Ok(match p.values(field, v)? {
             Ok(c) => (v.span().start, Input::Const(c)),
             Err(values) => {
-                self.axes.push((
-                    v.span().start,
-                    SceneAxis {
-                        name: name.to_string(),
-                        field: field.to_string(),
-                        values,
-                    },
-                ));
+                self.axes.push(PendingAxis {
+                    span: v.span(),
+                    name: name.to_string(),
+                    field: field.to_string(),
+                    values,
+                });
                 (v.span().start, Input::Axis(usize::MAX))
             }
         })
     }
 
-    /// The axes in file order (repeated names made unique), and a map from
-    /// an input's start to its axis index.
+    /// The size gate, before any axis is materialised: the ensemble (the
+    /// product of the axis counts) fits in 64 bits, and the memory it takes
+    /// before anything is recorded (the axis values, the plans' copies of
+    /// them, the status of each trajectory: 8 bytes) fits in the memory a run
+    /// may use ([`size::default_limit`]), the limit `reeb run` uses by
+    /// default. Refused at the largest axis.
+    /// `step_fields`: the axes that make one plan per value (`dt` and `t0`
+    /// with `t_end`).
+    fn gate(&mut self, p: &Parser, step_fields: &[&str]) -> Result<(), SceneError> {
+        // File order, for the message (and the first of equal largest axes).
+        self.axes.sort_by_key(|a| a.span.start);
+        let Some(largest) = self.axes.iter().rev().max_by_key(|a| a.values.len()) else {
+            return Ok(());
+        };
+        let counts = self
+            .axes
+            .iter()
+            .map(|a| format!("{} {}", a.field, a.values.len()))
+            .collect::<Vec<_>>()
+            .join(" × ");
+        let refuse = |message: String| p.err(&largest.field, Some(&largest.span), message);
+        let fewer = "use fewer values along an axis (a shorter list, a smaller n in linspace, logspace or random)";
+        let Some(trajectories) = self
+            .axes
+            .iter()
+            .try_fold(1u64, |n, a| n.checked_mul(a.values.len()))
+        else {
+            return Err(refuse(format!(
+                "the ensemble has more than 2^64 trajectories ({counts} values); {fewer}"
+            )));
+        };
+        // Bytes, saturating: they are only compared with the limit.
+        let is_step = |a: &PendingAxis| step_fields.contains(&a.field.as_str());
+        let values_of = |step: bool| {
+            self.axes
+                .iter()
+                .filter(|a| is_step(a) == step)
+                .fold(0u64, |b, a| {
+                    b.saturating_add(a.values.len().saturating_mul(8))
+                })
+        };
+        let plans = self
+            .axes
+            .iter()
+            .filter(|a| is_step(a))
+            .fold(1u64, |n, a| n.saturating_mul(a.values.len()));
+        let need = values_of(true)
+            .saturating_add(values_of(false).saturating_mul(plans.saturating_add(1)))
+            .saturating_add(trajectories.saturating_mul(8));
+        let limit = size::default_limit();
+        if need > limit {
+            let per_plan = if plans > 1 {
+                let fields: Vec<&str> = self
+                    .axes
+                    .iter()
+                    .filter(|a| is_step(a))
+                    .map(|a| a.field.as_str())
+                    .collect();
+                format!(
+                    ", or fewer values of {} (one plan per value, each with a copy of the other axes)",
+                    fields.join(" and ")
+                )
+            } else {
+                String::new()
+            };
+            return Err(refuse(format!(
+                "{trajectories} trajectories ({counts} values) need at least {} before anything is recorded (the axis values, the plans' copies of them, each trajectory's status) and {} is available; {fewer}{per_plan}",
+                size::bytes(need),
+                size::bytes(limit),
+            )));
+        }
+        Ok(())
+    }
+
+    /// The axes in file order, materialised (repeated names made unique),
+    /// and a map from an input's start to its axis index. After [`Self::gate`].
     fn number(mut self) -> (Vec<SceneAxis>, impl Fn((usize, Input)) -> Input) {
-        self.axes.sort_by_key(|(start, _)| *start);
-        let starts: Vec<usize> = self.axes.iter().map(|(s, _)| *s).collect();
-        let mut axes: Vec<SceneAxis> = self.axes.into_iter().map(|(_, a)| a).collect();
+        self.axes.sort_by_key(|a| a.span.start);
+        let starts: Vec<usize> = self.axes.iter().map(|a| a.span.start).collect();
+        let mut axes: Vec<SceneAxis> = self
+            .axes
+            .into_iter()
+            .map(|a| SceneAxis {
+                name: a.name,
+                field: a.field,
+                values: a.values.materialize(),
+            })
+            .collect();
         // Axis names are file names: make repeats unique.
         for k in 0..axes.len() {
             if axes[..k].iter().any(|a| a.name == axes[k].name) {
@@ -177,6 +266,11 @@ impl Scene {
         let params = params(&mut p, &doc, &mut model, &mut inputs)?;
         let initial = initial(&mut p, &doc, spec, &mut inputs)?;
         let integ = integrator(&mut p, &doc, &mut inputs)?;
+        let step_fields: &[&str] = match integ.horizon {
+            Horizon::TEnd(_) => &["integrator.dt", "initial.t0"],
+            Horizon::Steps(_) => &[],
+        };
+        inputs.gate(&p, step_fields)?;
         let (axes, resolve) = inputs.number();
         let resolve_all = |m: BTreeMap<String, (usize, Input)>| -> BTreeMap<String, Input> {
             m.into_iter().map(|(k, i)| (k, resolve(i))).collect()
@@ -264,11 +358,13 @@ fn scene_name(p: &Parser, doc: &Doc, path: &Path) -> Result<String, SceneError> 
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "scene".into()),
     };
-    if name.is_empty() || name.contains(['/', '\\']) || name == "." || name == ".." {
+    if name.is_empty() || name.contains(['/', '\\', '\0']) || name == "." || name == ".." {
         return Err(p.err(
             "name",
             doc.get("name").map(|v| v.span()).as_ref(),
-            "must be a plain file name",
+            format!(
+                "{name:?} must be a plain file name: not empty, not . or .., without /, \\ or NUL"
+            ),
         ));
     }
     Ok(name)

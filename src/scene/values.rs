@@ -28,6 +28,76 @@ pub fn splitmix64(seed: u64, n: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The values of an axis as the file gives them, not yet materialised: the
+/// size gate of the scene counts them first ([`AxisValues::len`]), so that a
+/// `linspace` of 10¹² values is refused before anything of its size exists.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AxisValues {
+    List(Vec<f64>),
+    /// `linspace = [start, stop, n]`, or with `log` `logspace` (exponents).
+    Linspace {
+        start: f64,
+        stop: f64,
+        n: u64,
+        log: bool,
+    },
+    /// `random = { low, high, n, seed }` (SplitMix64, see [`splitmix64`]).
+    Random {
+        low: f64,
+        high: f64,
+        n: u64,
+        seed: u64,
+    },
+}
+
+impl AxisValues {
+    /// The number of values.
+    pub fn len(&self) -> u64 {
+        match self {
+            AxisValues::List(v) => v.len() as u64,
+            AxisValues::Linspace { n, .. } | AxisValues::Random { n, .. } => *n,
+        }
+    }
+
+    /// An axis has at least one value (the parser refuses empty ones).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The values. Only after the size gate: panics if the count does not
+    /// fit in `usize` (the gate refuses far smaller counts).
+    pub fn materialize(self) -> Vec<f64> {
+        let count = |n: u64| usize::try_from(n).expect("an axis the size gate let through");
+        match self {
+            AxisValues::List(v) => v,
+            AxisValues::Linspace {
+                start,
+                stop,
+                n,
+                log,
+            } => {
+                let n = count(n);
+                let lin = (0..n).map(move |i| {
+                    if n == 1 {
+                        start
+                    } else {
+                        start + (stop - start) * i as f64 / (n - 1) as f64
+                    }
+                });
+                if log {
+                    lin.map(|e| 10f64.powf(e)).collect()
+                } else {
+                    lin.collect()
+                }
+            }
+            AxisValues::Random { low, high, n, seed } => splitmix64(seed, count(n))
+                .into_iter()
+                .map(|u| low + (high - low) * u)
+                .collect(),
+        }
+    }
+}
+
 pub struct Parser<'a> {
     path: &'a Path,
     text: &'a str,
@@ -158,7 +228,7 @@ impl<'a> Parser<'a> {
         &self,
         field: &str,
         v: &Spanned<DeValue>,
-    ) -> Result<Result<f64, Vec<f64>>, SceneError> {
+    ) -> Result<Result<f64, AxisValues>, SceneError> {
         let sp = Some(v.span());
         match v.get_ref() {
             DeValue::Float(_) | DeValue::Integer(_) => Ok(Ok(self.number(field, v)?)),
@@ -170,7 +240,7 @@ impl<'a> Parser<'a> {
                         "an empty list is an axis with no values",
                     ));
                 }
-                Ok(Err(self.numbers(field, v)?))
+                Ok(Err(AxisValues::List(self.numbers(field, v)?)))
             }
             DeValue::Table(t) => {
                 let mut e: Vec<_> = t.iter().collect();
@@ -190,9 +260,11 @@ impl<'a> Parser<'a> {
                         if xs.len() != 3 || xs[2].fract() != 0.0 || xs[2] < 1.0 {
                             return Err(self.err(&f, Some(&val.span()), "expected [start, stop, n] with an integer n ≥ 1"));
                         }
-                        let n = xs[2] as usize;
-                        let lin: Vec<f64> = (0..n).map(|i| if n == 1 { xs[0] } else { xs[0] + (xs[1] - xs[0]) * i as f64 / (n - 1) as f64 }).collect();
-                        Ok(Err(if k.get_ref() == "logspace" { lin.into_iter().map(|e| 10f64.powf(e)).collect() } else { lin }))
+                        // 2^64 as f64 is exact; an integral n below it converts exactly.
+                        if xs[2] >= 18_446_744_073_709_551_616.0 {
+                            return Err(self.err(&f, Some(&val.span()), format!("n = {:e} values: the ensemble would have more than 2^64 trajectories; use fewer values along an axis", xs[2])));
+                        }
+                        Ok(Err(AxisValues::Linspace { start: xs[0], stop: xs[1], n: xs[2] as u64, log: k.get_ref() == "logspace" }))
                     }
                     "random" => {
                         let DeValue::Table(rt) = val.get_ref() else {
@@ -206,12 +278,12 @@ impl<'a> Parser<'a> {
                         }
                         let low = self.number(&format!("{f}.low"), get("low")?)?;
                         let high = self.number(&format!("{f}.high"), get("high")?)?;
-                        let n = self.integer(&format!("{f}.n"), get("n")?)? as usize;
+                        let n = self.integer(&format!("{f}.n"), get("n")?)?;
                         let seed = self.integer(&format!("{f}.seed"), get("seed")?)?;
                         if n == 0 || high <= low {
                             return Err(self.err(&f, Some(&val.span()), "needs n ≥ 1 and high > low"));
                         }
-                        Ok(Err(splitmix64(seed, n).into_iter().map(|u| low + (high - low) * u).collect()))
+                        Ok(Err(AxisValues::Random { low, high, n, seed }))
                     }
                     other => Err(self.err(&f, Some(&k.span()), format!("unknown value form `{other}`; use a number, a list, linspace, logspace or random"))),
                 }
@@ -254,4 +326,104 @@ pub fn suggest(key: &str, known: &[&str]) -> String {
 /// The span of a table's entries (for "missing" errors at its lines).
 pub fn integ_span(entries: &[Entry]) -> Range<usize> {
     entries.first().map(|(k, _)| k.span()).unwrap_or(0..0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The axis values as the walker built them before the size gate
+    /// (copied verbatim): `materialize` must give them bit for bit.
+    fn old_linspace(xs: [f64; 3], log: bool) -> Vec<f64> {
+        let n = xs[2] as usize;
+        let lin: Vec<f64> = (0..n)
+            .map(|i| {
+                if n == 1 {
+                    xs[0]
+                } else {
+                    xs[0] + (xs[1] - xs[0]) * i as f64 / (n - 1) as f64
+                }
+            })
+            .collect();
+        if log {
+            lin.into_iter().map(|e| 10f64.powf(e)).collect()
+        } else {
+            lin
+        }
+    }
+
+    fn old_random(low: f64, high: f64, n: usize, seed: u64) -> Vec<f64> {
+        splitmix64(seed, n)
+            .into_iter()
+            .map(|u| low + (high - low) * u)
+            .collect()
+    }
+
+    fn bits(v: &[f64]) -> Vec<u64> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    #[test]
+    fn materialize_gives_the_values_of_before_bit_for_bit() {
+        let ranges = [
+            [0.0, 1.0, 1.0],
+            [0.0, 1.0, 2.0],
+            [0.0, 100.0, 256.0],
+            [-4.0, 0.2, 256.0],
+            [-2.0, -1.0, 3.0],
+            [1e-3, 0.7, 1000.0],
+            [3.5, -2.25, 17.0],
+            [0.0, 0.0, 5.0],
+            [-1e300, 1e300, 7.0],
+        ];
+        for xs in ranges {
+            for log in [false, true] {
+                let a = AxisValues::Linspace {
+                    start: xs[0],
+                    stop: xs[1],
+                    n: xs[2] as u64,
+                    log,
+                };
+                assert_eq!(a.len(), xs[2] as u64);
+                assert_eq!(
+                    bits(&a.materialize()),
+                    bits(&old_linspace(xs, log)),
+                    "{xs:?} log {log}"
+                );
+            }
+        }
+        for (low, high, n, seed) in [
+            (0.0, 1.0, 1, 0),
+            (1.0, 2.0, 4, 7),
+            (-3.0, 5.5, 1000, u64::MAX),
+            (0.2, 0.9, 257, 12345),
+        ] {
+            let a = AxisValues::Random {
+                low,
+                high,
+                n: n as u64,
+                seed,
+            };
+            assert_eq!(a.len(), n as u64);
+            assert_eq!(
+                bits(&a.materialize()),
+                bits(&old_random(low, high, n, seed))
+            );
+        }
+        let list = AxisValues::List(vec![1.0, -0.0, 3.5]);
+        assert_eq!(list.len(), 3);
+        assert_eq!(bits(&list.materialize()), bits(&[1.0, -0.0, 3.5]));
+    }
+
+    #[test]
+    fn huge_counts_are_described_not_allocated() {
+        let a = AxisValues::Linspace {
+            start: 0.0,
+            stop: 1.0,
+            n: u64::MAX,
+            log: false,
+        };
+        assert_eq!(a.len(), u64::MAX);
+        assert!(!a.is_empty());
+    }
 }

@@ -134,7 +134,7 @@ pub fn run_with<R: Flows>(
         Precision::F32
     };
     check_fits(ctx, plan, precision)?;
-    let mut out = Observations::<R>::for_plan(plan);
+    let mut out = Observations::<R>::try_for_plan(plan).map_err(GpuError::TooLarge)?;
     if plan.n == 0 {
         return Ok(GpuRun {
             observations: out,
@@ -237,17 +237,29 @@ impl Sizes {
             .limits
             .max_storage_buffer_binding_size
             .min(ctx.limits.max_buffer_size);
+        // One trajectory's Poincaré points, checked (max_points is the
+        // scene's, up to 2^63); the other per-trajectory sizes are small.
+        let points = max_points
+            .checked_mul(pv)
+            .and_then(|x| x.checked_mul(b))
+            .ok_or_else(|| {
+                GpuError::TooLarge(format!(
+                    "{max_points} Poincaré points × {pv} variables per trajectory do not fit in 64 bits: lower output.poincare.max_points"
+                ))
+            })?;
         let per_buffer = [
             nv * b,
             4,
             AUX_R.len() as u64 * b,
             AUX_U.len() as u64 * 4,
-            max_points * pv * b,
+            points,
         ];
         let widest = *per_buffer.iter().max().expect("nonempty");
+        // Saturating: a sum beyond 64 bits leaves no room in the budget.
+        let per_trajectory = per_buffer.iter().fold(0u64, |a, x| a.saturating_add(*x));
         let mut cap = (plan.n as u64)
             .min(limit / widest)
-            .min(MEMORY_BUDGET / per_buffer.iter().sum::<u64>());
+            .min(MEMORY_BUDGET / per_trajectory);
         // Trajectory frames: at least two per window must fit.
         if tv > 0 {
             cap = cap.min(limit / (2 * tv * b));
