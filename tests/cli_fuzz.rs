@@ -16,14 +16,12 @@ use proptest::prelude::*;
 use proptest::test_runner::RngSeed;
 
 /// Deterministic runs (fixed seed, no regression files): CI reproduces them.
+/// `REEB_FUZZ_CASES` and `REEB_FUZZ_SEED` run more, or others (long runs).
 fn config() -> ProptestConfig {
-    let cases = std::env::var("REEB_FUZZ_CASES")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(48);
+    let env = |k: &str| std::env::var(k).ok().and_then(|s| s.parse::<u64>().ok());
     ProptestConfig {
-        cases,
-        rng_seed: RngSeed::Fixed(0x636c_6966_757a),
+        cases: env("REEB_FUZZ_CASES").map_or(48, |c| c as u32),
+        rng_seed: RngSeed::Fixed(env("REEB_FUZZ_SEED").unwrap_or(0x636c_6966_757a)),
         failure_persistence: None,
         ..ProptestConfig::default()
     }

@@ -16,26 +16,38 @@ use proptest::prelude::*;
 use proptest::sample::{select, Index};
 use proptest::test_runner::RngSeed;
 use reeb::models::{Model, MODEL_NAMES};
+use reeb::num::precision::Precision;
 use reeb::plan::scheme::SCHEME_NAMES;
 use reeb::scene::Scene;
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
 /// Deterministic runs (fixed seed, no regression files): CI reproduces them.
+/// `REEB_FUZZ_CASES` and `REEB_FUZZ_SEED` run more, or others (long runs).
 fn config(cases: u32) -> ProptestConfig {
+    let env = |k: &str| std::env::var(k).ok().and_then(|s| s.parse::<u64>().ok());
     ProptestConfig {
-        cases,
-        rng_seed: RngSeed::Fixed(0x0073_6365_6e65),
+        cases: env("REEB_FUZZ_CASES").map_or(cases, |c| c as u32),
+        rng_seed: RngSeed::Fixed(env("REEB_FUZZ_SEED").unwrap_or(0x0073_6365_6e65)),
         failure_persistence: None,
         ..ProptestConfig::default()
     }
 }
 
-/// Parses `text`: `Err` if the parser panicked, or returned an error that
-/// names neither a field nor a line.
+/// Parses `text` and applies every gate of `reeb check` (the precision
+/// checks in f32 and f64, the plans, the size gate): `Err` if anything
+/// panicked, or returned an error that names neither a field nor a line.
 fn check(text: &str) -> Result<Option<Scene>, String> {
     let parsed = catch_unwind(AssertUnwindSafe(|| {
-        Scene::parse(Path::new("fuzz.toml"), text)
+        let scene = Scene::parse(Path::new("fuzz.toml"), text)?;
+        for p in [Precision::F32, Precision::F64] {
+            scene.checks(p)?;
+        }
+        let subs = scene.sub_runs()?;
+        if let Err(e) = scene.size_gate(&subs, scene.precision, None) {
+            assert!(!e.to_string().is_empty(), "an empty size refusal");
+        }
+        Ok(scene)
     }));
     match parsed {
         Err(panic) => {
@@ -44,7 +56,9 @@ fn check(text: &str) -> Result<Option<Scene>, String> {
                 .cloned()
                 .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
                 .unwrap_or_default();
-            Err(format!("Scene::parse panicked ({why}) on:\n{text}"))
+            Err(format!(
+                "Scene::parse or a gate panicked ({why}) on:\n{text}"
+            ))
         }
         Ok(Err(e)) if e.field.is_empty() && e.line.is_none() => Err(format!(
             "error names neither field nor line: {e:?}\non:\n{text}"
@@ -1068,7 +1082,7 @@ fn huge_axis_counts_neither_panic_nor_abort() {
         };
         let why = stderr
             .lines()
-            .find(|l| l.contains("memory allocation") || l.contains("Scene::parse panicked"))
+            .find(|l| l.contains("memory allocation") || l.contains("panicked"))
             .unwrap_or("");
         failures.push(format!("{label}: {what}: {why}"));
     }

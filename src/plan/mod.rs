@@ -216,7 +216,8 @@ impl Plan {
 
     /// Trajectory-steps of the run.
     pub fn traj_steps(&self) -> u64 {
-        self.n as u64 * self.steps
+        // A count for rates and progress: saturates instead of wrapping.
+        (self.n as u64).saturating_mul(self.steps)
     }
 
     /// Every op name the plan calls (step and field), without repeats.
