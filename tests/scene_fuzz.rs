@@ -47,7 +47,7 @@ fn check(text: &str) -> Result<Option<Scene>, String> {
         if let Err(e) = scene.size_gate(&subs, scene.precision, None) {
             assert!(!e.to_string().is_empty(), "an empty size refusal");
         }
-        Ok(scene)
+        Ok::<_, reeb::scene::SceneError>(scene)
     }));
     match parsed {
         Err(panic) => {
