@@ -316,7 +316,23 @@ fn forced_out(dir: &Path, args: &[String]) -> Option<PathBuf> {
     args.get(k + 1).map(|o| dir.join(o))
 }
 
+/// Inputs tried so far, and when the first began (progress of long runs).
+static TRIED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+static START: std::sync::OnceLock<Instant> = std::sync::OnceLock::new();
+
+fn count_input() {
+    let start = *START.get_or_init(Instant::now);
+    let n = TRIED.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+    if n % 500 == 0 {
+        eprintln!(
+            "cli fuzz: {n} inputs in {:.0} s",
+            start.elapsed().as_secs_f64()
+        );
+    }
+}
+
 fn check(k: u64, scene: &str, args: &[String]) -> Result<(), String> {
+    count_input();
     let dir = sandbox(k, scene);
     // What `--force` may replace, resolved before the run.
     let forced = forced_out(&dir, args).and_then(|f| f.canonicalize().ok());
