@@ -341,6 +341,15 @@ fn check_bench_args(sizes: &[usize], steps: u64, threads: &[usize], repeats: usi
     if threads.contains(&0) {
         anyhow::bail!("--threads: a thread count must be at least 1");
     }
+    // More threads than cores only measures the scheduler, and a pool of
+    // 10⁵ threads takes minutes to start (found by tests/cli_fuzz.rs).
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let most = 4 * cores;
+    if let Some(t) = threads.iter().find(|t| **t > most) {
+        anyhow::bail!(
+            "--threads: {t} threads on {cores} cores; at most {most} (4 per core) are measured"
+        );
+    }
     if repeats == 0 {
         anyhow::bail!("--repeats: must be at least 1");
     }

@@ -27,6 +27,7 @@ fn bench_refuses_arguments_it_cannot_run() {
         ),
         ("--steps", "0", "--steps: 0 is not between 1"),
         ("--threads", "0", "--threads:"),
+        ("--threads", "100000", "--threads: 100000 threads on"),
         ("--repeats", "0", "--repeats:"),
     ] {
         let (ok, err) = reeb(
