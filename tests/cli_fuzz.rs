@@ -323,7 +323,7 @@ static START: std::sync::OnceLock<Instant> = std::sync::OnceLock::new();
 fn count_input() {
     let start = *START.get_or_init(Instant::now);
     let n = TRIED.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-    if n % 500 == 0 {
+    if n.is_multiple_of(500) {
         eprintln!(
             "cli fuzz: {n} inputs in {:.0} s",
             start.elapsed().as_secs_f64()
