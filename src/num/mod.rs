@@ -3,6 +3,8 @@
 //! writes every formula once for Rust and WGSL. Knows nothing of models.
 
 pub mod dsl;
+pub mod formula;
 pub mod math;
+pub mod names;
 pub mod precision;
 pub mod prims;

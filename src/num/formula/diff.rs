@@ -1,0 +1,187 @@
+//! Symbolic derivatives in the DAG, memoised per (node, variable): the
+//! gradient ∇V, ∇K, f′ and ∂g/∂q of formula models share their nodes with
+//! the formulas themselves.
+
+use std::collections::HashMap;
+
+use super::dag::{Dag, Func, Func2, Id, Node};
+
+impl Dag {
+    /// ∂root/∂(variable `k`).
+    pub fn diff(&mut self, root: Id, k: u32) -> Id {
+        let mut memo = HashMap::new();
+        self.diff_memo(root, k, &mut memo)
+    }
+
+    /// The gradient of `root` over the variables `ks`.
+    pub fn gradient(&mut self, root: Id, ks: &[u32]) -> Vec<Id> {
+        ks.iter().map(|k| self.diff(root, *k)).collect()
+    }
+
+    fn diff_memo(&mut self, id: Id, k: u32, memo: &mut HashMap<Id, Id>) -> Id {
+        if let Some(d) = memo.get(&id) {
+            return *d;
+        }
+        let d = match self.node(id) {
+            Node::Const(_) => self.num(0.0),
+            Node::Var(v) => self.num(if v == k { 1.0 } else { 0.0 }),
+            Node::Neg(a) => {
+                let da = self.diff_memo(a, k, memo);
+                self.neg(da)
+            }
+            Node::Add(a, b) => {
+                let (da, db) = (self.diff_memo(a, k, memo), self.diff_memo(b, k, memo));
+                self.add(da, db)
+            }
+            Node::Mul(a, b) => {
+                let (da, db) = (self.diff_memo(a, k, memo), self.diff_memo(b, k, memo));
+                let (x, y) = (self.mul(da, b), self.mul(a, db));
+                self.add(x, y)
+            }
+            // (a/b)′ = a′/b − (a/b)·b′/b
+            Node::Div(a, b) => {
+                let (da, db) = (self.diff_memo(a, k, memo), self.diff_memo(b, k, memo));
+                let first = self.div(da, b);
+                let ratio = self.mul(id, db);
+                let second = self.div(ratio, b);
+                self.sub(first, second)
+            }
+            Node::PowI(a, n) => {
+                let da = self.diff_memo(a, k, memo);
+                let lower = self.powi(a, n - 1);
+                let c = self.num(n as f64);
+                let scaled = self.mul(c, lower);
+                self.mul(scaled, da)
+            }
+            Node::Call(f, a) => {
+                let da = self.diff_memo(a, k, memo);
+                let outer = self.outer_derivative(f, a, id);
+                self.mul(outer, da)
+            }
+            Node::Call2(f, a, b) => {
+                let (da, db) = (self.diff_memo(a, k, memo), self.diff_memo(b, k, memo));
+                self.diff_call2(f, id, (a, da), (b, db))
+            }
+        };
+        memo.insert(id, d);
+        d
+    }
+
+    /// f′(a) for `id` = f(a).
+    fn outer_derivative(&mut self, f: Func, a: Id, id: Id) -> Id {
+        let one = self.num(1.0);
+        match f {
+            Func::Sqrt => {
+                let two = self.num(2.0);
+                let twice = self.mul(two, id);
+                self.div(one, twice)
+            }
+            Func::Exp => id,
+            Func::Log => self.div(one, a),
+            Func::Sin => self.call(Func::Cos, a),
+            Func::Cos => {
+                let s = self.call(Func::Sin, a);
+                self.neg(s)
+            }
+            Func::Tan => {
+                let t2 = self.powi(id, 2);
+                self.add(one, t2)
+            }
+            Func::Atan => {
+                let a2 = self.powi(a, 2);
+                let den = self.add(one, a2);
+                self.div(one, den)
+            }
+            Func::Sinh => self.call(Func::Cosh, a),
+            Func::Cosh => self.call(Func::Sinh, a),
+            Func::Tanh => {
+                let t2 = self.powi(id, 2);
+                self.sub(one, t2)
+            }
+            Func::Abs => self.call(Func::Sign, a),
+            Func::Sign => self.num(0.0),
+        }
+    }
+
+    /// The derivative of `id` = f(a, b), given a′ and b′.
+    fn diff_call2(&mut self, f: Func2, id: Id, (a, da): (Id, Id), (b, db): (Id, Id)) -> Id {
+        match f {
+            // (a^b)′ = a^b · (b′·log a + b·a′/a)
+            Func2::Pow => {
+                let log_a = self.call(Func::Log, a);
+                let x = self.mul(db, log_a);
+                let ba = self.mul(b, da);
+                let y = self.div(ba, a);
+                let sum = self.add(x, y);
+                self.mul(id, sum)
+            }
+            // min(a, b) = (a + b − |a − b|)/2, max with +|a − b|.
+            Func2::Min | Func2::Max => {
+                let diff = self.sub(a, b);
+                let sign = self.call(Func::Sign, diff);
+                let dd = self.sub(da, db);
+                let mut jump = self.mul(sign, dd);
+                if f == Func2::Min {
+                    jump = self.neg(jump);
+                }
+                let both = self.add(da, db);
+                let sum = self.add(both, jump);
+                let half = self.num(0.5);
+                self.mul(half, sum)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{compile, Dag};
+
+    /// Every derivative agrees with a central difference.
+    #[test]
+    fn derivatives_match_finite_differences() {
+        let names = ["q1", "q2", "a"];
+        let at = [0.7, -0.4, 1.3];
+        for text in [
+            "(q1^2 + q2^2)/2 + q1^2*q2 - q2^3/3",
+            "a*(1 - cos(q1)) + q2/(1 + q1^2)",
+            "exp(-a*q1)*sin(q2)^3 + log(q1 + 2)",
+            "sqrt(q1^2 + q2^2 + a) - 1/sqrt(q1^2 + q2^2)",
+            "tan(q1) + atan(q2) + sinh(q1*q2) + cosh(a*q2) + tanh(q1)",
+            "abs(q2) + min(q1, q2) * max(q1, a) + pow(q1 + 2, q2)",
+            "q1^-3 + (q2^2)^3",
+        ] {
+            let mut d = Dag::new();
+            let f = compile(&mut d, text, &names).unwrap();
+            for k in 0..3u32 {
+                let df = d.diff(f, k);
+                let got = d.eval(&[df], &at)[0];
+                let h = 1e-6;
+                let (mut up, mut down) = (at, at);
+                up[k as usize] += h;
+                down[k as usize] -= h;
+                let want = (d.eval(&[f], &up)[0] - d.eval(&[f], &down)[0]) / (2.0 * h);
+                assert!(
+                    (got - want).abs() <= 1e-7 * want.abs().max(1.0),
+                    "d({text})/d{}: {got} vs {want}",
+                    names[k as usize]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn derivatives_share_nodes_and_simplify() {
+        let mut d = Dag::new();
+        let names = ["q", "p"];
+        let v = compile(&mut d, "q^2/2", &names).unwrap();
+        let dv = d.diff(v, 0);
+        let q = compile(&mut d, "q", &names).unwrap();
+        assert_eq!(dv, q, "d(q²/2)/dq is q itself");
+        let dp = d.diff(v, 1);
+        assert_eq!(d.constant(dp), Some(0.0));
+        let s = compile(&mut d, "sin(q)", &names).unwrap();
+        let c = compile(&mut d, "cos(q)", &names).unwrap();
+        assert_eq!(d.diff(s, 0), c);
+    }
+}

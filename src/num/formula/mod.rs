@@ -1,0 +1,30 @@
+//! Formulas a user writes in a scene (`potential = "q^2/2 - q^4/4"`): the
+//! groundwork of formula models (issue 11).
+//!
+//! - `parse.rs`: text → syntax tree, errors at a column.
+//! - `dag.rs`: the tree as a hash-consed DAG over named variables: equal
+//!   subexpressions are one node (common subexpressions shared), constants
+//!   folded and the identities of 0 and 1 applied as nodes are made.
+//! - `diff.rs`: symbolic derivatives, built in the same DAG.
+//! - `functions.rs`: the functions a formula may call, in f64.
+//! - `eval.rs`: evaluation in f64 (the reference for both backends).
+//!
+//! Grammar: numbers, `pi`, names, `+ - * / ^` (`^` binds tightest and to
+//! the right, `-x^2 = -(x^2)`), parentheses, and the functions of [`Func`]
+//! and [`Func2`].
+
+pub mod dag;
+pub mod diff;
+pub mod eval;
+pub mod functions;
+pub mod parse;
+
+pub use dag::{Dag, Func, Func2, Id, Node};
+pub use parse::{parse, Expr, FormulaError};
+
+/// Parses `text` into `dag` over the variables `names` (a variable's index
+/// is its position there); unknown names are refused with a did-you-mean.
+pub fn compile(dag: &mut Dag, text: &str, names: &[&str]) -> Result<Id, FormulaError> {
+    let expr = parse(text)?;
+    dag.add_expr(&expr, names)
+}
