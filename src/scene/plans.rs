@@ -203,11 +203,11 @@ impl Scene {
         let Horizon::TEnd(t_end) = self.horizon else {
             return Ok(vec![]);
         };
+        // dt and t0 are fixed in every sub-run of a t_end scene (an axis
+        // of them splits the scene); NaN, which warns of nothing, otherwise.
         let constant = |name: &str, sub: &SubRun| match sub.plan.binding(name) {
             Source::Const(v) => *v,
-            Source::Axis { .. } => {
-                unreachable!("dt and t0 are fixed in every sub-run of a t_end scene")
-            }
+            Source::Axis { .. } => f64::NAN,
         };
         // (t0, dt, steps, final time) of the plans that miss t_end.
         let mut missed: Vec<(f64, f64, u64, f64)> = vec![];
@@ -224,12 +224,26 @@ impl Scene {
                 missed.push((t0, dt, steps, t0 + steps as f64 * dt));
             }
         }
-        let Some(&(t0, dt, steps, end)) = missed
-            .iter()
-            .max_by(|a, b| (a.3 - t_end).abs().total_cmp(&(b.3 - t_end).abs()))
-        else {
+        let Some(message) = self.t_end_message(t_end, &missed, considered) else {
             return Ok(vec![]);
         };
+        Ok(vec![PlanWarning {
+            field: "integrator.t_end".into(),
+            message,
+        }])
+    }
+
+    /// The warning for the plans `missed` (t0, dt, steps, final time) out
+    /// of `considered`: the one that ends farthest from `t_end` is shown.
+    fn t_end_message(
+        &self,
+        t_end: f64,
+        missed: &[(f64, f64, u64, f64)],
+        considered: usize,
+    ) -> Option<String> {
+        let &(t0, dt, steps, end) = missed
+            .iter()
+            .max_by(|a, b| (a.3 - t_end).abs().total_cmp(&(b.3 - t_end).abs()))?;
         let from_zero = missed.iter().all(|m| m.0 == 0.0);
         let span = if t0 == 0.0 {
             format!("t_end = {t_end:?}")
@@ -237,7 +251,7 @@ impl Scene {
             format!("t_end − t0 = {} (t0 = {t0:?})", short(t_end - t0, 10))
         };
         let ends = format!("{steps} steps end at t = {}", apart(end, t_end));
-        let message = if considered == 1 {
+        Some(if considered == 1 {
             format!("{span} is not a multiple of dt = {}: {ends}", short(dt, 10))
         } else {
             let names: Vec<&str> = self
@@ -264,11 +278,7 @@ impl Scene {
                     _ => format!("pairs of {}", names.join(" and ")),
                 }
             )
-        };
-        Ok(vec![PlanWarning {
-            field: "integrator.t_end".into(),
-            message,
-        }])
+        })
     }
 
     /// The plan with the axes in `fixed` held at one value.
