@@ -156,7 +156,7 @@ fn integrate_scene<R: Flows>(
     // Saturating: a count for the progress bar and the rate, never a size.
     let total: u64 = subs
         .iter()
-        .map(|s| (s.plan.n as u64).saturating_mul(s.plan.steps))
+        .map(|s| s.plan.traj_steps())
         .fold(0, u64::saturating_add);
     let done = AtomicU64::new(0);
     let bar = (progress && total > 0)
