@@ -98,15 +98,8 @@ impl<R: Real> Observations<R> {
     /// (nothing is allocated).
     pub fn lengths(plan: &Plan) -> Result<Lengths, String> {
         let n = plan.n;
-        let frames = plan
-            .observers
-            .trajectory
-            .as_ref()
-            .map_or(Some(0), |t| {
-                (plan.steps / t.every)
-                    .checked_add(1)
-                    .and_then(|f| usize::try_from(f).ok())
-            })
+        let frames = frames_per_trajectory(plan)
+            .and_then(|f| usize::try_from(f).ok())
             .ok_or("the trajectory frames per trajectory do not fit in 64 bits")?;
         let max_points = plan.observers.poincare.as_ref().map_or(0, |p| p.max_points);
         let too_many = |what: &str, per: usize| {
@@ -198,6 +191,15 @@ pub struct Lengths {
     pub poincare: usize,
 }
 
+/// Trajectory frames per trajectory (every `every` steps from step 0);
+/// `None` if the count overflows.
+fn frames_per_trajectory(plan: &Plan) -> Option<u64> {
+    match &plan.observers.trajectory {
+        Some(t) => (plan.steps / t.every).checked_add(1),
+        None => Some(0),
+    }
+}
+
 /// Bytes the observations of `plan` take in `precision`, before running;
 /// `None` if they do not fit in 64 bits (every count is checked).
 pub fn estimate_bytes(plan: &Plan, precision: Precision) -> Option<u64> {
@@ -208,10 +210,7 @@ pub fn estimate_bytes(plan: &Plan, precision: Precision) -> Option<u64> {
 /// if they do not fit in 64 bits.
 pub fn bytes_per_trajectory(plan: &Plan, precision: Precision) -> Option<u64> {
     let b = precision.bytes() as u64;
-    let frames = match &plan.observers.trajectory {
-        Some(t) => (plan.steps / t.every).checked_add(1)?,
-        None => 0,
-    };
+    let frames = frames_per_trajectory(plan)?;
     let points = plan
         .observers
         .poincare
