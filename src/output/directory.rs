@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use crate::plan::size::bytes;
+use crate::plan::size::{bytes, RECORD_LESS};
 
 /// The file in `DIR.partial` that names its owner (removed before commit).
 const OWNER_FILE: &str = ".reeb-owner";
@@ -76,19 +76,7 @@ pub fn check(out: &Path, keep: &[&Path], force: bool) -> Result<()> {
     classify(out, force)?;
     let partial = partial_path(&abs);
     if std::fs::symlink_metadata(&partial).is_ok() {
-        let owner = std::fs::read_to_string(partial.join(OWNER_FILE)).ok();
-        match (open_locked(&partial)?, owner) {
-            (None, owner) => bail!(
-                "{} is being written by another reeb run ({})",
-                partial.display(),
-                owner.as_deref().map(str::trim).unwrap_or("owner unknown")
-            ),
-            (Some(_), None) => bail!(
-                "{} exists but was not made by reeb (no {OWNER_FILE}); remove it or choose another --out",
-                partial.display()
-            ),
-            (Some(_), Some(_)) => {}
-        }
+        stale_partial(&partial)?;
     }
     Ok(())
 }
@@ -107,7 +95,7 @@ impl Claim {
         };
         if need > free {
             bail!(
-                "{}: the outputs need about {} on disk and {} is free there; free some space, choose another --out, or record less (a larger output.trajectory.every, fewer vars, a smaller output.poincare.max_points, fewer values along an axis)",
+                "{}: the outputs need about {} on disk and {} is free there; free some space, choose another --out, or {RECORD_LESS}",
                 self.out.display(),
                 bytes(need),
                 bytes(free)
@@ -343,6 +331,29 @@ fn lock_partial(partial: &Path) -> Result<File> {
 
 /// Takes over an existing `partial` whose owner is gone; refuses a live one.
 fn take_over(partial: &Path) -> Result<File> {
+    let (lock, owner) = stale_partial(partial)?;
+    eprintln!(
+        "warning: {} was left by a run that did not finish ({}); reusing it",
+        partial.display(),
+        owner.trim()
+    );
+    for name in entries(partial)? {
+        let path = partial.join(&name);
+        let removed = if path.is_dir() {
+            std::fs::remove_dir_all(&path)
+        } else {
+            std::fs::remove_file(&path)
+        };
+        removed.with_context(|| format!("removing {}", path.display()))?;
+    }
+    write_owner(partial)?;
+    Ok(lock)
+}
+
+/// An existing `partial` that reeb left and whose owner is gone: its lock,
+/// now ours, and its owner's line. Refuses anything else: not a folder, a
+/// live owner, no owner file (not reeb's).
+fn stale_partial(partial: &Path) -> Result<(File, String)> {
     if !std::fs::symlink_metadata(partial).is_ok_and(|m| m.is_dir()) {
         bail!(
             "{} exists and is not a folder reeb left; remove it or choose another --out",
@@ -363,22 +374,7 @@ fn take_over(partial: &Path) -> Result<File> {
             partial.display()
         );
     };
-    eprintln!(
-        "warning: {} was left by a run that did not finish ({}); reusing it",
-        partial.display(),
-        owner.trim()
-    );
-    for name in entries(partial)? {
-        let path = partial.join(&name);
-        let removed = if path.is_dir() {
-            std::fs::remove_dir_all(&path)
-        } else {
-            std::fs::remove_file(&path)
-        };
-        removed.with_context(|| format!("removing {}", path.display()))?;
-    }
-    write_owner(partial)?;
-    Ok(lock)
+    Ok((lock, owner))
 }
 
 /// The folder opened and locked exclusively, or `None` if another process
