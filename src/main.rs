@@ -10,7 +10,7 @@ use clap::{Parser, Subcommand};
 use reeb::backend::gpu::{list_adapters, GpuContext};
 use reeb::backend::Engine;
 use reeb::num::precision::Precision;
-use reeb::output::run::{run_scene, RunOptions};
+use reeb::output::run::{gates, run_scene, Gated, RunOptions};
 use reeb::scene::{BackendChoice, Scene};
 use reeb::verify::{run_all, Target};
 
@@ -228,13 +228,12 @@ fn check(
 ) -> Result<ExitCode> {
     let s = Scene::load(&scene)?;
     let precision = precision.unwrap_or(s.precision);
-    let warnings = s.checks(precision)?;
-    for w in &warnings {
-        eprintln!("warning: {w}");
-    }
-    let runs = s.sub_runs()?;
-    let estimate = s.size_gate(&runs, precision, None)?;
-    let out = out.unwrap_or_else(|| PathBuf::from("runs").join(&s.name));
+    let Gated {
+        warnings,
+        subs: runs,
+        estimate,
+        out,
+    } = gates(&s, precision, out.as_deref(), None)?;
     reeb::output::directory::check(&out, &[&s.path], force)?;
     println!(
         "{}: ok: model {}, scheme {}, {precision}, {} trajectories over {} axes, {} plan(s), outputs about {} into {}{}",
@@ -356,7 +355,7 @@ fn check_bench_args(sizes: &[usize], steps: u64, threads: &[usize], repeats: usi
     // Two f64 final values per trajectory, and the plan's inputs: 32 bytes each.
     let largest = sizes.iter().copied().max().unwrap_or(0) as u64;
     let need = largest.saturating_mul(32);
-    if let Some(avail) = reeb::output::run::available_memory() {
+    if let Some(avail) = reeb::plan::size::available_memory() {
         if need > avail / 2 {
             anyhow::bail!(
                 "--n: {largest} trajectories need about {} GiB and {} GiB is available; use a smaller --n",

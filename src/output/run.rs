@@ -14,15 +14,14 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 
-use crate::output::directory::{self, Claim};
-
 use crate::backend::Engine;
 use crate::models::Flows;
 use crate::num::precision::Precision;
 use crate::output::arrays::write_arrays;
 pub use crate::output::arrays::write_npy;
+use crate::output::directory::{self, Claim};
 use crate::plan::observations::Observations;
-pub use crate::plan::size::{available_memory, bytes};
+use crate::plan::size::Estimate;
 use crate::scene::{BackendChoice, Scene, SceneWarning, SubRun};
 
 /// What a finished run reports.
@@ -50,20 +49,12 @@ pub struct RunOptions {
 pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
     let precision = opts.precision.unwrap_or(scene.precision);
     let choice = opts.backend.unwrap_or(scene.backend);
-    // The checks that depend on the working precision (refusals, warnings).
-    let warnings = scene.checks(precision)?;
-    for w in &warnings {
-        eprintln!("warning: {w}");
-    }
-    let subs = scene.sub_runs()?;
-    // Memory before any work: the observations of every sub-run, twice over
-    // while they are assembled into the scene's arrays (the gate `reeb
-    // check` applies too).
-    let estimate = scene.size_gate(&subs, precision, opts.max_output_bytes)?;
-    let out = opts
-        .out
-        .clone()
-        .unwrap_or_else(|| Path::new("runs").join(&scene.name));
+    let Gated {
+        warnings,
+        subs,
+        estimate,
+        out,
+    } = gates(scene, precision, opts.out.as_deref(), opts.max_output_bytes)?;
     let claim = directory::claim(&out, &[&scene.path], opts.force)?;
     // On disk the scene's arrays once: half the memory estimate.
     claim.check_space(estimate.bytes / 2)?;
@@ -80,6 +71,41 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
         Precision::F32 => run_typed::<f32>(scene, subs, claim, opts, &made),
         Precision::F64 => run_typed::<f64>(scene, subs, claim, opts, &made),
     }
+}
+
+/// What passed the gates of a run.
+pub struct Gated {
+    pub warnings: Vec<SceneWarning>,
+    pub subs: Vec<SubRun>,
+    pub estimate: Estimate,
+    /// The output directory: `--out`, or `runs/<scene name>`.
+    pub out: PathBuf,
+}
+
+/// The gates `reeb run` applies before any work, and `reeb check` as they
+/// are: the checks of the working precision (refusals; warnings printed),
+/// the plans, and the size of the outputs against `max_output_bytes` (by
+/// default 70 % of the available memory). The output directory's own gate
+/// follows: [`directory::claim`] for a run, [`directory::check`] for check.
+pub fn gates(
+    scene: &Scene,
+    precision: Precision,
+    out: Option<&Path>,
+    max_output_bytes: Option<u64>,
+) -> Result<Gated> {
+    let warnings = scene.checks(precision)?;
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
+    let subs = scene.sub_runs()?;
+    let estimate = scene.size_gate(&subs, precision, max_output_bytes)?;
+    let out = out.map_or_else(|| Path::new("runs").join(&scene.name), Path::to_path_buf);
+    Ok(Gated {
+        warnings,
+        subs,
+        estimate,
+        out,
+    })
 }
 
 /// How a run is made: engine, precision, and the warnings it was given.
