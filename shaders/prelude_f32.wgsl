@@ -29,6 +29,14 @@ fn exp_r(x: f32) -> f32 {
     return exp_f32(x);
 }
 
+fn log_r(x: f32) -> f32 {
+    return log_f32(x);
+}
+
+fn atan_r(x: f32) -> f32 {
+    return atan_f32(x);
+}
+
 fn sincos_r(x: f32, s: ptr<function, f32>, c: ptr<function, f32>) {
     sincos_f32(x, s, c);
 }

@@ -38,6 +38,14 @@ fn exp_r(x: f64) -> f64 {
     return exp_f64(x);
 }
 
+fn log_r(x: f64) -> f64 {
+    return log_f64(x);
+}
+
+fn atan_r(x: f64) -> f64 {
+    return atan_f64(x);
+}
+
 fn sincos_r(x: f64, s: ptr<function, f64>, c: ptr<function, f64>) {
     sincos_f64(x, s, c);
 }

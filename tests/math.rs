@@ -1,7 +1,9 @@
 //! reeb's polynomial exp/sin/cos against the platform libm: ≤ 2 ULP over the
 //! documented ranges, and the edges (overflow, underflow, NaN, large arguments).
 
-use reeb::num::math::{exp_f32, exp_f64, sincos_f32, sincos_f64};
+use reeb::num::math::{
+    atan_f32, atan_f64, exp_f32, exp_f64, log_f32, log_f64, sincos_f32, sincos_f64,
+};
 
 /// Distance in ULPs of `x` from the f64 reference `r`, in f32 units.
 fn ulp32(x: f32, r: f64) -> f64 {
@@ -176,4 +178,120 @@ fn sincos_edges() {
     // Tiny arguments: sin x = x exactly for |x| far below the ULP of x²/6.
     assert_eq!(sincos32(1e-20).0, 1e-20);
     assert_eq!(sincos64(1e-200).0, 1e-200);
+}
+
+/// Worst ULP error of `f` against `reference` over `xs` (f64).
+fn worst64(xs: &[f64], f: impl Fn(f64) -> f64, reference: impl Fn(f64) -> f64) -> (f64, f64) {
+    xs.iter().fold((0.0, 0.0), |w, &x| {
+        let e = ulp64(f(x), reference(x));
+        if e > w.0 {
+            (e, x)
+        } else {
+            w
+        }
+    })
+}
+
+/// Worst ULP error of `f` against the f64 `reference` over `xs` (f32).
+fn worst32(xs: &[f64], f: impl Fn(f32) -> f32, reference: impl Fn(f64) -> f64) -> (f64, f64) {
+    xs.iter().fold((0.0, 0.0), |w, &x| {
+        let x = x as f32;
+        let e = ulp32(f(x), reference(x as f64));
+        if e > w.0 {
+            (e, x as f64)
+        } else {
+            w
+        }
+    })
+}
+
+/// Log-uniform positive arguments from 2^lo to 2^hi.
+fn positive(lo: f64, hi: f64, n: usize, seed: u64) -> Vec<f64> {
+    sample(lo, hi, n, seed)
+        .into_iter()
+        .map(|e| e.exp2())
+        .collect()
+}
+
+#[test]
+fn log_within_2_ulp_everywhere() {
+    let xs = positive(-1074.0, 1023.9, 200_000, 11);
+    let near_one = sample(0.5, 2.0, 100_000, 12);
+    for set in [&xs, &near_one] {
+        let w = worst64(set, log_f64, f64::ln);
+        assert!(w.0 <= 2.0, "log_f64: {} ULP at {:e}", w.0, w.1);
+    }
+    let xs32 = positive(-149.0, 127.9, 200_000, 13);
+    for set in [&xs32, &near_one] {
+        let w = worst32(set, log_f32, f64::ln);
+        assert!(w.0 <= 2.0, "log_f32: {} ULP at {:e}", w.0, w.1);
+    }
+    assert_eq!(log_f64(1.0), 0.0);
+    assert_eq!(log_f64(0.0), f64::NEG_INFINITY);
+    assert_eq!(log_f64(f64::INFINITY), f64::INFINITY);
+    assert!(log_f64(-1.0).is_nan() && log_f64(f64::NAN).is_nan());
+    assert_eq!(log_f32(0.0), f32::NEG_INFINITY);
+    assert!(log_f32(-2.0).is_nan());
+}
+
+#[test]
+fn atan_within_2_ulp() {
+    let xs: Vec<f64> = sample(-4.0, 4.0, 200_000, 14)
+        .into_iter()
+        .chain(sample(-1e6, 1e6, 100_000, 15))
+        .chain([1e300, -1e300, 1e-300])
+        .collect();
+    let w = worst64(&xs, atan_f64, f64::atan);
+    assert!(w.0 <= 2.0, "atan_f64: {} ULP at {:e}", w.0, w.1);
+    let w = worst32(&xs, atan_f32, f64::atan);
+    assert!(w.0 <= 2.0, "atan_f32: {} ULP at {:e}", w.0, w.1);
+    assert_eq!(atan_f64(f64::INFINITY), std::f64::consts::FRAC_PI_2);
+    assert!(atan_f64(f64::NAN).is_nan());
+}
+
+#[test]
+fn hyperbolic_tan_and_pow_within_bounds() {
+    use reeb::num::math::Elementary;
+    let xs: Vec<f64> = sample(-20.0, 20.0, 100_000, 16)
+        .into_iter()
+        .chain(sample(-0.6, 0.6, 100_000, 17))
+        .collect();
+    let cases: [(&str, fn(f64) -> f64, fn(f64) -> f64, f64); 4] = [
+        ("sinh", f64::sinh_r, f64::sinh, 3.0),
+        ("cosh", f64::cosh_r, f64::cosh, 3.0),
+        ("tanh", f64::tanh_r, f64::tanh, 4.0),
+        ("tan", f64::tan_r, f64::tan, 4.0),
+    ];
+    for (name, f, r, bound) in cases {
+        let xs: Vec<f64> = if name == "tan" {
+            sample(-1.5, 1.5, 100_000, 18)
+        } else {
+            xs.clone()
+        };
+        let w = worst64(&xs, f, r);
+        assert!(w.0 <= bound, "{name}_r f64: {} ULP at {:e}", w.0, w.1);
+        let w = worst32(
+            &xs,
+            |x| match name {
+                "sinh" => f32::sinh_r(x),
+                "cosh" => f32::cosh_r(x),
+                "tanh" => f32::tanh_r(x),
+                _ => f32::tan_r(x),
+            },
+            r,
+        );
+        assert!(w.0 <= bound, "{name}_r f32: {} ULP at {:e}", w.0, w.1);
+    }
+    // x^y = e^{y ln x}: the error grows with |y ln x| (documented).
+    let bases = sample(0.1, 10.0, 50_000, 19);
+    for x in bases {
+        let e = ulp64(f64::pow_r(x, 2.5), x.powf(2.5));
+        let bound = 3.0 + 2.0 * (2.5 * x.ln()).abs();
+        assert!(e <= bound, "pow_r({x}, 2.5): {e} ULP > {bound}");
+    }
+    assert!(f64::pow_r(-1.0, 0.5).is_nan());
+    assert_eq!(f64::sign_r(-3.0), -1.0);
+    assert_eq!(f64::sign_r(0.0), 0.0);
+    assert_eq!(f64::min_r(1.0, 2.0), 1.0);
+    assert_eq!(f64::max_r(1.0, 2.0), 2.0);
 }

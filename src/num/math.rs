@@ -124,10 +124,280 @@ crate::shared_fns! {
     }
 }
 
+crate::shared_fns! {
+    concrete, wgsl LOG_ATAN_F32_WGSL;
+
+    /// ln x in f32: x = 2^e·m with m in [√½, √2) found by exact scalings
+    /// (a branch-free ladder of powers of two, no bit access: WGSL has none
+    /// in f64), then fdlibm's logf kernel on f = m − 1.
+    fn log_f32(x: f32) -> f32 {
+        let mut m: f32 = x;
+        let mut e: f32 = 0.0;
+        // Subnormals first, so that the ladder's 127 reaches every input.
+        let tiny: bool = m < 7.888609052210118e-31;
+        m = f32::select(m, m * 4294967296.0, tiny);
+        e = f32::select(e, -32.0, tiny);
+        let up64: bool = m >= 1.8446744073709552e+19;
+        m = f32::select(m, m * 5.421010862427522e-20, up64);
+        e = f32::select(e, e + 64.0, up64);
+        let up32: bool = m >= 4294967296.0;
+        m = f32::select(m, m * 2.3283064365386963e-10, up32);
+        e = f32::select(e, e + 32.0, up32);
+        let up16: bool = m >= 65536.0;
+        m = f32::select(m, m * 1.52587890625e-05, up16);
+        e = f32::select(e, e + 16.0, up16);
+        let up8: bool = m >= 256.0;
+        m = f32::select(m, m * 0.00390625, up8);
+        e = f32::select(e, e + 8.0, up8);
+        let up4: bool = m >= 16.0;
+        m = f32::select(m, m * 0.0625, up4);
+        e = f32::select(e, e + 4.0, up4);
+        let up2: bool = m >= 4.0;
+        m = f32::select(m, m * 0.25, up2);
+        e = f32::select(e, e + 2.0, up2);
+        let up1: bool = m >= 2.0;
+        m = f32::select(m, m * 0.5, up1);
+        e = f32::select(e, e + 1.0, up1);
+        let dn64: bool = m < 1.0842021724855044e-19;
+        m = f32::select(m, m * 1.8446744073709552e+19, dn64);
+        e = f32::select(e, e - 64.0, dn64);
+        let dn32: bool = m < 4.656612873077393e-10;
+        m = f32::select(m, m * 4294967296.0, dn32);
+        e = f32::select(e, e - 32.0, dn32);
+        let dn16: bool = m < 3.0517578125e-05;
+        m = f32::select(m, m * 65536.0, dn16);
+        e = f32::select(e, e - 16.0, dn16);
+        let dn8: bool = m < 0.0078125;
+        m = f32::select(m, m * 256.0, dn8);
+        e = f32::select(e, e - 8.0, dn8);
+        let dn4: bool = m < 0.125;
+        m = f32::select(m, m * 16.0, dn4);
+        e = f32::select(e, e - 4.0, dn4);
+        let dn2: bool = m < 0.5;
+        m = f32::select(m, m * 4.0, dn2);
+        e = f32::select(e, e - 2.0, dn2);
+        let dn1: bool = m < 1.0;
+        m = f32::select(m, m * 2.0, dn1);
+        e = f32::select(e, e - 1.0, dn1);
+        let hi: bool = m > 1.41421356;
+        m = f32::select(m, m * 0.5, hi);
+        e = f32::select(e, e + 1.0, hi);
+        let f: f32 = m - 1.0;
+        let s: f32 = f / (2.0 + f);
+        let z: f32 = s * s;
+        let w: f32 = z * z;
+        let t1: f32 = w * f32::fma(w, 0.24279078841, 0.40000972152);
+        let t2: f32 = z * f32::fma(w, 0.28498786688, 0.66666662693);
+        let r: f32 = t2 + t1;
+        let hfsq: f32 = 0.5 * f * f;
+        let res: f32 = e * 0.693138123 - ((hfsq - (s * (hfsq + r) + e * 0.00000905525081)) - f);
+        // ln 0 = −∞, ln x = NaN below 0 (0/0 at run time), ln ∞ = ∞, NaN stays.
+        let neg: f32 = (x - x) / (x - x);
+        let r1: f32 = f32::select(res, x, x > 3.40282347e38);
+        let r2: f32 = f32::select(r1, -f32::inf(), x == 0.0);
+        return f32::select(r2, neg, x < 0.0);
+    }
+
+    /// atan x in f32: fdlibm's atanf (reduction to |x'| ≤ 7/16 around
+    /// 0.5, 1, 1.5 or ∞ by selects, odd polynomial of degree 11).
+    fn atan_f32(x: f32) -> f32 {
+        let a: f32 = f32::abs(x);
+        let id0: bool = a >= 0.4375;
+        let id1: bool = a >= 0.6875;
+        let id2: bool = a >= 1.1875;
+        let id3: bool = a >= 2.4375;
+        let c: f32 = f32::select(f32::select(0.5, 1.0, id1), 1.5, id2);
+        let hi: f32 = f32::select(f32::select(f32::select(0.0, 0.46364760399, id0), 0.78539812565, id1), 0.98279368877, id2);
+        let lo: f32 = f32::select(f32::select(f32::select(0.0, 5.0121582440e-09, id0), 3.7748947079e-08, id1), 3.4473217170e-08, id2);
+        let xr0: f32 = f32::select(a, (a - c) / (1.0 + c * a), id0);
+        let xr: f32 = f32::select(xr0, -1.0 / a, id3);
+        let hi3: f32 = f32::select(hi, 1.5707962513, id3);
+        let lo3: f32 = f32::select(lo, 7.5497894159e-08, id3);
+        let z: f32 = xr * xr;
+        let w: f32 = z * z;
+        let s1: f32 = z * f32::fma(w, f32::fma(w, 0.061687607318, 0.14253635705), 0.33333328366);
+        let s2: f32 = w * f32::fma(w, -0.10648017377, -0.19999158382);
+        let small: f32 = xr - xr * (s1 + s2);
+        let big: f32 = hi3 - ((xr * (s1 + s2) - lo3) - xr);
+        let r: f32 = f32::select(small, big, id0);
+        return f32::select(r, -r, x < 0.0);
+    }
+}
+
+crate::shared_fns! {
+    concrete, wgsl LOG_ATAN_F64_WGSL;
+
+    /// ln x in f64: as `log_f32`, with fdlibm's log kernel (degree 14 in s).
+    fn log_f64(x: f64) -> f64 {
+        let mut m: f64 = x;
+        let mut e: f64 = 0.0;
+        let tiny: bool = m < 9.332636185032189e-302;
+        m = f64::select(m, m * 1.8446744073709552e19, tiny);
+        e = f64::select(e, -64.0, tiny);
+        let up512: bool = m >= 1.3407807929942597e+154;
+        m = f64::select(m, m * 7.458340731200207e-155, up512);
+        e = f64::select(e, e + 512.0, up512);
+        let up256: bool = m >= 1.157920892373162e+77;
+        m = f64::select(m, m * 8.636168555094445e-78, up256);
+        e = f64::select(e, e + 256.0, up256);
+        let up128: bool = m >= 3.402823669209385e+38;
+        m = f64::select(m, m * 2.938735877055719e-39, up128);
+        e = f64::select(e, e + 128.0, up128);
+        let up64: bool = m >= 1.8446744073709552e+19;
+        m = f64::select(m, m * 5.421010862427522e-20, up64);
+        e = f64::select(e, e + 64.0, up64);
+        let up32: bool = m >= 4294967296.0;
+        m = f64::select(m, m * 2.3283064365386963e-10, up32);
+        e = f64::select(e, e + 32.0, up32);
+        let up16: bool = m >= 65536.0;
+        m = f64::select(m, m * 1.52587890625e-05, up16);
+        e = f64::select(e, e + 16.0, up16);
+        let up8: bool = m >= 256.0;
+        m = f64::select(m, m * 0.00390625, up8);
+        e = f64::select(e, e + 8.0, up8);
+        let up4: bool = m >= 16.0;
+        m = f64::select(m, m * 0.0625, up4);
+        e = f64::select(e, e + 4.0, up4);
+        let up2: bool = m >= 4.0;
+        m = f64::select(m, m * 0.25, up2);
+        e = f64::select(e, e + 2.0, up2);
+        let up1: bool = m >= 2.0;
+        m = f64::select(m, m * 0.5, up1);
+        e = f64::select(e, e + 1.0, up1);
+        let dn512: bool = m < 1.4916681462400413e-154;
+        m = f64::select(m, m * 1.3407807929942597e+154, dn512);
+        e = f64::select(e, e - 512.0, dn512);
+        let dn256: bool = m < 1.727233711018889e-77;
+        m = f64::select(m, m * 1.157920892373162e+77, dn256);
+        e = f64::select(e, e - 256.0, dn256);
+        let dn128: bool = m < 5.877471754111438e-39;
+        m = f64::select(m, m * 3.402823669209385e+38, dn128);
+        e = f64::select(e, e - 128.0, dn128);
+        let dn64: bool = m < 1.0842021724855044e-19;
+        m = f64::select(m, m * 1.8446744073709552e+19, dn64);
+        e = f64::select(e, e - 64.0, dn64);
+        let dn32: bool = m < 4.656612873077393e-10;
+        m = f64::select(m, m * 4294967296.0, dn32);
+        e = f64::select(e, e - 32.0, dn32);
+        let dn16: bool = m < 3.0517578125e-05;
+        m = f64::select(m, m * 65536.0, dn16);
+        e = f64::select(e, e - 16.0, dn16);
+        let dn8: bool = m < 0.0078125;
+        m = f64::select(m, m * 256.0, dn8);
+        e = f64::select(e, e - 8.0, dn8);
+        let dn4: bool = m < 0.125;
+        m = f64::select(m, m * 16.0, dn4);
+        e = f64::select(e, e - 4.0, dn4);
+        let dn2: bool = m < 0.5;
+        m = f64::select(m, m * 4.0, dn2);
+        e = f64::select(e, e - 2.0, dn2);
+        let dn1: bool = m < 1.0;
+        m = f64::select(m, m * 2.0, dn1);
+        e = f64::select(e, e - 1.0, dn1);
+        let hi: bool = m > 1.4142135623730951;
+        m = f64::select(m, m * 0.5, hi);
+        e = f64::select(e, e + 1.0, hi);
+        let f: f64 = m - 1.0;
+        let s: f64 = f / (2.0 + f);
+        let z: f64 = s * s;
+        let w: f64 = z * z;
+        let t1: f64 = w * f64::fma(w, f64::fma(w, 1.531383769920937332e-01, 2.222219843214978396e-01), 3.999999999940941908e-01);
+        let t2: f64 = z * f64::fma(w, f64::fma(w, f64::fma(w, 1.479819860511658591e-01, 1.818357216161805012e-01), 2.857142874366239149e-01), 6.666666666666735130e-01);
+        let r: f64 = t2 + t1;
+        let hfsq: f64 = 0.5 * f * f;
+        let res: f64 = e * 6.93147180369123816490e-01 - ((hfsq - (s * (hfsq + r) + e * 1.90821492927058770002e-10)) - f);
+        let neg: f64 = (x - x) / (x - x);
+        let r1: f64 = f64::select(res, x, x > 1.7976931348623157e308);
+        let r2: f64 = f64::select(r1, -f64::inf(), x == 0.0);
+        return f64::select(r2, neg, x < 0.0);
+    }
+
+    /// atan x in f64: fdlibm's atan (as `atan_f32`, degree 22).
+    fn atan_f64(x: f64) -> f64 {
+        let a: f64 = f64::abs(x);
+        let id0: bool = a >= 0.4375;
+        let id1: bool = a >= 0.6875;
+        let id2: bool = a >= 1.1875;
+        let id3: bool = a >= 2.4375;
+        let c: f64 = f64::select(f64::select(0.5, 1.0, id1), 1.5, id2);
+        let hi: f64 = f64::select(f64::select(f64::select(0.0, 4.63647609000806093515e-01, id0), 7.85398163397448278999e-01, id1), 9.82793723247329054082e-01, id2);
+        let lo: f64 = f64::select(f64::select(f64::select(0.0, 2.26987774529616870924e-17, id0), 3.06161699786838301793e-17, id1), 1.39033110312309984516e-17, id2);
+        let xr0: f64 = f64::select(a, (a - c) / (1.0 + c * a), id0);
+        let xr: f64 = f64::select(xr0, -1.0 / a, id3);
+        let hi3: f64 = f64::select(hi, 1.57079632679489655800e+00, id3);
+        let lo3: f64 = f64::select(lo, 6.12323399573676603587e-17, id3);
+        let z: f64 = xr * xr;
+        let w: f64 = z * z;
+        let s1: f64 = z * f64::fma(w, f64::fma(w, f64::fma(w, f64::fma(w, f64::fma(w, 1.62858201153657823623e-02, 4.97687799461593236017e-02), 6.66107313738753120669e-02), 9.09088713343650656196e-02), 1.42857142725034663711e-01), 3.33333333333329318027e-01);
+        let s2: f64 = w * f64::fma(w, f64::fma(w, f64::fma(w, f64::fma(w, -3.65315727442169155270e-02, -5.83357013379057348645e-02), -7.69187620504482999495e-02), -1.11111104054623557880e-01), -1.99999999998764832476e-01);
+        let small: f64 = xr - xr * (s1 + s2);
+        let big: f64 = hi3 - ((xr * (s1 + s2) - lo3) - xr);
+        let r: f64 = f64::select(small, big, id0);
+        return f64::select(r, -r, x < 0.0);
+    }
+}
+
+crate::shared_fns! {
+    /// The formula functions built on `exp_r`, `sincos_r`, `log_r` (both
+    /// backends evaluate these same texts; see `num/formula/lower.rs`).
+    trait Elementary, wgsl ELEMENTARY_WGSL;
+
+    fn tan_r(x: R) -> R {
+        let mut s: R = 0.0;
+        let mut c: R = 0.0;
+        R::sincos_r(x, &mut s, &mut c);
+        return s / c;
+    }
+    /// sinh x: Taylor to x¹³ below |x| = ½ (no cancellation), else from e^|x|.
+    fn sinh_r(x: R) -> R {
+        let a: R = R::abs(x);
+        let z: R = x * x;
+        let mut p: R = 1.6059043836821613e-10;
+        p = R::fma(p, z, 2.505210838544172e-08);
+        p = R::fma(p, z, 2.7557319223985893e-06);
+        p = R::fma(p, z, 0.0001984126984126984);
+        p = R::fma(p, z, 0.008333333333333333);
+        p = R::fma(p, z, 0.16666666666666666);
+        let series: R = R::fma(p * z, x, x);
+        let e: R = R::exp_r(a);
+        let big: R = 0.5 * (e - 1.0 / e);
+        return R::select(series, R::select(big, -big, x < 0.0), a >= 0.5);
+    }
+    fn cosh_r(x: R) -> R {
+        let e: R = R::exp_r(R::abs(x));
+        return 0.5 * (e + 1.0 / e);
+    }
+    /// tanh x: sinh/cosh below |x| = ½, else (1 − e^{−2|x|})/(1 + e^{−2|x|}).
+    fn tanh_r(x: R) -> R {
+        let a: R = R::abs(x);
+        let u: R = R::exp_r(-2.0 * a);
+        let big: R = (1.0 - u) / (1.0 + u);
+        let small: R = R::sinh_r(x) / R::cosh_r(x);
+        return R::select(small, R::select(big, -big, x < 0.0), a >= 0.5);
+    }
+    /// x^y for real y, as e^{y ln x}: NaN below 0, like a real power.
+    fn pow_r(x: R, y: R) -> R {
+        return R::exp_r(y * R::log_r(x));
+    }
+    /// The derivative of |x| (0 at 0).
+    fn sign_r(x: R) -> R {
+        let one: R = 1.0;
+        return R::select(R::select(x, -one, x < 0.0), one, x > 0.0);
+    }
+    fn min_r(x: R, y: R) -> R {
+        return R::select(y, x, x < y);
+    }
+    fn max_r(x: R, y: R) -> R {
+        return R::select(y, x, x > y);
+    }
+}
+
 /// Elementary functions of the working precision. Both backends use reeb's
 /// own range-reduced polynomials ([`crate::math`]), never the platform's.
 pub trait Math: Sized {
     fn exp_r(x: Self) -> Self;
+    fn log_r(x: Self) -> Self;
+    fn atan_r(x: Self) -> Self;
     fn sincos_r(x: Self, s: &mut Self, c: &mut Self);
     #[inline(always)]
     fn sin_r(x: Self) -> Self
@@ -155,6 +425,14 @@ impl Math for f32 {
         exp_f32(x)
     }
     #[inline(always)]
+    fn log_r(x: f32) -> f32 {
+        log_f32(x)
+    }
+    #[inline(always)]
+    fn atan_r(x: f32) -> f32 {
+        atan_f32(x)
+    }
+    #[inline(always)]
     fn sincos_r(x: f32, s: &mut f32, c: &mut f32) {
         sincos_f32(x, s, c)
     }
@@ -164,6 +442,14 @@ impl Math for f64 {
     #[inline(always)]
     fn exp_r(x: f64) -> f64 {
         exp_f64(x)
+    }
+    #[inline(always)]
+    fn log_r(x: f64) -> f64 {
+        log_f64(x)
+    }
+    #[inline(always)]
+    fn atan_r(x: f64) -> f64 {
+        atan_f64(x)
     }
     #[inline(always)]
     fn sincos_r(x: f64, s: &mut f64, c: &mut f64) {

@@ -4,7 +4,7 @@
 use std::fmt::{Debug, Display};
 use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 
-use crate::num::math::Math;
+use crate::num::math::{Elementary, Math};
 use crate::num::prims::Prims;
 
 /// A floating-point working precision with its primitives and elementary
@@ -34,6 +34,7 @@ pub trait Real:
     + npyz::AutoSerialize
     + Prims
     + Math
+    + Elementary
 {
     /// `"f32"` or `"f64"`.
     const NAME: &'static str;

@@ -13,7 +13,9 @@ use std::fmt::Write;
 
 use crate::models::COMMON_WGSL;
 use crate::num::dsl::to_wgsl;
-use crate::num::math::{MATH_F32_WGSL, MATH_F64_WGSL};
+use crate::num::math::{
+    ELEMENTARY_WGSL, LOG_ATAN_F32_WGSL, LOG_ATAN_F64_WGSL, MATH_F32_WGSL, MATH_F64_WGSL,
+};
 use crate::num::precision::Precision;
 use crate::plan::observers::{Direction, PoincareObs, Section};
 use crate::plan::{ObsVar, Op, Plan, Source};
@@ -125,10 +127,13 @@ fn lit(v: f64) -> String {
 /// All shared-function text a plan's kernel includes, translated.
 fn shared_text(plan: &Plan, precision: Precision) -> Result<String, CodegenError> {
     let mut text = String::new();
-    text.push_str(&to_wgsl(match precision {
-        Precision::F32 => MATH_F32_WGSL,
-        Precision::F64 => MATH_F64_WGSL,
-    })?);
+    let (math, log_atan) = match precision {
+        Precision::F32 => (MATH_F32_WGSL, LOG_ATAN_F32_WGSL),
+        Precision::F64 => (MATH_F64_WGSL, LOG_ATAN_F64_WGSL),
+    };
+    for t in [math, log_atan, ELEMENTARY_WGSL] {
+        text.push_str(&to_wgsl(t)?);
+    }
     for t in COMMON_WGSL.iter().chain(plan.model.spec().wgsl) {
         text.push_str(&to_wgsl(t)?);
     }
