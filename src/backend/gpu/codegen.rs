@@ -13,6 +13,7 @@ use std::fmt::Write;
 
 use crate::models::COMMON_WGSL;
 use crate::num::dsl::to_wgsl;
+use crate::num::formula::wgsl::lit;
 use crate::num::math::{
     ELEMENTARY_WGSL, LOG_ATAN_F32_WGSL, LOG_ATAN_F64_WGSL, MATH_F32_WGSL, MATH_F64_WGSL,
 };
@@ -111,17 +112,6 @@ pub fn signatures(wgsl: &str) -> BTreeMap<String, Vec<(String, bool)>> {
         rest = &after[end..];
     }
     out
-}
-
-/// A WGSL literal for `v` (abstract float: full f64 precision, converted by
-/// the compiler to the working precision exactly as `as f32` does).
-fn lit(v: f64) -> String {
-    let s = format!("{v:?}");
-    if s.contains('.') || s.contains('e') {
-        s
-    } else {
-        format!("{s}.0")
-    }
 }
 
 /// All shared-function text a plan's kernel includes, translated.

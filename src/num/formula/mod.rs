@@ -1,5 +1,5 @@
-//! Formulas a user writes in a scene (`potential = "q^2/2 - q^4/4"`): the
-//! groundwork of formula models (issue 11).
+//! Formulas a user writes in a scene (`potential = "q^2/2 - q^4/4"`), from
+//! text to the code both backends run.
 //!
 //! - `parse.rs`: text → syntax tree, errors at a column.
 //! - `dag.rs`: the tree as a hash-consed DAG over named variables: equal
@@ -8,6 +8,9 @@
 //! - `diff.rs`: symbolic derivatives, built in the same DAG.
 //! - `functions.rs`: the functions a formula may call, in f64.
 //! - `eval.rs`: evaluation in f64 (the reference for both backends).
+//! - `lower.rs`: roots → one straight-line program of primitive operations,
+//!   which both backends run: `tape.rs` (the CPU's block interpreter) and
+//!   `wgsl.rs` (a WGSL function for the GPU).
 //!
 //! Grammar: numbers, `pi`, names, `+ - * / ^` (`^` binds tightest and to
 //! the right, `-x^2 = -(x^2)`), parentheses, and the functions of [`Func`]
@@ -17,7 +20,10 @@ pub mod dag;
 pub mod diff;
 pub mod eval;
 pub mod functions;
+pub mod lower;
 pub mod parse;
+pub mod tape;
+pub mod wgsl;
 
 pub use dag::{Dag, Func, Func2, Id, Node};
 pub use parse::{parse, Expr, FormulaError};

@@ -1,0 +1,244 @@
+//! A DAG's roots lowered to one straight-line program of primitive
+//! instructions: what both backends run (`tape.rs` on the CPU, `wgsl.rs` on
+//! the GPU), so that they evaluate the same operations in the same order.
+//!
+//! Lowering expands integer powers into one fixed chain of products, writes
+//! `a + (−b)` as `a − b`, and keeps only the nodes the roots need. Every
+//! function becomes a call of reeb's own shared function (`num/math.rs`).
+
+use std::collections::HashMap;
+
+use super::dag::{Dag, Func, Func2, Id, Node};
+
+/// Where an instruction's operand comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Operand {
+    /// The result of instruction `k`.
+    Val(u32),
+    /// Input variable `k` (as the DAG's `Var(k)`).
+    Input(u32),
+    Const(f64),
+}
+
+/// A primitive operation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Prim {
+    Neg,
+    Add,
+    Sub,
+    Mul,
+    Div,
+    Call(Func),
+    Call2(Func2),
+}
+
+/// One instruction: `op(a, b)` (`b` unused by unary operations).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Instr {
+    pub op: Prim,
+    pub a: Operand,
+    pub b: Operand,
+}
+
+/// A straight-line program: instructions in evaluation order (operands
+/// before their users) and the operands that are the roots' values.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Lowered {
+    pub instrs: Vec<Instr>,
+    pub outputs: Vec<Operand>,
+}
+
+impl Prim {
+    pub fn unary(self) -> bool {
+        matches!(self, Prim::Neg | Prim::Call(_))
+    }
+}
+
+/// Lowers `roots` of `dag` into one program (shared nodes computed once).
+pub fn lower(dag: &Dag, roots: &[Id]) -> Lowered {
+    let mut l = Lowering {
+        dag,
+        done: HashMap::new(),
+        made: HashMap::new(),
+        out: Lowered::default(),
+    };
+    let outputs = roots.iter().map(|r| l.node(*r)).collect();
+    l.out.outputs = outputs;
+    l.out
+}
+
+struct Lowering<'d> {
+    dag: &'d Dag,
+    done: HashMap<Id, Operand>,
+    /// Instructions made, so that equal ones (the squares of a power chain
+    /// shared with an explicit product) are made once.
+    made: HashMap<(Prim, u64, u64), Operand>,
+    out: Lowered,
+}
+
+/// A hashable key of an operand.
+fn key(o: Operand) -> u64 {
+    match o {
+        Operand::Val(k) => k as u64,
+        Operand::Input(k) => (1 << 40) | k as u64,
+        Operand::Const(c) => c.to_bits() ^ (3 << 62),
+    }
+}
+
+impl Lowering<'_> {
+    fn emit(&mut self, op: Prim, a: Operand, b: Operand) -> Operand {
+        let k = (op, key(a), key(b));
+        if let Some(o) = self.made.get(&k) {
+            return *o;
+        }
+        let o = Operand::Val(self.out.instrs.len() as u32);
+        self.out.instrs.push(Instr { op, a, b });
+        self.made.insert(k, o);
+        o
+    }
+
+    /// The operand of node `id`, its instructions emitted first (iteratively:
+    /// deep formulas must not overflow the stack).
+    fn node(&mut self, id: Id) -> Operand {
+        let mut stack = vec![(id, false)];
+        while let Some((n, ready)) = stack.pop() {
+            if self.done.contains_key(&n) {
+                continue;
+            }
+            let deps = self.deps(n);
+            if !ready {
+                stack.push((n, true));
+                stack.extend(deps.into_iter().rev().map(|d| (d, false)));
+                continue;
+            }
+            let o = self.lower_node(n);
+            self.done.insert(n, o);
+        }
+        self.done[&id]
+    }
+
+    /// The nodes that lowering `n` reads (a negated addend is read through).
+    fn deps(&self, n: Id) -> Vec<Id> {
+        match self.dag.node(n) {
+            Node::Const(_) | Node::Var(_) => vec![],
+            Node::Add(a, b) => [a, b]
+                .into_iter()
+                .map(|x| match self.dag.node(x) {
+                    Node::Neg(y) => y,
+                    _ => x,
+                })
+                .collect(),
+            Node::Neg(a) | Node::PowI(a, _) | Node::Call(_, a) => vec![a],
+            Node::Mul(a, b) | Node::Div(a, b) | Node::Call2(_, a, b) => vec![a, b],
+        }
+    }
+
+    fn lower_node(&mut self, n: Id) -> Operand {
+        let v = |s: &Self, x: Id| s.done[&x];
+        let none = Operand::Const(0.0);
+        match self.dag.node(n) {
+            Node::Const(bits) => Operand::Const(f64::from_bits(bits)),
+            Node::Var(k) => Operand::Input(k),
+            Node::Neg(a) => self.emit(Prim::Neg, v(self, a), none),
+            Node::Add(a, b) => {
+                let negated = |s: &Self, x: Id| match s.dag.node(x) {
+                    Node::Neg(y) => Some(s.done[&y]),
+                    _ => None,
+                };
+                match (negated(self, a), negated(self, b)) {
+                    (None, Some(nb)) => self.emit(Prim::Sub, v(self, a), nb),
+                    (Some(na), None) => self.emit(Prim::Sub, v(self, b), na),
+                    (Some(na), Some(nb)) => {
+                        let s = self.emit(Prim::Add, na, nb);
+                        self.emit(Prim::Neg, s, none)
+                    }
+                    (None, None) => self.emit(Prim::Add, v(self, a), v(self, b)),
+                }
+            }
+            Node::Mul(a, b) => self.emit(Prim::Mul, v(self, a), v(self, b)),
+            Node::Div(a, b) => self.emit(Prim::Div, v(self, a), v(self, b)),
+            Node::PowI(a, k) => self.power(v(self, a), k),
+            Node::Call(f, a) => self.emit(Prim::Call(f), v(self, a), none),
+            Node::Call2(f, a, b) => self.emit(Prim::Call2(f), v(self, a), v(self, b)),
+        }
+    }
+
+    /// `x^k` by binary powering (the squares low to high, multiplied in as
+    /// their bits come), `1/x^|k|` for negative `k`.
+    fn power(&mut self, x: Operand, k: i32) -> Operand {
+        let mut m = k.unsigned_abs();
+        let mut square = x;
+        let mut acc: Option<Operand> = None;
+        while m > 0 {
+            if m & 1 == 1 {
+                acc = Some(match acc {
+                    None => square,
+                    Some(a) => self.emit(Prim::Mul, a, square),
+                });
+            }
+            m >>= 1;
+            if m > 0 {
+                square = self.emit(Prim::Mul, square, square);
+            }
+        }
+        let pos = acc.unwrap_or(Operand::Const(1.0));
+        if k < 0 {
+            self.emit(Prim::Div, Operand::Const(1.0), pos)
+        } else {
+            pos
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::compile;
+    use super::*;
+
+    /// The lowered program evaluated in f64, as the backends do.
+    fn run(l: &Lowered, vars: &[f64]) -> Vec<f64> {
+        use crate::num::math::Math;
+        let mut vals: Vec<f64> = vec![];
+        let get = |vals: &[f64], o: Operand| match o {
+            Operand::Val(k) => vals[k as usize],
+            Operand::Input(k) => vars[k as usize],
+            Operand::Const(c) => c,
+        };
+        for i in &l.instrs {
+            let (a, b) = (get(&vals, i.a), get(&vals, i.b));
+            vals.push(match i.op {
+                Prim::Neg => -a,
+                Prim::Add => a + b,
+                Prim::Sub => a - b,
+                Prim::Mul => a * b,
+                Prim::Div => a / b,
+                Prim::Call(Func::Exp) => f64::exp_r(a),
+                Prim::Call(Func::Sin) => f64::sin_r(a),
+                Prim::Call(_) | Prim::Call2(_) => f64::NAN,
+            });
+        }
+        l.outputs.iter().map(|o| get(&vals, *o)).collect()
+    }
+
+    #[test]
+    fn powers_chain_and_negated_addends_subtract() {
+        let mut d = Dag::new();
+        let names = ["q", "p"];
+        let roots = [
+            compile(&mut d, "q^5 - p", &names).unwrap(),
+            compile(&mut d, "q^-3 + exp(p)*sin(q)", &names).unwrap(),
+            compile(&mut d, "q^4", &names).unwrap(),
+        ];
+        let l = lower(&d, &roots);
+        // q², q⁴, q⁵, q⁵ − p, q³ = q·q², 1/q³, exp p, sin q, product, sum.
+        assert_eq!(l.instrs.len(), 10, "{:#?}", l.instrs);
+        assert!(l.instrs.iter().any(|i| i.op == Prim::Sub));
+        assert!(!l.instrs.iter().any(|i| i.op == Prim::Neg));
+        let x = [1.3, -0.4];
+        let got = run(&l, &x);
+        let want = d.eval(&roots, &x);
+        for (g, w) in got.iter().zip(&want) {
+            assert!((g - w).abs() <= 4e-16 * w.abs(), "{g} vs {w}");
+        }
+    }
+}

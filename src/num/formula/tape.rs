@@ -1,0 +1,244 @@
+//! The CPU's block interpreter: a [`Lowered`] program run over blocks of
+//! `N` trajectories at once, one loop over the lanes per instruction (which
+//! the compiler vectorises), so the cost of interpreting an instruction is
+//! shared by the whole block. Registers are reused as soon as their value
+//! is dead, so a large formula's working set stays in the L1 cache.
+
+use super::dag::{Func, Func2};
+use super::lower::{Instr, Lowered, Operand, Prim};
+use crate::num::precision::Real;
+
+/// An operand resolved for the CPU.
+#[derive(Debug, Clone, Copy)]
+enum Src<R> {
+    Reg(u16),
+    /// An input array, by its position in the caller's input list.
+    Input(u16),
+    Const(R),
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Step<R> {
+    op: Prim,
+    dst: u16,
+    a: Src<R>,
+    b: Src<R>,
+}
+
+/// A program with registers allocated, in precision `R`.
+#[derive(Debug, Clone)]
+pub struct Tape<R> {
+    steps: Vec<Step<R>>,
+    /// The register holding each output.
+    outputs: Vec<u16>,
+    /// Registers the program needs.
+    pub registers: usize,
+}
+
+impl<R: Real> Tape<R> {
+    /// Allocates registers for `l` (a register is free again after the last
+    /// instruction that reads it; outputs are never freed). Every output is
+    /// in a register, so stores never read an input they overwrite.
+    pub fn new(l: &Lowered) -> Tape<R> {
+        let mut instrs: Vec<Instr> = l.instrs.clone();
+        let mut outputs: Vec<u32> = vec![];
+        for o in &l.outputs {
+            outputs.push(match *o {
+                Operand::Val(k) => k,
+                other => {
+                    // x·1 = x exactly, NaN and ±∞ included.
+                    instrs.push(Instr {
+                        op: Prim::Mul,
+                        a: other,
+                        b: Operand::Const(1.0),
+                    });
+                    instrs.len() as u32 - 1
+                }
+            });
+        }
+        let mut last = vec![usize::MAX; instrs.len()];
+        for (k, i) in instrs.iter().enumerate() {
+            for o in [i.a, i.b] {
+                if let Operand::Val(v) = o {
+                    last[v as usize] = k;
+                }
+            }
+        }
+        for o in &outputs {
+            last[*o as usize] = usize::MAX - 1;
+        }
+        let mut reg = vec![0u16; instrs.len()];
+        let mut free: Vec<u16> = vec![];
+        let mut registers = 0usize;
+        let mut steps = Vec::with_capacity(instrs.len());
+        for (k, i) in instrs.iter().enumerate() {
+            let src = |o: Operand| match o {
+                Operand::Val(v) => Src::Reg(reg[v as usize]),
+                Operand::Input(v) => Src::Input(v as u16),
+                Operand::Const(c) => Src::Const(R::from_f64(c)),
+            };
+            let (a, b) = (src(i.a), src(i.b));
+            // The destination is taken before the operands are freed, so it
+            // never aliases them (the interpreter relies on that).
+            let dst = free.pop().unwrap_or_else(|| {
+                registers += 1;
+                (registers - 1) as u16
+            });
+            reg[k] = dst;
+            steps.push(Step { op: i.op, dst, a, b });
+            let mut operands = [i.a, i.b];
+            operands.sort_by_key(|o| if let Operand::Val(v) = o { *v } else { u32::MAX });
+            for (n, o) in operands.iter().enumerate() {
+                if let Operand::Val(v) = *o {
+                    let dup = n == 1 && operands[0] == *o;
+                    if last[v as usize] == k && !dup {
+                        free.push(reg[v as usize]);
+                    }
+                }
+            }
+        }
+        Tape {
+            steps,
+            outputs: outputs.iter().map(|o| reg[*o as usize]).collect(),
+            registers,
+        }
+    }
+
+    /// Runs the program on a block: `regs` has at least [`Tape::registers`]
+    /// arrays, `input(k)` is input array `k`.
+    pub fn run<'i, const N: usize>(
+        &self,
+        regs: &mut [[R; N]],
+        input: impl Fn(u16) -> &'i [R; N],
+    ) where
+        R: 'i,
+    {
+        assert!(regs.len() >= self.registers);
+        let base = regs.as_mut_ptr();
+        let mut ca = [R::default(); N];
+        let mut cb = [R::default(); N];
+        for s in &self.steps {
+            // SAFETY: `dst` is below `registers` (asserted) and differs from
+            // the operand registers (`Tape::new`), so the borrows are disjoint.
+            let d = unsafe { &mut *base.add(s.dst as usize) };
+            let fetch = |o: Src<R>, c: &'_ mut [R; N]| -> *const [R; N] {
+                match o {
+                    Src::Reg(k) => unsafe { base.add(k as usize) as *const [R; N] },
+                    Src::Input(k) => input(k) as *const [R; N],
+                    Src::Const(v) => {
+                        *c = [v; N];
+                        c as *const [R; N]
+                    }
+                }
+            };
+            // SAFETY: as above; constants live in `ca`/`cb` for this step.
+            let a = unsafe { &*fetch(s.a, &mut ca) };
+            if s.op.unary() {
+                unary(s.op, d, a);
+            } else {
+                let b = unsafe { &*fetch(s.b, &mut cb) };
+                binary(s.op, d, a, b);
+            }
+        }
+    }
+
+    /// The register of output `k` after [`Tape::run`].
+    pub fn output<'r, const N: usize>(&self, regs: &'r [[R; N]], k: usize) -> &'r [R; N] {
+        &regs[self.outputs[k] as usize]
+    }
+}
+
+#[inline(always)]
+fn map1<R: Real, const N: usize>(d: &mut [R; N], a: &[R; N], f: impl Fn(R) -> R) {
+    for i in 0..N {
+        d[i] = f(a[i]);
+    }
+}
+
+#[inline(always)]
+fn map2<R: Real, const N: usize>(d: &mut [R; N], a: &[R; N], b: &[R; N], f: impl Fn(R, R) -> R) {
+    for i in 0..N {
+        d[i] = f(a[i], b[i]);
+    }
+}
+
+fn unary<R: Real, const N: usize>(op: Prim, d: &mut [R; N], a: &[R; N]) {
+    match op {
+        Prim::Neg => map1(d, a, |x| -x),
+        Prim::Call(f) => match f {
+            Func::Sqrt => map1(d, a, R::sqrt),
+            Func::Exp => map1(d, a, R::exp_r),
+            Func::Log => map1(d, a, R::log_r),
+            Func::Sin => map1(d, a, R::sin_r),
+            Func::Cos => map1(d, a, R::cos_r),
+            Func::Tan => map1(d, a, R::tan_r),
+            Func::Atan => map1(d, a, R::atan_r),
+            Func::Sinh => map1(d, a, R::sinh_r),
+            Func::Cosh => map1(d, a, R::cosh_r),
+            Func::Tanh => map1(d, a, R::tanh_r),
+            Func::Abs => map1(d, a, R::abs),
+            Func::Sign => map1(d, a, R::sign_r),
+        },
+        _ => unreachable!("binary operation {op:?} as unary"),
+    }
+}
+
+fn binary<R: Real, const N: usize>(op: Prim, d: &mut [R; N], a: &[R; N], b: &[R; N]) {
+    match op {
+        Prim::Add => map2(d, a, b, |x, y| x + y),
+        Prim::Sub => map2(d, a, b, |x, y| x - y),
+        Prim::Mul => map2(d, a, b, |x, y| x * y),
+        Prim::Div => map2(d, a, b, |x, y| x / y),
+        Prim::Call2(Func2::Pow) => map2(d, a, b, R::pow_r),
+        Prim::Call2(Func2::Min) => map2(d, a, b, R::min_r),
+        Prim::Call2(Func2::Max) => map2(d, a, b, R::max_r),
+        _ => unreachable!("unary operation {op:?} as binary"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{compile, lower::lower, Dag};
+    use super::*;
+
+    #[test]
+    fn a_block_matches_the_reference_evaluation() {
+        let mut d = Dag::new();
+        let names = ["q1", "q2", "eps"];
+        let texts = [
+            "(q1^2 + q2^2)/2 + q1^2*q2 - q2^3/3",
+            "eps*sin(2*q1 - 3*q2) / (1 + eps*cos(q2))",
+            "sqrt(abs(q1)) + log(1 + q2^2) - atan(q1*q2) + tanh(q1) - pow(abs(q2) + 1, 1.5)",
+            "q2",
+            "min(q1, q2) * max(q1, eps) + sinh(q1) - cosh(q2) + exp(-q1^2) + tan(q2/4)",
+        ];
+        let mut roots: Vec<_> = texts
+            .iter()
+            .map(|t| compile(&mut d, t, &names).unwrap())
+            .collect();
+        let g = d.gradient(roots[0], &[0, 1]);
+        roots.extend(g);
+        let tape = Tape::<f64>::new(&lower(&d, &roots));
+        const N: usize = 8;
+        let mut inputs = [[0.0; N]; 3];
+        for i in 0..N {
+            inputs[0][i] = -1.0 + 0.3 * i as f64;
+            inputs[1][i] = 0.7 - 0.2 * i as f64;
+            inputs[2][i] = 0.1 * i as f64;
+        }
+        let mut regs = vec![[0.0; N]; tape.registers];
+        tape.run(&mut regs, |k| &inputs[k as usize]);
+        for i in 0..N {
+            let x = [inputs[0][i], inputs[1][i], inputs[2][i]];
+            let want = d.eval(&roots, &x);
+            for (k, w) in want.iter().enumerate() {
+                let got = tape.output(&regs, k)[i];
+                assert!(
+                    (got - w).abs() <= 1e-14 * w.abs().max(1.0),
+                    "root {k} lane {i}: {got} vs {w}"
+                );
+            }
+        }
+        assert!(tape.registers < roots.len() + 8, "registers are reused");
+    }
+}

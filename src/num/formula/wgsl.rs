@@ -1,0 +1,108 @@
+//! A [`Lowered`] program as a WGSL function: the GPU's half of "one
+//! source" (the CPU runs the same program through `tape.rs`).
+
+use std::fmt::Write;
+
+use super::dag::{Func, Func2};
+use super::lower::{Lowered, Operand, Prim};
+
+/// A WGSL literal for `v` (abstract float: full f64 precision, converted by
+/// the compiler to the working precision exactly as `as f32` does).
+pub fn lit(v: f64) -> String {
+    let s = format!("{v:?}");
+    let s = if s.contains('.') || s.contains('e') || !v.is_finite() {
+        s
+    } else {
+        format!("{s}.0")
+    };
+    if v < 0.0 {
+        format!("({s})")
+    } else {
+        s
+    }
+}
+
+/// The WGSL name of a function (reeb's own, from `num/math.rs` and the
+/// preludes, except the exactly rounded `sqrt` and `abs`).
+fn function(op: Prim) -> &'static str {
+    match op {
+        Prim::Call(f) => match f {
+            Func::Sqrt => "sqrt",
+            Func::Exp => "exp_r",
+            Func::Log => "log_r",
+            Func::Sin => "sin_r",
+            Func::Cos => "cos_r",
+            Func::Tan => "tan_r",
+            Func::Atan => "atan_r",
+            Func::Sinh => "sinh_r",
+            Func::Cosh => "cosh_r",
+            Func::Tanh => "tanh_r",
+            Func::Abs => "abs",
+            Func::Sign => "sign_r",
+        },
+        Prim::Call2(f) => match f {
+            Func2::Pow => "pow_r",
+            Func2::Min => "min_r",
+            Func2::Max => "max_r",
+        },
+        _ => unreachable!("{op:?} is an operator"),
+    }
+}
+
+/// `fn name(...)` evaluating `l` over inputs named `inputs` (by the DAG's
+/// variable index) and assigning output `k` to `*outputs[k]`. A name both
+/// read and written is one pointer argument; every read comes before any
+/// write, so the outputs are updated simultaneously.
+pub fn function_text(name: &str, l: &Lowered, inputs: &[&str], outputs: &[&str]) -> String {
+    let mut read: Vec<u32> = vec![];
+    for i in &l.instrs {
+        for o in [i.a, i.b] {
+            if let Operand::Input(k) = o {
+                read.push(k);
+            }
+        }
+    }
+    for o in &l.outputs {
+        if let Operand::Input(k) = o {
+            read.push(*k);
+        }
+    }
+    read.sort_unstable();
+    read.dedup();
+    let by_ptr = |n: &str| outputs.contains(&n);
+    let mut args: Vec<String> = read
+        .iter()
+        .map(|k| inputs[*k as usize])
+        .filter(|n| !by_ptr(n))
+        .map(|n| format!("{n}: R"))
+        .collect();
+    args.extend(outputs.iter().map(|n| format!("{n}: ptr<function, R>")));
+    let operand = |o: Operand| match o {
+        Operand::Val(k) => format!("v{k}"),
+        Operand::Input(k) if by_ptr(inputs[k as usize]) => format!("(*{})", inputs[k as usize]),
+        Operand::Input(k) => inputs[k as usize].to_string(),
+        Operand::Const(c) => lit(c),
+    };
+    let mut body = String::new();
+    for (k, i) in l.instrs.iter().enumerate() {
+        let (a, b) = (operand(i.a), operand(i.b));
+        let e = match i.op {
+            Prim::Neg => format!("-{a}"),
+            Prim::Add => format!("{a} + {b}"),
+            Prim::Sub => format!("{a} - {b}"),
+            Prim::Mul => format!("{a} * {b}"),
+            Prim::Div => format!("{a} / {b}"),
+            Prim::Call(_) => format!("{}({a})", function(i.op)),
+            Prim::Call2(_) => format!("{}({a}, {b})", function(i.op)),
+        };
+        writeln!(body, "    let v{k}: R = {e};").unwrap();
+    }
+    // Outputs read as values first, then written.
+    for (k, o) in l.outputs.iter().enumerate() {
+        writeln!(body, "    let out{k}: R = {};", operand(*o)).unwrap();
+    }
+    for (k, n) in outputs.iter().enumerate() {
+        writeln!(body, "    *{n} = out{k};").unwrap();
+    }
+    format!("fn {name}({}) {{\n{body}}}\n", args.join(", "))
+}
