@@ -81,6 +81,10 @@ macro_rules! define_lanes {
                 l.q2[i] = self.q2;
                 l.p1[i] = self.p1;
                 l.p2[i] = self.p2;
+                l.q3[i] = self.q3;
+                l.q4[i] = self.q4;
+                l.p3[i] = self.p3;
+                l.p4[i] = self.p4;
             }
             /// The scalar named `name`.
             pub fn get(&self, name: &str) -> Option<R> {
@@ -136,9 +140,9 @@ macro_rules! define_lanes {
 
 define_lanes! {
     // State variables.
-    q, p, s, q1, q2, p1, p2,
+    q, p, s, q1, q2, p1, p2, q3, q4, p3, p4,
     // Their time derivatives (outputs of the models' vector fields).
-    dq, dp, ds, dq1, dq2, dp1, dp2,
+    dq, dp, ds, dq1, dq2, dp1, dp2, dq3, dq4, dp3, dp4,
     /// Time at which the current stage evaluates time-dependent terms.
     t,
     /// Signed sub-step of the current op.
@@ -160,6 +164,8 @@ define_lanes! {
     b1, b2, b3, b4, b5, b6, b7, b8, b9,
     f0, f1, f2, f3, f4, f5, f6, f7, f8, f9,
     g0, g1, g2, g3, g4, g5, g6, g7, g8, g9,
+    // Parameters of formula models, by slot (`models/formula.rs`).
+    k0, k1, k2, k3, k4, k5, k6, k7, k8, k9, k10, k11, k12, k13, k14, k15,
 }
 
 const _: () = assert!(std::mem::size_of::<Lanes<f64>>() == COUNT * LANES * 8);

@@ -12,6 +12,7 @@
 pub mod damped_oscillator;
 pub mod events;
 pub mod exact;
+pub mod formula;
 pub mod kepler;
 pub mod lane_emden;
 pub mod lanes;
@@ -41,6 +42,8 @@ macro_rules! registry {
         #[derive(Debug, Clone, PartialEq)]
         pub enum Model {
             $( $variant $({ $($field: $fty),* })?, )*
+            /// A model from the scene's formulas (`models/formula.rs`).
+            Formula(&'static formula::FormulaModel),
         }
 
         /// Names accepted by [`Model::from_name`], in registry order.
@@ -63,14 +66,17 @@ macro_rules! registry {
             pub fn spec(&self) -> &'static ModelSpec {
                 match self {
                     $( Model::$variant { .. } => &$file::$spec, )*
+                    Model::Formula(m) => &m.spec,
                 }
             }
 
             /// Runs `v` with this model's [`pieces::Pieces`] type (how the CPU
-            /// backend builds its fused kernels without the models knowing it).
-            pub fn with_pieces<R: Flows, V: PiecesVisitor<R>>(&self, v: V) -> V::Out {
+            /// backend builds its fused kernels without the models knowing it);
+            /// `None` for formula models, which have no compiled pieces.
+            pub fn with_pieces<R: Flows, V: PiecesVisitor<R>>(&self, v: V) -> Option<V::Out> {
                 match self {
-                    $( Model::$variant { .. } => v.visit::<$file::$pieces>(), )*
+                    $( Model::$variant { .. } => Some(v.visit::<$file::$pieces>()), )*
+                    Model::Formula(_) => None,
                 }
             }
         }
@@ -99,6 +105,22 @@ registry! {
 impl Model {
     pub fn name(&self) -> &'static str {
         self.spec().name
+    }
+
+    /// The compiled formulas of a formula model.
+    pub fn formula(&self) -> Option<&'static formula::FormulaModel> {
+        match self {
+            Model::Formula(m) => Some(m),
+            _ => None,
+        }
+    }
+
+    /// The lane field a scene parameter binds (formula parameters live in
+    /// slots; a built-in model's parameters are lane fields by name).
+    pub fn param_lane(&self, name: &'static str) -> &'static str {
+        self.formula()
+            .and_then(|m| m.param_lane(name))
+            .unwrap_or(name)
     }
 
     /// The parameter whose value ω sets the forcing period 2π/ω (see

@@ -277,7 +277,7 @@ fn model_params(spec: &ModelSpec, problem: &Problem) -> Result<Bindings, PlanErr
                     ))
                 }
             };
-            Ok((p.name, src))
+            Ok((problem.model.param_lane(p.name), src))
         })
         .collect()
 }

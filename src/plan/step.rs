@@ -116,9 +116,14 @@ fn splitting_ops(
         Time(f64),
         Piece(char, f64),
     }
+    // A piece is dropped when its parameters are all zero, or when it has
+    // no op on the variables integrated (a formula model without damping).
     let identity = |piece: char| {
         spec.piece(piece).is_some_and(|p| {
-            !p.identity_when_zero.is_empty() && p.identity_when_zero.iter().all(|n| is_zero(n))
+            let switched_off =
+                !p.identity_when_zero.is_empty() && p.identity_when_zero.iter().all(|n| is_zero(n));
+            let nothing = !p.ops.iter().any(|(_, opt)| with_optional || !opt);
+            switched_off || nothing
         })
     };
     let mut items: Vec<Item> = vec![];

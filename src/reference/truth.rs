@@ -101,11 +101,15 @@ pub fn exact_at(plan: &Plan, traj: usize, t: f64) -> Option<Vec<f64>> {
 /// DOP853 on the plan's vector field for trajectory `traj`, at `times`.
 pub fn dop853_of(plan: &Plan, traj: usize, times: &[f64], rtol: f64) -> Result<Truth> {
     let base = lane_of(plan, traj);
-    let field: Vec<_> = plan
-        .field_ops
-        .iter()
-        .map(|f| scalar_fn::<f64>(f).ok_or_else(|| anyhow!("no field op {f}")))
-        .collect::<Result<_>>()?;
+    let formula = plan.model.formula();
+    let field: Vec<_> = match formula {
+        Some(_) => vec![],
+        None => plan
+            .field_ops
+            .iter()
+            .map(|f| scalar_fn::<f64>(f).ok_or_else(|| anyhow!("no field op {f}")))
+            .collect::<Result<_>>()?,
+    };
     let vars = plan.vars.clone();
     let dvars: Vec<String> = vars.iter().map(|v| format!("d{v}")).collect();
     let y0: Vec<f64> = vars.iter().map(|v| base.get(v).unwrap_or(0.0)).collect();
@@ -119,6 +123,12 @@ pub fn dop853_of(plan: &Plan, traj: usize, times: &[f64], rtol: f64) -> Result<T
         x.t = t;
         for op in &field {
             op(&mut x);
+        }
+        // A formula model's field: its DAG evaluated in f64.
+        if let Some(m) = formula {
+            for name in &plan.field_ops {
+                m.apply_f64(name, &mut x);
+            }
         }
         for (d, out) in dvars.iter().zip(dy.iter_mut()) {
             *out = x.get(d).unwrap_or(0.0);

@@ -23,6 +23,7 @@
 //! order they appear in the file. Every error names the file, line and field.
 
 mod error;
+mod formula;
 mod parse;
 mod plans;
 pub mod tables;

@@ -28,6 +28,7 @@ use super::{
 
 const TOP_KEYS: &[&str] = &[
     "model",
+    "formula",
     "name",
     "title",
     "params",
@@ -258,7 +259,7 @@ impl Scene {
         let doc = Doc {
             top: p.entries(root.get_ref(), "", Some(TOP_KEYS))?,
         };
-        let mut model = model(&p, &doc)?;
+        let mut model = model(&mut p, &doc)?;
         let spec = model.spec();
         let name = scene_name(&p, &doc, path)?;
         let title = doc.get("title").map(|v| p.string("title", v)).transpose()?;
@@ -326,24 +327,51 @@ fn parse_toml<'i>(path: &Path, text: &'i str) -> Result<Spanned<DeTable<'i>>, Sc
     })
 }
 
-/// `model = "…"`, by name from the registry.
-fn model(p: &Parser, doc: &Doc) -> Result<Model, SceneError> {
+/// `model = "…"`: by name from the registry, or a formula model
+/// (`mechanical`, or `lienard` with a `[formula]` table).
+fn model(p: &mut Parser, doc: &Doc) -> Result<Model, SceneError> {
+    let names: Vec<&str> = MODEL_NAMES.iter().copied().chain(["mechanical"]).collect();
     let v = doc.get("model").ok_or_else(|| {
         p.err(
             "model",
             None,
-            format!("missing; one of: {}", MODEL_NAMES.join(", ")),
+            format!("missing; one of: {}", names.join(", ")),
         )
     })?;
     let name = p.string("model", v)?;
+    let formula = doc.get("formula");
+    if name == "mechanical" || (name == "lienard" && formula.is_some()) {
+        let table = match formula {
+            Some(f) => Some((doc.table(p, "formula")?.expect("given"), f.span())),
+            None => None,
+        };
+        let params = match doc.table(p, "params")? {
+            Some(t) => p
+                .entries(t, "params", None)?
+                .iter()
+                .map(|(k, _)| k.get_ref().to_string())
+                .collect(),
+            None => vec![],
+        };
+        return super::formula::formula_model(p, &name, table, params);
+    }
+    if let Some(f) = formula {
+        return Err(p.err(
+            "formula",
+            Some(&f.span()),
+            format!(
+                "model `{name}` takes no formulas; [formula] is for `mechanical` and `lienard`"
+            ),
+        ));
+    }
     Model::from_name(&name).ok_or_else(|| {
         p.err(
             "model",
             Some(&v.span()),
             format!(
                 "unknown model `{name}`{}; one of: {}",
-                suggest(&name, MODEL_NAMES),
-                MODEL_NAMES.join(", ")
+                suggest(&name, &names),
+                names.join(", ")
             ),
         )
     })

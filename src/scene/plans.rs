@@ -78,6 +78,12 @@ impl Scene {
         found.extend(self.merged(per_plan));
         found.extend(self.equal_in(lim));
         found.extend(self.t_end_missed(&subs)?);
+        if let Some(m) = self.model.formula() {
+            found.extend(m.unused.iter().map(|u| PlanWarning {
+                field: format!("params.{u}"),
+                message: "given, but no formula uses it".into(),
+            }));
+        }
         let mut out: Vec<SceneWarning> = found
             .into_iter()
             .map(|w| SceneWarning {

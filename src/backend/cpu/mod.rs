@@ -74,11 +74,13 @@ fn run_block<R: Flows>(
     let mut status = [0u64; LANES];
     let mut alive = count;
     let mut obs = BlockObservers::new(p, l);
+    // Registers of the formula interpreter, one set per block.
+    let mut regs = vec![[R::default(); LANES]; p.registers];
     // State (and slopes) at the start of the current step, for interpolation.
     let mut prev = vec![[R::default(); LANES]; nv];
     let mut dprev = vec![[R::default(); LANES]; nv];
     if p.needs_field {
-        eval_field(p, l, 0);
+        eval_field(p, l, &mut regs, 0);
     }
     // The observers' view of the block after step n1.
     macro_rules! after {
@@ -106,12 +108,12 @@ fn run_block<R: Flows>(
                 dprev[k] = *l.at(p.dvar[k]);
             }
         }
-        let any = step(p, l, n);
+        let any = step(p, l, &mut regs, n);
         if any {
             alive -= mark_nonfinite(p, l, &mut status, count, n);
         }
         if p.needs_field {
-            eval_field(p, l, n + 1);
+            eval_field(p, l, &mut regs, n + 1);
         }
         let view = after!(n + 1);
         obs.observe(&view);
@@ -145,7 +147,7 @@ fn load_inputs<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, base: usize, count: u
 
 /// Step `n` on every lane; returns whether some state variable may have
 /// become non-finite (then [`mark_nonfinite`] looks lane by lane).
-fn step<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, n: u64) -> bool {
+fn step<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, regs: &mut [[R; LANES]], n: u64) -> bool {
     let nf = R::from_f64(n as f64);
     // Fused stages report non-finite lanes themselves (the last stage's
     // answer is the step's); the op interpreter needs a separate pass.
@@ -169,7 +171,7 @@ fn step<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, n: u64) -> bool {
                     l.t[i] = l.t0[i] + nf * l.dt[i] + *coef * l.dt[i];
                 }
             }
-            CpuOp::Call(f) => f(l),
+            op => op.call(l, regs),
         }
     }
     // One vectorised pass per variable with an OR-reduction.
@@ -210,12 +212,12 @@ fn mark_nonfinite<R: Flows>(
 }
 
 /// Vector field at the end of step `n` (time `t0 + n dt`) into the `d<var>` lanes.
-fn eval_field<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, n: u64) {
+fn eval_field<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, regs: &mut [[R; LANES]], n: u64) {
     let nf = R::from_f64(n as f64);
     for i in 0..LANES {
         l.t[i] = l.t0[i] + nf * l.dt[i];
     }
     for f in &p.field {
-        f(l);
+        f.call(l, regs);
     }
 }

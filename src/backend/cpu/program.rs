@@ -1,8 +1,11 @@
 //! A plan resolved for the CPU: ops as lane loops (or fused S2 stages),
 //! names as lane indices.
 
-use crate::models::lanes::{index_of, LaneFn};
+use crate::models::formula::FormulaModel;
+use crate::models::lanes::{index_of, LaneFn, Lanes, LANES};
 use crate::models::{lane_fn, Flows};
+use crate::num::formula::tape::Tape;
+use crate::num::precision::Real;
 use crate::plan::{Op, Plan, Source};
 
 use super::kernels::{Isa, StageBuilder, StageFn};
@@ -14,7 +17,9 @@ pub struct Program<'p, R> {
     /// The step as fused S2 stages `(kernel, w/2, w, time offset)`, when the
     /// plan is a splitting (preferred over `ops`).
     pub stages: Option<Vec<FusedStage<R>>>,
-    pub field: Vec<LaneFn<R>>,
+    pub field: Vec<CpuOp<R>>,
+    /// Registers (lane arrays) the block interpreter of formula ops needs.
+    pub registers: usize,
     pub needs_field: bool,
     /// Lane index of each integrated variable and of its derivative.
     pub var: Vec<usize>,
@@ -27,6 +32,50 @@ pub enum CpuOp<R> {
     Tau(R),
     Time(R),
     Call(LaneFn<R>),
+    /// An op of a formula model, run by the block interpreter.
+    Formula(FormulaCall<R>),
+}
+
+/// A formula op resolved to lane indices: its program's inputs (by DAG
+/// variable) and the lanes its outputs assign.
+pub struct FormulaCall<R> {
+    pub tape: Tape<R>,
+    pub inputs: Vec<usize>,
+    pub outputs: Vec<usize>,
+}
+
+impl<R: Real> FormulaCall<R> {
+    fn new(m: &FormulaModel, name: &str) -> Option<Self> {
+        let op = m.op(name)?;
+        Some(FormulaCall {
+            tape: Tape::new(&op.program),
+            inputs: m.inputs.iter().map(|n| lane(n)).collect(),
+            outputs: op.outputs.iter().map(|n| lane(n)).collect(),
+        })
+    }
+
+    /// Evaluates every output, then assigns them (simultaneous update).
+    pub fn run(&self, l: &mut Lanes<R>, regs: &mut [[R; LANES]]) {
+        self.tape.run(regs, |k| l.at(self.inputs[k as usize]));
+        for (k, &lane) in self.outputs.iter().enumerate() {
+            *l.at_mut(lane) = *self.tape.output(regs, k);
+        }
+    }
+}
+
+impl<R: Real> CpuOp<R> {
+    /// Applies the op to a block (`Tau` and `Time` are the step's business).
+    pub fn call(&self, l: &mut Lanes<R>, regs: &mut [[R; LANES]]) {
+        match self {
+            CpuOp::Call(f) => f(l),
+            CpuOp::Formula(f) => f.run(l, regs),
+            CpuOp::Tau(_) | CpuOp::Time(_) => {}
+        }
+    }
+}
+
+fn lane(name: &str) -> usize {
+    index_of(name).unwrap_or_else(|| panic!("{name} is not a lane field"))
 }
 
 /// A fused S2 stage with its `w/2`, `w` and time offset.
@@ -35,25 +84,43 @@ pub type FusedStage<R> = (StageFn<R>, R, R, R);
 impl<'p, R: Flows> Program<'p, R> {
     /// Resolves `plan`, with fused kernels of instruction-set level `isa`.
     pub fn new(plan: &'p Plan, isa: Isa) -> Self {
-        let call = |name: &str| {
-            lane_fn::<R>(name).unwrap_or_else(|| panic!("plan names unknown op {name}"))
+        // Formula models' ops first: their names are the same for every
+        // formula model, their programs are the model's.
+        let call = |name: &str| match plan.model.formula() {
+            Some(m) => CpuOp::Formula(
+                FormulaCall::new(m, name)
+                    .unwrap_or_else(|| panic!("plan names unknown formula op {name}")),
+            ),
+            None => CpuOp::Call(
+                lane_fn::<R>(name).unwrap_or_else(|| panic!("plan names unknown op {name}")),
+            ),
         };
-        let ops = plan
+        let field: Vec<CpuOp<R>> = plan.field_ops.iter().map(|f| call(f)).collect();
+        let ops: Vec<CpuOp<R>> = plan
             .ops
             .iter()
             .map(|op| match *op {
                 Op::Tau(c) => CpuOp::Tau(R::from_f64(c)),
                 Op::Time(c) => CpuOp::Time(R::from_f64(c)),
-                Op::Call(name) => CpuOp::Call(call(name)),
+                Op::Call(name) => call(name),
             })
             .collect();
-        let idx =
-            |name: &str| index_of(name).unwrap_or_else(|| panic!("{name} is not a lane field"));
+        let registers = ops
+            .iter()
+            .chain(&field)
+            .map(|o| match o {
+                CpuOp::Formula(f) => f.tape.registers,
+                _ => 0,
+            })
+            .max()
+            .unwrap_or(0);
+        let idx = lane;
         Program {
             plan,
             ops,
             stages: fused_stages(plan, isa),
-            field: plan.field_ops.iter().map(|f| call(f)).collect(),
+            field,
+            registers,
             needs_field: plan.needs_field(),
             var: plan.vars.iter().map(|v| idx(v)).collect(),
             dvar: plan.vars.iter().map(|v| idx(&format!("d{v}"))).collect(),
@@ -71,7 +138,7 @@ fn fused_stages<R: Flows>(plan: &Plan, isa: Isa) -> Option<Vec<FusedStage<R>>> {
         opt: st.with_optional,
         time: plan.time,
         isa,
-    })?;
+    })??;
     Some(
         st.stages
             .iter()

@@ -127,6 +127,10 @@ fn shared_text(plan: &Plan, precision: Precision) -> Result<String, CodegenError
     for t in COMMON_WGSL.iter().chain(plan.model.spec().wgsl) {
         text.push_str(&to_wgsl(t)?);
     }
+    // A formula model's ops are emitted as WGSL directly (num/formula/wgsl.rs).
+    if let Some(m) = plan.model.formula() {
+        text.push_str(&m.wgsl());
+    }
     Ok(text)
 }
 

@@ -85,9 +85,20 @@ impl<R: Real> Tape<R> {
                 (registers - 1) as u16
             });
             reg[k] = dst;
-            steps.push(Step { op: i.op, dst, a, b });
+            steps.push(Step {
+                op: i.op,
+                dst,
+                a,
+                b,
+            });
             let mut operands = [i.a, i.b];
-            operands.sort_by_key(|o| if let Operand::Val(v) = o { *v } else { u32::MAX });
+            operands.sort_by_key(|o| {
+                if let Operand::Val(v) = o {
+                    *v
+                } else {
+                    u32::MAX
+                }
+            });
             for (n, o) in operands.iter().enumerate() {
                 if let Operand::Val(v) = *o {
                     let dup = n == 1 && operands[0] == *o;
@@ -106,11 +117,8 @@ impl<R: Real> Tape<R> {
 
     /// Runs the program on a block: `regs` has at least [`Tape::registers`]
     /// arrays, `input(k)` is input array `k`.
-    pub fn run<'i, const N: usize>(
-        &self,
-        regs: &mut [[R; N]],
-        input: impl Fn(u16) -> &'i [R; N],
-    ) where
+    pub fn run<'i, const N: usize>(&self, regs: &mut [[R; N]], input: impl Fn(u16) -> &'i [R; N])
+    where
         R: 'i,
     {
         assert!(regs.len() >= self.registers);

@@ -1,0 +1,578 @@
+//! Models from formulas (SPEC §2.1, §2.2 for any V, K, f, g): a mechanical
+//! system `H = K(p) + V(q, t) + f(t)·s` with n degrees of freedom, or a
+//! Liénard system `q'' + f(q) q' + g(q, t) = 0`, compiled at run time.
+//!
+//! The pieces' exact flows are built symbolically from the formulas and
+//! their derivatives in one DAG (shared subexpressions once), each op lowered
+//! to one straight-line program (`num/formula/lower.rs`) that the CPU
+//! interprets over blocks and the GPU gets as WGSL. The op names are fixed
+//! (`formula_a`, …), parameters live in the lane slots `k0…`, so the plan,
+//! both backends and the observers treat a formula model like any other.
+
+use std::collections::HashMap;
+use std::sync::Mutex;
+
+use super::lanes::Lane;
+use super::spec::{ModelSpec, ParamDef, PieceOps, TimeDependence};
+use crate::num::formula::lower::{lower, Lowered};
+use crate::num::formula::{compile, Dag, FormulaError, Func, Id};
+
+/// Most degrees of freedom of a mechanical formula model (lane fields).
+pub const MAX_DOF: usize = 4;
+/// Lane slots of formula parameters, in the order the scene names them.
+pub const SLOTS: [&str; 16] = [
+    "k0", "k1", "k2", "k3", "k4", "k5", "k6", "k7", "k8", "k9", "k10", "k11", "k12", "k13", "k14",
+    "k15",
+];
+const Q: [&str; MAX_DOF] = ["q1", "q2", "q3", "q4"];
+const P: [&str; MAX_DOF] = ["p1", "p2", "p3", "p4"];
+
+/// Which family of systems.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Kind {
+    Mechanical { dof: usize },
+    Lienard,
+}
+
+/// What a scene's `[formula]` gives: the family and its formula texts by key.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct Source {
+    pub kind: Kind,
+    /// `(key, text)`: potential, kinetic, damping (mechanical); f, g (Liénard).
+    pub texts: Vec<(String, String)>,
+    /// The scene's parameter names, in slot order.
+    pub params: Vec<String>,
+    /// The parameter whose value ω sets the forcing period 2π/ω, if any.
+    pub forcing_frequency: Option<String>,
+}
+
+/// A refused formula: the scene field (`formula.potential`), the column in
+/// its text when there is one, and what is wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelError {
+    pub field: String,
+    pub column: Option<usize>,
+    pub message: String,
+}
+
+/// One op: a program and the lane fields its outputs assign.
+#[derive(Debug)]
+pub struct FormulaOp {
+    pub name: &'static str,
+    pub program: Lowered,
+    pub outputs: Vec<&'static str>,
+}
+
+/// A compiled formula model; see the module documentation.
+#[derive(Debug)]
+pub struct FormulaModel {
+    pub source: Source,
+    pub spec: ModelSpec,
+    /// The lane field of each DAG variable (state, `t`, parameter slots, `tau`).
+    pub inputs: Vec<&'static str>,
+    pub ops: Vec<FormulaOp>,
+    /// Parameters no formula reads (a scene warning).
+    pub unused: Vec<String>,
+    dag: Dag,
+    roots: HashMap<&'static str, Vec<Id>>,
+}
+
+impl PartialEq for FormulaModel {
+    fn eq(&self, other: &Self) -> bool {
+        self.source == other.source
+    }
+}
+
+/// Compiled models by source: a scene compiled again (each sub-run, each
+/// test) reuses its model, so the `'static` data is made once per source.
+static MODELS: Mutex<Option<HashMap<Source, &'static FormulaModel>>> = Mutex::new(None);
+
+impl FormulaModel {
+    /// Compiles `source` (once per distinct source in a process).
+    pub fn get(source: &Source) -> Result<&'static FormulaModel, ModelError> {
+        let mut cache = MODELS.lock().unwrap_or_else(|e| e.into_inner());
+        let cache = cache.get_or_insert_with(HashMap::new);
+        if let Some(m) = cache.get(source) {
+            return Ok(m);
+        }
+        let m: &'static FormulaModel = Box::leak(Box::new(build(source)?));
+        cache.insert(source.clone(), m);
+        Ok(m)
+    }
+
+    /// The op called `name`.
+    pub fn op(&self, name: &str) -> Option<&FormulaOp> {
+        self.ops.iter().find(|o| o.name == name)
+    }
+
+    /// Applies op `name` to one trajectory in f64 (the reference evaluation
+    /// of the DAG, used by the DOP853 reference).
+    pub fn apply_f64(&self, name: &str, x: &mut Lane<f64>) -> bool {
+        let (Some(op), Some(roots)) = (self.op(name), self.roots.get(name)) else {
+            return false;
+        };
+        let vars: Vec<f64> = self
+            .inputs
+            .iter()
+            .map(|n| x.get(n).unwrap_or(0.0))
+            .collect();
+        for (v, lane) in self.dag.eval(roots, &vars).into_iter().zip(&op.outputs) {
+            if let Some(slot) = x.get_mut(lane) {
+                *slot = v;
+            }
+        }
+        true
+    }
+
+    /// The WGSL functions of every op.
+    pub fn wgsl(&self) -> String {
+        self.ops
+            .iter()
+            .map(|o| {
+                crate::num::formula::wgsl::function_text(
+                    o.name,
+                    &o.program,
+                    &self.inputs,
+                    &o.outputs,
+                )
+            })
+            .collect()
+    }
+
+    /// The lane slot of parameter `name`.
+    pub fn param_lane(&self, name: &str) -> Option<&'static str> {
+        let k = self.source.params.iter().position(|p| p == name)?;
+        Some(SLOTS[k])
+    }
+}
+
+fn leak(s: String) -> &'static str {
+    Box::leak(s.into_boxed_str())
+}
+
+fn text<'s>(source: &'s Source, key: &str) -> Option<&'s str> {
+    source
+        .texts
+        .iter()
+        .find(|(k, _)| k == key)
+        .map(|(_, t)| t.as_str())
+}
+
+/// The names a formula may use: state variables, `t`, parameters.
+struct Names {
+    all: Vec<String>,
+    state: Vec<&'static str>,
+}
+
+impl Names {
+    fn new(kind: Kind, params: &[String]) -> Names {
+        let state: Vec<&'static str> = match kind {
+            Kind::Mechanical { dof: 1 } => vec!["q", "p", "s"],
+            Kind::Mechanical { dof } => Q[..dof]
+                .iter()
+                .chain(&P[..dof])
+                .copied()
+                .chain(["s"])
+                .collect(),
+            Kind::Lienard => vec!["q", "s", "p"],
+        };
+        let mut all: Vec<String> = state.iter().map(|s| s.to_string()).collect();
+        all.push("t".into());
+        all.extend(params.iter().cloned());
+        Names { all, state }
+    }
+    fn index(&self, name: &str) -> u32 {
+        self.all
+            .iter()
+            .position(|n| n == name)
+            .expect("a known name") as u32
+    }
+    /// The index of the internal sub-step `tau` (not a name formulas see).
+    fn tau(&self) -> u32 {
+        self.all.len() as u32
+    }
+}
+
+fn build(source: &Source) -> Result<FormulaModel, ModelError> {
+    check_source(source)?;
+    let names = Names::new(source.kind, &source.params);
+    let mut dag = Dag::new();
+    let mut b = Builder {
+        dag: &mut dag,
+        names: &names,
+        source,
+        ops: vec![],
+    };
+    match source.kind {
+        Kind::Mechanical { dof } => b.mechanical(dof)?,
+        Kind::Lienard => b.lienard()?,
+    }
+    let ops = std::mem::take(&mut b.ops);
+    let used: Vec<u32> = {
+        let mut u: Vec<u32> = ops
+            .iter()
+            .flat_map(|(_, roots, _)| roots.iter().flat_map(|r| dag.uses(*r)))
+            .collect();
+        u.sort_unstable();
+        u.dedup();
+        u
+    };
+    let unused = source
+        .params
+        .iter()
+        .filter(|p| !used.contains(&names.index(p)))
+        .cloned()
+        .collect();
+    let time = used.contains(&names.index("t"));
+    let mut inputs: Vec<&'static str> = names.state.clone();
+    inputs.push("t");
+    inputs.extend(&SLOTS[..source.params.len()]);
+    inputs.push("tau");
+    let mut roots = HashMap::new();
+    let mut formula_ops = vec![];
+    for (name, r, outputs) in ops {
+        formula_ops.push(FormulaOp {
+            name,
+            program: lower(&dag, &r),
+            outputs,
+        });
+        roots.insert(name, r);
+    }
+    let spec = spec(source, &names, time, &formula_ops);
+    Ok(FormulaModel {
+        source: source.clone(),
+        spec,
+        inputs,
+        ops: formula_ops,
+        unused,
+        dag,
+        roots,
+    })
+}
+
+/// Counts and names the scene controls: dof, parameter count, reserved names.
+fn check_source(source: &Source) -> Result<(), ModelError> {
+    let err = |field: &str, message: String| ModelError {
+        field: field.into(),
+        column: None,
+        message,
+    };
+    if let Kind::Mechanical { dof } = source.kind {
+        if !(1..=MAX_DOF).contains(&dof) {
+            return Err(err(
+                "formula.dof",
+                format!("must be 1 to {MAX_DOF} (got {dof})"),
+            ));
+        }
+    }
+    if source.params.len() > SLOTS.len() {
+        return Err(err(
+            "params",
+            format!(
+                "a formula model takes at most {} parameters (got {})",
+                SLOTS.len(),
+                source.params.len()
+            ),
+        ));
+    }
+    let names = Names::new(source.kind, &[]);
+    for p in &source.params {
+        let reserved = names.all.contains(p) || p == "pi" || p == "tau";
+        let function = crate::num::formula::dag::FUNCTIONS
+            .iter()
+            .any(|(n, _, _)| n == p);
+        if reserved || function {
+            return Err(err(
+                &format!("params.{p}"),
+                format!("`{p}` is a variable or function name in formulas; name the parameter otherwise"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Builds the ops of a model in one DAG.
+struct Builder<'a> {
+    dag: &'a mut Dag,
+    names: &'a Names,
+    source: &'a Source,
+    /// `(op name, roots, output lanes)`, optional-variable ops first in a piece.
+    ops: Vec<(&'static str, Vec<Id>, Vec<&'static str>)>,
+}
+
+impl Builder<'_> {
+    /// Formula `key` (or `default`) over the names, using only `allowed`
+    /// variables beyond the parameters.
+    fn formula(&mut self, key: &str, default: &str, allowed: &[&str]) -> Result<Id, ModelError> {
+        let field = format!("formula.{key}");
+        let text = text(self.source, key).unwrap_or(default);
+        let all: Vec<&str> = self.names.all.iter().map(|s| s.as_str()).collect();
+        let root = compile(self.dag, text, &all).map_err(|e| self.explain(&field, text, e))?;
+        for v in self.dag.uses(root) {
+            let name = &self.names.all[v as usize];
+            let is_var = (v as usize) <= self.names.state.len();
+            if is_var && !allowed.contains(&name.as_str()) {
+                return Err(ModelError {
+                    field,
+                    column: text.find(name.as_str()),
+                    message: format!(
+                        "{} cannot depend on `{name}` (it may use {}, and the parameters): the piece's flow is exact only then",
+                        signature(key),
+                        allowed.join(", ")
+                    ),
+                });
+            }
+        }
+        Ok(root)
+    }
+
+    /// A formula error, with the degrees of freedom explained when the
+    /// unknown name is a variable of another dof.
+    fn explain(&self, field: &str, text: &str, e: FormulaError) -> ModelError {
+        let word: String = text[e.column.min(text.len())..]
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        let looks_like_var = word.len() >= 1
+            && (word.starts_with('q') || word.starts_with('p'))
+            && word[1..].chars().all(|c| c.is_ascii_digit());
+        let message = match self.source.kind {
+            Kind::Mechanical { dof } if looks_like_var && e.message.contains("unknown name") => {
+                format!(
+                    "`{word}` is not a variable of a system with dof = {dof} (its variables: {}); set `dof` in [formula] to match the variables used",
+                    self.names.state.join(", ")
+                )
+            }
+            _ => e.message,
+        };
+        ModelError {
+            field: field.into(),
+            column: Some(e.column),
+            message,
+        }
+    }
+
+    fn var(&mut self, name: &str) -> Id {
+        let k = self.names.index(name);
+        self.dag.var(k)
+    }
+    fn tau(&mut self) -> Id {
+        let k = self.names.tau();
+        self.dag.var(k)
+    }
+    /// `x + c·tau·y`.
+    fn step(&mut self, x: Id, c: f64, y: Id) -> Id {
+        let tau = self.tau();
+        let c = self.dag.num(c);
+        let ty = self.dag.mul(tau, y);
+        let cty = self.dag.mul(c, ty);
+        self.dag.add(x, cty)
+    }
+    /// `e^{−tau·f}`.
+    fn decay(&mut self, f: Id) -> Id {
+        let tau = self.tau();
+        let tf = self.dag.mul(tau, f);
+        let m = self.dag.neg(tf);
+        self.dag.call(Func::Exp, m)
+    }
+    fn op(&mut self, name: &'static str, roots: Vec<Id>, outputs: Vec<&'static str>) {
+        self.ops.push((name, roots, outputs));
+    }
+
+    /// SPEC §2.1 with a general K(p): pieces A (f s), B (V), C (K).
+    fn mechanical(&mut self, dof: usize) -> Result<(), ModelError> {
+        let (qs, ps): (Vec<&'static str>, Vec<&'static str>) = if dof == 1 {
+            (vec!["q"], vec!["p"])
+        } else {
+            (Q[..dof].to_vec(), P[..dof].to_vec())
+        };
+        let mut qt = qs.clone();
+        qt.push("t");
+        let default_k = ps
+            .iter()
+            .map(|p| format!("{p}^2"))
+            .collect::<Vec<_>>()
+            .join(" + ");
+        let v = self.formula("potential", "0", &qt)?;
+        let k = self.formula("kinetic", &format!("({default_k})/2"), &ps)?;
+        let f = self.formula("damping", "0", &["t"])?;
+        let qi: Vec<u32> = qs.iter().map(|n| self.names.index(n)).collect();
+        let pi: Vec<u32> = ps.iter().map(|n| self.names.index(n)).collect();
+        let grad_v = self.dag.gradient(v, &qi);
+        let grad_k = self.dag.gradient(k, &pi);
+        let (pv, qv, s) = (
+            ps.iter().map(|n| self.var(n)).collect::<Vec<_>>(),
+            qs.iter().map(|n| self.var(n)).collect::<Vec<_>>(),
+            self.var("s"),
+        );
+        // p·∇K − K: the s-rate of piece C.
+        let mut pdk = self.dag.num(0.0);
+        for (p, dk) in pv.iter().zip(&grad_k) {
+            let t = self.dag.mul(*p, *dk);
+            pdk = self.dag.add(pdk, t);
+        }
+        let c_rate = self.dag.sub(pdk, k);
+        if self.dag.constant(f) != Some(0.0) {
+            let e = self.decay(f);
+            let se = self.dag.mul(s, e);
+            self.op("formula_a_opt", vec![se], vec!["s"]);
+            let pe = pv.iter().map(|p| self.dag.mul(*p, e)).collect();
+            self.op("formula_a", pe, ps.clone());
+        }
+        let sb = self.step(s, -1.0, v);
+        self.op("formula_b_opt", vec![sb], vec!["s"]);
+        let pb = pv
+            .iter()
+            .zip(&grad_v)
+            .map(|(p, d)| self.step(*p, -1.0, *d))
+            .collect();
+        self.op("formula_b", pb, ps.clone());
+        let sc = self.step(s, 1.0, c_rate);
+        self.op("formula_c_opt", vec![sc], vec!["s"]);
+        let qc = qv
+            .iter()
+            .zip(&grad_k)
+            .map(|(q, d)| self.step(*q, 1.0, *d))
+            .collect();
+        self.op("formula_c", qc, qs.clone());
+        // The vector field: q' = ∇K, p' = −∇V − f p, s' = p·∇K − K − V − f s.
+        let mut field = grad_k.clone();
+        let mut outs: Vec<&'static str> = qs.iter().map(|q| leak(format!("d{q}"))).collect();
+        for ((p, dv), name) in pv.iter().zip(&grad_v).zip(&ps) {
+            let fp = self.dag.mul(f, *p);
+            let sum = self.dag.add(*dv, fp);
+            field.push(self.dag.neg(sum));
+            outs.push(leak(format!("d{name}")));
+        }
+        self.op("formula_field", field, outs);
+        let cv = self.dag.sub(c_rate, v);
+        let fs = self.dag.mul(f, s);
+        let ds = self.dag.sub(cv, fs);
+        self.op("formula_field_opt", vec![ds], vec!["ds"]);
+        Ok(())
+    }
+
+    /// SPEC §2.2 with general f(q), g(q, t): pieces A (f s), B (g), C (p s).
+    fn lienard(&mut self) -> Result<(), ModelError> {
+        let f = self.formula("f", "0", &["q", "t"])?;
+        let g = self.formula("g", "0", &["q", "t"])?;
+        let qk = self.names.index("q");
+        let df = self.dag.diff(f, qk);
+        let dg = self.dag.diff(g, qk);
+        let (q, s, p) = (self.var("q"), self.var("s"), self.var("p"));
+        let tau = self.tau();
+        // C: q ← q + τ s, p ← p/(1 + τ p).
+        let tp = self.dag.mul(tau, p);
+        let one = self.dag.num(1.0);
+        let den = self.dag.add(one, tp);
+        let pc = self.dag.div(p, den);
+        self.op("formula_c_opt", vec![pc], vec!["p"]);
+        let qc = self.step(q, 1.0, s);
+        self.op("formula_c", vec![qc], vec!["q"]);
+        // B: s ← s − τ g, p ← p − τ ∂g/∂q.
+        let pb = self.step(p, -1.0, dg);
+        self.op("formula_b_opt", vec![pb], vec!["p"]);
+        let sb = self.step(s, -1.0, g);
+        self.op("formula_b", vec![sb], vec!["s"]);
+        // A: s ← s e^{−τf}, p ← (p − τ f′ s) e^{−τf} (s before its update).
+        let e = self.decay(f);
+        let dfs = self.dag.mul(df, s);
+        let inner = self.step(p, -1.0, dfs);
+        let pa = self.dag.mul(inner, e);
+        self.op("formula_a_opt", vec![pa], vec!["p"]);
+        let sa = self.dag.mul(s, e);
+        self.op("formula_a", vec![sa], vec!["s"]);
+        // Field: q' = s, s' = −f s − g, p' = −p² − f p − f′ s − ∂g/∂q.
+        let fs = self.dag.mul(f, s);
+        let fsg = self.dag.add(fs, g);
+        let ds = self.dag.neg(fsg);
+        self.op("formula_field", vec![s, ds], vec!["dq", "ds"]);
+        let p2 = self.dag.powi(p, 2);
+        let fp = self.dag.mul(f, p);
+        let mut sum = self.dag.add(p2, fp);
+        sum = self.dag.add(sum, dfs);
+        sum = self.dag.add(sum, dg);
+        let dp = self.dag.neg(sum);
+        self.op("formula_field_opt", vec![dp], vec!["dp"]);
+        Ok(())
+    }
+}
+
+/// How a formula key reads in messages.
+fn signature(key: &str) -> &'static str {
+    match key {
+        "potential" => "the potential V(q, t)",
+        "kinetic" => "the kinetic energy K(p)",
+        "damping" => "the damping f(t)",
+        "f" => "f(q, t)",
+        _ => "g(q, t)",
+    }
+}
+
+/// The model's spec: its variables, parameters and pieces (op lists).
+fn spec(source: &Source, names: &Names, time: bool, ops: &[FormulaOp]) -> ModelSpec {
+    let has = |n: &str| ops.iter().any(|o| o.name == n);
+    let piece = |c: char, main: &'static str, opt: &'static str| {
+        let mut list: Vec<(&'static str, bool)> = vec![];
+        if has(opt) {
+            list.push((opt, true));
+        }
+        if has(main) {
+            list.push((main, false));
+        }
+        PieceOps {
+            piece: c,
+            ops: Box::leak(list.into_boxed_slice()),
+            identity_when_zero: &[],
+        }
+    };
+    let piece_ops = vec![
+        piece('A', "formula_a", "formula_a_opt"),
+        piece('B', "formula_b", "formula_b_opt"),
+        piece('C', "formula_c", "formula_c_opt"),
+    ];
+    let params: Vec<ParamDef> = source
+        .params
+        .iter()
+        .map(|p| ParamDef::required(leak(p.clone()), "a parameter of the formulas"))
+        .collect();
+    let (name, optional) = match source.kind {
+        Kind::Mechanical { .. } => ("mechanical", "s"),
+        Kind::Lienard => ("lienard", "p"),
+    };
+    let summary = source
+        .texts
+        .iter()
+        .map(|(k, t)| format!("{k} = {t}"))
+        .collect::<Vec<_>>()
+        .join("; ");
+    ModelSpec {
+        name,
+        summary: leak(summary),
+        vars: Box::leak(names.state.clone().into_boxed_slice()),
+        optional_var: Some(optional),
+        params: Box::leak(params.into_boxed_slice()),
+        pieces: "ABC",
+        default_order: "CBABC",
+        time: if time {
+            TimeDependence::Always
+        } else {
+            TimeDependence::Never
+        },
+        time_ops: &[],
+        piece_ops: Box::leak(piece_ops.into_boxed_slice()),
+        field_ops: &[("formula_field", false), ("formula_field_opt", true)],
+        methods: &[],
+        wgsl: &[],
+        forcing_frequency: source
+            .forcing_frequency
+            .as_ref()
+            .and_then(|w| source.params.iter().position(|p| p == w))
+            .map(|k| SLOTS[k]),
+        derived: &[],
+        initial_defaults: &[],
+        initial_alias: None,
+        methods_carry_optional: matches!(source.kind, Kind::Mechanical { .. }),
+        rules: super::spec::no_rules,
+    }
+}
