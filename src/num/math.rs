@@ -319,9 +319,12 @@ crate::shared_fns! {
         let id1: bool = a >= 0.6875;
         let id2: bool = a >= 1.1875;
         let id3: bool = a >= 2.4375;
-        let c: f64 = f64::select(f64::select(0.5, 1.0, id1), 1.5, id2);
-        let hi: f64 = f64::select(f64::select(f64::select(0.0, 4.63647609000806093515e-01, id0), 7.85398163397448278999e-01, id1), 9.82793723247329054082e-01, id2);
-        let lo: f64 = f64::select(f64::select(f64::select(0.0, 2.26987774529616870924e-17, id0), 3.06161699786838301793e-17, id1), 1.39033110312309984516e-17, id2);
+        // Typed first operands: WGSL would make a select of two literals f32.
+        let zero: f64 = 0.0;
+        let half: f64 = 0.5;
+        let c: f64 = f64::select(f64::select(half, 1.0, id1), 1.5, id2);
+        let hi: f64 = f64::select(f64::select(f64::select(zero, 4.63647609000806093515e-01, id0), 7.85398163397448278999e-01, id1), 9.82793723247329054082e-01, id2);
+        let lo: f64 = f64::select(f64::select(f64::select(zero, 2.26987774529616870924e-17, id0), 3.06161699786838301793e-17, id1), 1.39033110312309984516e-17, id2);
         let xr0: f64 = f64::select(a, (a - c) / (1.0 + c * a), id0);
         let xr: f64 = f64::select(xr0, -1.0 / a, id3);
         let hi3: f64 = f64::select(hi, 1.57079632679489655800e+00, id3);
