@@ -26,5 +26,6 @@ pub mod output;
 pub mod bench;
 pub mod report;
 pub mod verify;
+pub mod verify_scene;
 
 pub use num::precision::{Precision, Real};

@@ -1,7 +1,7 @@
 //! The `reeb` command line.
 
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Result;
@@ -96,8 +96,12 @@ enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
-    /// Run the oracles of SPEC §4 and measure the convergence order of every scheme.
+    /// Run the oracles of SPEC §4 and measure the convergence order of every scheme;
+    /// with a scene, measure its scheme's order (and S2's, Yoshida 6A's) on it
+    /// against DOP853, and the CPU–GPU agreement on it.
     Verify {
+        /// A scene to verify (e.g. a formula model) instead of the built-in checks.
+        scene: Option<PathBuf>,
         /// Backend to verify.
         #[arg(long, default_value = "cpu", value_parser = ["cpu", "gpu"])]
         backend: String,
@@ -172,7 +176,11 @@ fn main() -> ExitCode {
         } => bench(
             backend, scenario, precision, n, steps, threads, repeats, json,
         ),
-        Command::Verify { backend, precision } => {
+        Command::Verify {
+            scene,
+            backend,
+            precision,
+        } => {
             let engine = if backend == "gpu" {
                 GpuContext::new().map(|ctx| Engine::Gpu(Box::new(ctx)))
             } else {
@@ -180,7 +188,7 @@ fn main() -> ExitCode {
             };
             engine
                 .map_err(anyhow::Error::from)
-                .map(|engine| verify(&Target { engine, precision }))
+                .and_then(|engine| verify(&Target { engine, precision }, scene.as_deref()))
         }
     };
     match result {
@@ -522,9 +530,14 @@ fn info() -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn verify(engine: &Target) -> ExitCode {
+fn verify(engine: &Target, scene: Option<&Path>) -> anyhow::Result<ExitCode> {
+    let scene = scene.map(Scene::load).transpose()?;
     println!(
-        "reeb verify: backend {}, precision {}",
+        "reeb verify{}: backend {}, precision {}",
+        scene
+            .as_ref()
+            .map(|s| format!(" {}", s.path.display()))
+            .unwrap_or_default(),
         engine.describe(),
         engine.precision
     );
@@ -532,7 +545,7 @@ fn verify(engine: &Target) -> ExitCode {
         "{:<4} {:<92} {:>16} {:>16} {:>12}",
         "", "check", "expected", "measured", "tolerance"
     );
-    let rows = run_all(engine, |c| {
+    let print = |c: &reeb::verify::Check| {
         println!(
             "{:<4} {:<92} {:>16} {:>16} {:>12}",
             if c.pass { "pass" } else { "FAIL" },
@@ -541,12 +554,16 @@ fn verify(engine: &Target) -> ExitCode {
             c.measured,
             c.tolerance
         );
-    });
+    };
+    let rows = match &scene {
+        Some(s) => reeb::verify_scene::run_scene(s, engine, print),
+        None => run_all(engine, print),
+    };
     let failed = rows.iter().filter(|c| !c.pass).count();
     println!("{} passed, {} failed", rows.len() - failed, failed);
-    if failed == 0 {
+    Ok(if failed == 0 {
         ExitCode::SUCCESS
     } else {
         ExitCode::FAILURE
-    }
+    })
 }

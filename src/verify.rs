@@ -21,7 +21,7 @@ pub struct Target {
 
 impl Target {
     /// Integrates `plan`, observations widened to f64.
-    fn run(&self, plan: &Plan) -> Result<Observations<f64>, String> {
+    pub(crate) fn run(&self, plan: &Plan) -> Result<Observations<f64>, String> {
         self.engine
             .run_f64(plan, self.precision)
             .map(|(o, _)| o)
@@ -47,7 +47,7 @@ pub struct Check {
     pub pass: bool,
 }
 
-fn check(
+pub(crate) fn check(
     group: &'static str,
     name: impl Into<String>,
     expected: f64,
@@ -64,7 +64,7 @@ fn check(
     }
 }
 
-fn bound(
+pub(crate) fn bound(
     group: &'static str,
     name: impl Into<String>,
     what: &str,
@@ -81,7 +81,7 @@ fn bound(
     }
 }
 
-fn failed(group: &'static str, name: impl Into<String>, why: String) -> Check {
+pub(crate) fn failed(group: &'static str, name: impl Into<String>, why: String) -> Check {
     Check {
         group,
         name: name.into(),
@@ -92,7 +92,7 @@ fn failed(group: &'static str, name: impl Into<String>, why: String) -> Check {
     }
 }
 
-fn fmt(x: f64) -> String {
+pub(crate) fn fmt(x: f64) -> String {
     if x == 0.0 || (1e-3..1e5).contains(&x.abs()) {
         format!("{x:.8}")
             .trim_end_matches('0')
@@ -485,16 +485,16 @@ fn damped_exact(engine: &Target, _f32: bool) -> Vec<Check> {
 }
 
 /// A smooth problem for measuring orders, and how to measure its error.
-struct OrderProblem {
-    label: &'static str,
-    model: Model,
-    params: Vec<(&'static str, f64)>,
-    initial: Vec<(&'static str, f64)>,
-    t_end: f64,
+pub(crate) struct OrderProblem {
+    pub label: String,
+    pub model: Model,
+    pub params: Vec<(&'static str, f64)>,
+    pub initial: Vec<(&'static str, f64)>,
+    pub t_end: f64,
     /// Components compared at t_end.
-    vars: Vec<&'static str>,
+    pub vars: Vec<&'static str>,
     /// Exact or reference values of `vars` at t_end.
-    reference: Vec<f64>,
+    pub reference: Vec<f64>,
 }
 
 fn order_problems() -> Vec<OrderProblem> {
@@ -502,7 +502,7 @@ fn order_problems() -> Vec<OrderProblem> {
     let t_end = 4.0;
     let (q, p) = exact::damped_oscillator(alpha, beta, omega, 1.0, 1.0, t_end);
     let damped = OrderProblem {
-        label: "damped forced oscillator",
+        label: "damped forced oscillator".into(),
         model: Model::DampedOscillator,
         params: vec![
             ("alpha", alpha),
@@ -524,7 +524,7 @@ fn order_problems() -> Vec<OrderProblem> {
         .expect("the CPU backend does not fail")
         .observations;
     let vdp = OrderProblem {
-        label: "van der Pol ε = 1",
+        label: "van der Pol ε = 1".into(),
         model: Model::VanDerPol,
         params: vec![("epsilon", 1.0)],
         initial: vec![("q", 2.0), ("s", 0.0)],
@@ -564,7 +564,7 @@ fn order_error(
 /// Measured order: errors for step counts growing by √2 from a coarse start
 /// until roundoff (`floor`) is reached; the last four points at or below
 /// `ceiling` (the most asymptotic ones) are fitted by least squares in log–log.
-fn measure_order(
+pub(crate) fn measure_order(
     engine: &Target,
     op: &OrderProblem,
     scheme: &str,

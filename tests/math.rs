@@ -256,7 +256,8 @@ fn hyperbolic_tan_and_pow_within_bounds() {
         .into_iter()
         .chain(sample(-0.6, 0.6, 100_000, 17))
         .collect();
-    let cases: [(&str, fn(f64) -> f64, fn(f64) -> f64, f64); 4] = [
+    type Case = (&'static str, fn(f64) -> f64, fn(f64) -> f64, f64);
+    let cases: [Case; 4] = [
         ("sinh", f64::sinh_r, f64::sinh, 3.0),
         ("cosh", f64::cosh_r, f64::cosh, 3.0),
         ("tanh", f64::tanh_r, f64::tanh, 4.0),

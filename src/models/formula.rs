@@ -333,7 +333,7 @@ impl Builder<'_> {
             .chars()
             .take_while(|c| c.is_alphanumeric() || *c == '_')
             .collect();
-        let looks_like_var = word.len() >= 1
+        let looks_like_var = !word.is_empty()
             && (word.starts_with('q') || word.starts_with('p'))
             && word[1..].chars().all(|c| c.is_ascii_digit());
         let message = match self.source.kind {

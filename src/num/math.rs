@@ -191,8 +191,8 @@ crate::shared_fns! {
         let r: f32 = t2 + t1;
         let hfsq: f32 = 0.5 * f * f;
         let res: f32 = e * 0.693138123 - ((hfsq - (s * (hfsq + r) + e * 0.00000905525081)) - f);
-        // ln 0 = −∞, ln x = NaN below 0 (0/0 at run time), ln ∞ = ∞, NaN stays.
-        let neg: f32 = (x - x) / (x - x);
+        // ln 0 = −∞, ln x = NaN below 0 (∞·0 at run time), ln ∞ = ∞, NaN stays.
+        let neg: f32 = f32::inf() * 0.0;
         let r1: f32 = f32::select(res, x, x > 3.40282347e38);
         let r2: f32 = f32::select(r1, -f32::inf(), x == 0.0);
         return f32::select(r2, neg, x < 0.0);
@@ -306,7 +306,7 @@ crate::shared_fns! {
         let r: f64 = t2 + t1;
         let hfsq: f64 = 0.5 * f * f;
         let res: f64 = e * 6.93147180369123816490e-01 - ((hfsq - (s * (hfsq + r) + e * 1.90821492927058770002e-10)) - f);
-        let neg: f64 = (x - x) / (x - x);
+        let neg: f64 = f64::inf() * 0.0;
         let r1: f64 = f64::select(res, x, x > 1.7976931348623157e308);
         let r2: f64 = f64::select(r1, -f64::inf(), x == 0.0);
         return f64::select(r2, neg, x < 0.0);

@@ -4,6 +4,9 @@
 //! shared by the whole block. Registers are reused as soon as their value
 //! is dead, so a large formula's working set stays in the L1 cache.
 
+// Lane loops index several arrays by lane; iterators would hide that.
+#![allow(clippy::needless_range_loop)]
+
 use super::dag::{Func, Func2};
 use super::lower::{Instr, Lowered, Operand, Prim};
 use crate::num::precision::Real;
