@@ -212,3 +212,60 @@ fn formula_models_agree_with_the_built_ins_on_the_gpu() {
         );
     }
 }
+
+/// A scene's error (or warnings) for a formula model given by its tables.
+fn refused(formula: &str, params: &str) -> String {
+    let text = format!("model = \"mechanical\"\n[formula]\n{formula}\n[params]\n{params}\n[integrator]\nscheme = \"s2\"\ndt = 0.1\nsteps = 10\n");
+    match Scene::parse(Path::new("bad.toml"), &text) {
+        Ok(_) => "accepted".into(),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn bad_formulas_are_refused_at_their_line_with_a_caret() {
+    let e = refused("potential = \"q^2/2 +* q\"", "");
+    assert!(
+        e.starts_with("bad.toml:3: formula.potential: column"),
+        "{e}"
+    );
+    assert!(e.contains("\n    q^2/2 +* q\n"), "{e}");
+    assert!(e.lines().last().unwrap().trim_start() == "^", "{e}");
+    let e = refused("potential = \"epsilom*q^2\"", "epsilon = 1.0");
+    assert!(e.contains("did you mean `epsilon`"), "{e}");
+    let e = refused("potential = \"q^2 + sn(q)\"", "");
+    assert!(e.contains("did you mean `sin`"), "{e}");
+    let e = refused("potential = \"q1^2 + q2^2\"", "");
+    assert!(e.contains("dof = 1") && e.contains("`q1`"), "{e}");
+    let e = refused("dof = 2\npotential = \"q^2\"", "");
+    assert!(e.contains("dof = 2"), "{e}");
+    let e = refused("potential = \"p^2\"", "");
+    assert!(e.contains("cannot depend on `p`"), "{e}");
+    let e = refused("kinetic = \"q*p^2\"", "");
+    assert!(
+        e.contains("formula.kinetic") && e.contains("cannot depend on `q`"),
+        "{e}"
+    );
+    let e = refused("dof = 9", "");
+    assert!(e.contains("formula.dof"), "{e}");
+    let e = refused("potentail = \"q^2\"", "");
+    assert!(e.contains("did you mean `potential`"), "{e}");
+    let e = refused("potential = \"q^2\"", "sin = 1.0");
+    assert!(e.contains("params.sin"), "{e}");
+}
+
+#[test]
+fn an_unused_parameter_is_a_warning_and_a_non_finite_value_a_stopped_trajectory() {
+    let text = "model = \"mechanical\"\n[formula]\npotential = \"q^2/2 + sqrt(q)\"\n[params]\nunused = 2.0\n[initial]\nq = { linspace = [-1.0, 1.0, 3] }\n[integrator]\nscheme = \"s2\"\ndt = 0.1\nsteps = 10\n";
+    let s = Scene::parse(Path::new("w.toml"), text).unwrap();
+    let w = s.checks(reeb::num::precision::Precision::F64).unwrap();
+    assert!(
+        w.iter()
+            .any(|w| w.field == "params.unused" && w.line == Some(5)),
+        "{w:?}"
+    );
+    // √q at q = −1 (NaN) and its derivative at 0 (∞): those stop, q = 1 runs on.
+    let o = cpu::run::<f64>(&plan(text), None);
+    assert_eq!(o.nonfinite_step[..2], [1, 1]);
+    assert_eq!(o.nonfinite_step[2], 0);
+}
