@@ -7,15 +7,16 @@
 
 use crate::backend::Engine;
 use crate::num::precision::Precision;
-use crate::plan::scheme::{Scheme, SchemeKind};
 use crate::plan::{Plan, Problem, Source};
 use crate::reference::truth::dop853_of;
 use crate::scene::{Input, Scene};
-use crate::verify::{bound, check, failed, fmt, measure_order, Check, OrderProblem, Target};
+use crate::verify::{bound, failed, fmt, order_check, Check, OrderProblem, Target};
 
 /// Horizon of the order measurement: long enough to see the scheme's
 /// global error, short enough to stay out of chaos.
 pub const ORDER_HORIZON: f64 = 4.0;
+/// The measured order may differ from the nominal one by this much.
+const ORDER_TOLERANCE: f64 = 0.2;
 /// Steps of the CPU–GPU comparison.
 const AGREEMENT_STEPS: u64 = 200;
 
@@ -30,7 +31,9 @@ pub fn run_scene(scene: &Scene, target: &Target, mut each: impl FnMut(&Check)) -
     match order_problem(scene) {
         Ok(op) => {
             for scheme in schemes(scene) {
-                push(order_row(target, &op, &scheme, f32));
+                if let Some(c) = order_check(target, &op, &scheme, f32, ORDER_TOLERANCE) {
+                    push(c);
+                }
             }
         }
         Err(e) => push(failed("order", "reference DOP853", e)),
@@ -50,33 +53,6 @@ fn schemes(scene: &Scene) -> Vec<String> {
         }
     }
     out
-}
-
-fn order_row(target: &Target, op: &OrderProblem, scheme: &str, f32: bool) -> Check {
-    let s = Scheme::by_name(scheme).expect("a scene's scheme or a listed one");
-    let name = format!("order of {scheme} on {}", op.label);
-    if f32 && s.order > 4 {
-        return failed("order", name, "orders above 4 are measured in f64".into());
-    }
-    if let SchemeKind::Method(m) = s.kind {
-        if op.model.spec().method_op(m).is_none() {
-            return failed("order", name, format!("the model has no {}", m.name()));
-        }
-    }
-    match measure_order(target, op, scheme, f32) {
-        Ok((order, n, e0, e1)) => {
-            let mut c = check(
-                "order",
-                format!("{name} ({n} step sizes, err {} → {})", fmt(e0), fmt(e1)),
-                s.order as f64,
-                order,
-                0.2,
-            );
-            c.expected = format!("{}", s.order);
-            c
-        }
-        Err(e) => failed("order", name, e),
-    }
 }
 
 /// A scene input's first value (trajectory 0).

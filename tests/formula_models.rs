@@ -239,8 +239,12 @@ fn bad_formulas_are_refused_at_their_line_with_a_caret() {
     assert!(e.contains("dof = 1") && e.contains("`q1`"), "{e}");
     let e = refused("dof = 2\npotential = \"q^2\"", "");
     assert!(e.contains("dof = 2"), "{e}");
-    let e = refused("potential = \"p^2\"", "");
+    let e = refused("potential = \"epsilon*p^2\"", "epsilon = 1.0");
     assert!(e.contains("cannot depend on `p`"), "{e}");
+    assert!(
+        e.ends_with("\n            ^"),
+        "caret under the p of p^2, not of epsilon: {e}"
+    );
     let e = refused("kinetic = \"q*p^2\"", "");
     assert!(
         e.contains("formula.kinetic") && e.contains("cannot depend on `q`"),

@@ -314,7 +314,7 @@ impl Builder<'_> {
             if is_var && !allowed.contains(&name.as_str()) {
                 return Err(ModelError {
                     field,
-                    column: text.find(name.as_str()),
+                    column: word_at(text, name),
                     message: format!(
                         "{} cannot depend on `{name}` (it may use {}, and the parameters): the piece's flow is exact only then",
                         signature(key),
@@ -496,6 +496,17 @@ impl Builder<'_> {
         self.op("formula_field_opt", vec![dp], vec!["dp"]);
         Ok(())
     }
+}
+
+/// The column of the first whole-word `name` in `text` (not the `p` inside
+/// `epsilon`).
+fn word_at(text: &str, name: &str) -> Option<usize> {
+    let ident = |c: char| c.is_alphanumeric() || c == '_';
+    text.match_indices(name).map(|(i, _)| i).find(|&i| {
+        let before = text[..i].chars().next_back();
+        let after = text[i + name.len()..].chars().next();
+        !before.is_some_and(ident) && !after.is_some_and(ident)
+    })
 }
 
 /// How a formula key reads in messages.
