@@ -25,7 +25,7 @@ fn plan(text: &str) -> Plan {
 }
 
 /// Largest relative difference (scaled by max(1, |x|)) of the final values.
-fn worst<R: Real>(a: &Observations<R>, b: &Observations<R>) -> (f64, String) {
+fn worst<R: Real, S: Real>(a: &Observations<R>, b: &Observations<S>) -> (f64, String) {
     assert_eq!(a.nonfinite_step, b.nonfinite_step, "status");
     let mut w = (0.0f64, String::new());
     for ((name, x), (_, y)) in a.final_values.iter().zip(&b.final_values) {
@@ -147,7 +147,7 @@ fn formula_models_agree_with_the_built_ins_on_the_cpu() {
                 w.0,
                 w.1
             );
-            let w = worst(&cpu::run::<f32>(&f, None), &cpu::run::<f32>(&b, None));
+            let w = worst(&cpu::run::<f32>(&f, None), &cpu::run::<f64>(&b, None));
             println!("{} {scheme} f32 cpu: {:.2e} ({})", pair.name, w.0, w.1);
             assert!(
                 w.0 <= F32_TOL,
@@ -171,9 +171,12 @@ fn f64_tol(scheme: &str) -> f64 {
     }
 }
 
-/// The f32 tolerance over 1000 steps: the two formulations round differently
-/// (e.g. `cos(2q − mt)` against the built-in's product formulas), a few ULP
-/// per step, growing at most linearly: 1000 steps × a few 2⁻²⁴.
+/// The f32 tolerance over 1000 steps, against the built-in model in f64:
+/// a few ULP per step, growing at most linearly (1000 steps × a few 2⁻²⁴),
+/// more on trajectories that amplify errors. The reference is the f64 run,
+/// not the built-in's f32 run: on the spin–orbit trajectory `p = 1.1` the
+/// built-in's own f32 error is 2.3e-3 with Yoshida 6A, so two correct f32
+/// programs may differ by more than either errs.
 const F32_TOL: f64 = 2e-3;
 
 #[test]
@@ -200,8 +203,7 @@ fn formula_models_agree_with_the_built_ins_on_the_gpu() {
             (Err(e), _) | (_, Err(e)) => println!("{}: no f64 on this adapter: {e}", pair.name),
         }
         let fo = gpu::run::<f32>(ctx, &f, None).unwrap().observations;
-        let bo = gpu::run::<f32>(ctx, &b, None).unwrap().observations;
-        let w = worst(&fo, &bo);
+        let w = worst(&fo, &cpu::run::<f64>(&b, None));
         println!("{} f32 gpu: {:.2e} ({})", pair.name, w.0, w.1);
         assert!(
             w.0 <= F32_TOL,
@@ -272,4 +274,43 @@ fn an_unused_parameter_is_a_warning_and_a_non_finite_value_a_stopped_trajectory(
     let o = cpu::run::<f64>(&plan(text), None);
     assert_eq!(o.nonfinite_step[..2], [1, 1]);
     assert_eq!(o.nonfinite_step[2], 0);
+}
+
+/// The step's time terms are shared by the ensemble only when `t0` and
+/// `dt` are the same for every trajectory; with either as an axis (and a
+/// parameter as another) they are per trajectory, and the composed step
+/// must still be the built-in model's.
+#[test]
+fn time_and_parameters_as_axes_agree_with_the_built_in() {
+    let tail = "[initial]\nq = 1.2\ns = 0.0\np = 0.3\nt0 = [0.0, 3.7]\n[integrator]\nscheme = \"s2\"\ndt = [0.01, 0.013, 0.02]\nsteps = 500\n[output]\nfinal = [\"q\", \"s\", \"p\"]\n";
+    let builtin = format!("model = \"van_der_pol\"\n[params]\nepsilon = [0.5, 1.5]\nforcing_amplitude = 0.5\nforcing_frequency = 1.1\n{tail}");
+    let formula = format!("model = \"lienard\"\n[formula]\nf = \"-epsilon*(1 - q^2)\"\ng = \"q - A*cos(omega*t)\"\n[params]\nepsilon = [0.5, 1.5]\nA = 0.5\nomega = 1.1\n{tail}");
+    let (b, f) = (plan(&builtin), plan(&formula));
+    assert_eq!(f.n, 12);
+    let w = worst(&cpu::run::<f64>(&f, None), &cpu::run::<f64>(&b, None));
+    assert!(w.0 <= 1e-12, "{:e} at {}", w.0, w.1);
+}
+
+/// The interpreter compiled for each instruction-set level gives the same
+/// bits (no contraction into FMA; reeb's functions use exact FMA anyway).
+#[test]
+fn formula_models_give_the_same_bits_at_every_instruction_set_level() {
+    use reeb::backend::cpu::{isa, run_isa, Isa};
+    let levels: Vec<Isa> = [Isa::V3, Isa::V4]
+        .into_iter()
+        .filter(|l| {
+            matches!(
+                (l, isa()),
+                (Isa::V3, Isa::V3 | Isa::V4) | (Isa::V4, Isa::V4)
+            )
+        })
+        .collect();
+    for pair in pairs("s2") {
+        let f = plan(&pair.formula);
+        let base = run_isa::<f64>(&f, None, Isa::Baseline);
+        for l in &levels {
+            let o = run_isa::<f64>(&f, None, *l);
+            assert_eq!(o.final_values, base.final_values, "{} at {l:?}", pair.name);
+        }
+    }
 }

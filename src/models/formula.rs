@@ -13,7 +13,7 @@ use std::collections::HashMap;
 use std::sync::Mutex;
 
 use super::lanes::Lane;
-use super::spec::{ModelSpec, ParamDef, PieceOps, TimeDependence};
+use super::spec::{ModelSpec, Op, ParamDef, PieceOps, TimeDependence};
 use crate::num::formula::lower::{lower, Lowered};
 use crate::num::formula::{compile, Dag, FormulaError, Func, Id};
 
@@ -53,6 +53,29 @@ pub struct ModelError {
     pub field: String,
     pub column: Option<usize>,
     pub message: String,
+}
+
+/// The input of a composed step that is the step number `n`.
+pub const STEP_INDEX: &str = "n";
+
+/// What a composed step should make cheap.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cost {
+    /// The work that depends on the state (the rest is shared by the lanes
+    /// of a block or by the ensemble: the CPU).
+    PerLane,
+    /// All the work (each GPU thread does all of it).
+    Total,
+}
+
+/// A whole step as one program; see [`FormulaModel::compose`].
+#[derive(Debug, Clone)]
+pub struct Composed {
+    pub program: Lowered,
+    /// The lane field of each input ([`STEP_INDEX`] for the step number).
+    pub inputs: Vec<&'static str>,
+    /// The lane fields the step assigns, in the order of the outputs.
+    pub outputs: Vec<&'static str>,
 }
 
 /// One op: a program and the lane fields its outputs assign.
@@ -139,11 +162,113 @@ impl FormulaModel {
             .collect()
     }
 
+    /// A whole step (the plan's ops in order) composed into one program over
+    /// the state at the step's start, the parameters, `t0`, `dt` and the step
+    /// number [`STEP_INDEX`]: the ops' programs substituted into each other
+    /// (subexpressions shared across pieces and stages), the sine and cosine
+    /// of state-and-time sums expanded so that the time part can be shared
+    /// by the ensemble (`num/formula/stage.rs`). `None` for an unknown op.
+    pub fn compose(&self, step: &[Op], cost: Cost) -> Option<Composed> {
+        let mut dag = self.dag.clone();
+        let mut inputs = self.inputs.clone();
+        let at = |inputs: &[&str], n: &str| inputs.iter().position(|x| *x == n);
+        let (t, tau) = (at(&inputs, "t")?, at(&inputs, "tau")?);
+        inputs.extend(["t0", "dt", STEP_INDEX]);
+        let k = self.inputs.len() as u32;
+        let (t0, dt, n) = (dag.var(k), dag.var(k + 1), dag.var(k + 2));
+        let mut env: Vec<Id> = (0..inputs.len() as u32).map(|v| dag.var(v)).collect();
+        let mut written = vec![false; inputs.len()];
+        for op in step {
+            match *op {
+                Op::Tau(c) => {
+                    let c = dag.num(c);
+                    env[tau] = dag.mul(c, dt);
+                }
+                Op::Time(c) => {
+                    // t0 + n dt + c dt, as the op interpreter computes it.
+                    let ndt = dag.mul(n, dt);
+                    let start = dag.add(t0, ndt);
+                    let c = dag.num(c);
+                    let cdt = dag.mul(c, dt);
+                    env[t] = dag.add(start, cdt);
+                }
+                Op::Call(name) => {
+                    let (op, roots) = (self.op(name)?, self.roots.get(name)?);
+                    let new = dag.substitute(roots, &env);
+                    for (v, lane) in new.into_iter().zip(&op.outputs) {
+                        let k = at(&inputs, lane)?;
+                        env[k] = v;
+                        written[k] = true;
+                    }
+                }
+            }
+        }
+        let outputs: Vec<&'static str> = (0..inputs.len())
+            .filter(|k| written[*k])
+            .map(|k| inputs[k])
+            .collect();
+        let roots: Vec<Id> = (0..inputs.len())
+            .filter(|k| written[*k])
+            .map(|k| env[k])
+            .collect();
+        // The rewrites pay off for some formulas only (sin(q + t) alone
+        // costs more expanded): the cheapest program is kept.
+        let expanded = dag.expand_trig(&roots, &written);
+        let collected = dag.collect(&expanded, &written);
+        let program = [roots, expanded, collected]
+            .iter()
+            .map(|r| lower(&dag, r))
+            .min_by_key(|p| match cost {
+                Cost::PerLane => work(p, &written),
+                Cost::Total => work(p, &vec![true; written.len()]),
+            })?;
+        Some(Composed {
+            program,
+            inputs,
+            outputs,
+        })
+    }
+
+    /// The WGSL function `formula_step` of a composed step: its arguments
+    /// are the kernel's locals of the same names (`nf` for [`STEP_INDEX`]).
+    pub fn step_wgsl(c: &Composed) -> String {
+        let inputs: Vec<&str> = c
+            .inputs
+            .iter()
+            .map(|n| if *n == STEP_INDEX { "nf" } else { n })
+            .collect();
+        crate::num::formula::wgsl::function_text("formula_step", &c.program, &inputs, &c.outputs)
+    }
+
     /// The lane slot of parameter `name`.
     pub fn param_lane(&self, name: &str) -> Option<&'static str> {
         let k = self.source.params.iter().position(|p| p == name)?;
         Some(SLOTS[k])
     }
+}
+
+/// The cost of the instructions of `p` that depend on the inputs `state`,
+/// in rough multiples of an add.
+fn work(p: &Lowered, state: &[bool]) -> usize {
+    use crate::num::formula::lower::{Operand, Prim};
+    let mut varies: Vec<bool> = Vec::with_capacity(p.instrs.len());
+    let mut cost = 0;
+    for i in &p.instrs {
+        let v = [i.a, i.b].iter().any(|o| match *o {
+            Operand::Val(k) => varies[k as usize],
+            Operand::Input(k) => state[k as usize],
+            Operand::Const(_) => false,
+        });
+        varies.push(v);
+        if v {
+            cost += match i.op {
+                Prim::Call(_) | Prim::Call2(_) => 16,
+                Prim::Div => 4,
+                _ => 1,
+            };
+        }
+    }
+    cost
 }
 
 fn leak(s: String) -> &'static str {

@@ -193,3 +193,14 @@ impl ModelSpec {
         self.methods.iter().find(|(k, _)| *k == m).map(|(_, n)| *n)
     }
 }
+
+/// One instruction of a step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Op {
+    /// `tau ← c · dt`.
+    Tau(f64),
+    /// `t ← t0 + (n + c) dt` for step n (computed as `t0 + n dt + c dt`).
+    Time(f64),
+    /// Apply the shared function of this name (arguments bound by name).
+    Call(&'static str),
+}

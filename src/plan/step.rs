@@ -3,20 +3,10 @@
 //! the same step as S2 stages for the CPU's fused kernels.
 
 use crate::models::spec::ModelSpec;
+pub use crate::models::spec::Op;
 
 use super::problem::{err, PlanError};
 use super::scheme::{parse_order, SchemeKind};
-
-/// One instruction of a step.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Op {
-    /// `tau ← c · dt`.
-    Tau(f64),
-    /// `t ← t0 + (n + c) dt` for step n (computed as `t0 + n dt + c dt`).
-    Time(f64),
-    /// Apply the shared function of this name (arguments bound by name).
-    Call(&'static str),
-}
 
 /// A splitting step as stages `S2(w_k τ)`.
 #[derive(Debug, Clone, PartialEq)]

@@ -7,6 +7,7 @@
 // Lane loops index several arrays by lane; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
+pub mod formula;
 pub mod kernels;
 pub mod observe;
 pub mod program;
@@ -20,6 +21,7 @@ use crate::models::lanes::{Lanes, LANES};
 use crate::models::Flows;
 use crate::plan::observations::Observations;
 use crate::plan::Plan;
+use formula::StepMemory;
 pub use kernels::{isa, Isa};
 use observe::{BlockObservers, BlockStep};
 use program::{CpuOp, Program};
@@ -76,6 +78,11 @@ fn run_block<R: Flows>(
     let mut obs = BlockObservers::new(p, l);
     // Registers of the formula interpreter, one set per block.
     let mut regs = vec![[R::default(); LANES]; p.registers];
+    let mut memory = p.formula_step.as_ref().map(|f| {
+        let mut m = f.memory();
+        f.begin(l, &mut m);
+        m
+    });
     // State (and slopes) at the start of the current step, for interpolation.
     let mut prev = vec![[R::default(); LANES]; nv];
     let mut dprev = vec![[R::default(); LANES]; nv];
@@ -108,7 +115,7 @@ fn run_block<R: Flows>(
                 dprev[k] = *l.at(p.dvar[k]);
             }
         }
-        let any = step(p, l, &mut regs, n);
+        let any = step(p, l, &mut regs, memory.as_mut(), n);
         if any {
             alive -= mark_nonfinite(p, l, &mut status, count, n);
         }
@@ -147,7 +154,13 @@ fn load_inputs<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, base: usize, count: u
 
 /// Step `n` on every lane; returns whether some state variable may have
 /// become non-finite (then [`mark_nonfinite`] looks lane by lane).
-fn step<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, regs: &mut [[R; LANES]], n: u64) -> bool {
+fn step<R: Flows>(
+    p: &Program<R>,
+    l: &mut Lanes<R>,
+    regs: &mut [[R; LANES]],
+    memory: Option<&mut StepMemory<R>>,
+    n: u64,
+) -> bool {
     let nf = R::from_f64(n as f64);
     // Fused stages report non-finite lanes themselves (the last stage's
     // answer is the step's); the op interpreter needs a separate pass.
@@ -159,6 +172,24 @@ fn step<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, regs: &mut [[R; LANES]], n: 
         }
         return any;
     }
+    if let (Some(f), Some(m)) = (&p.formula_step, memory) {
+        f.step(l, m, n);
+    } else {
+        run_ops(p, l, regs, nf);
+    }
+    // One vectorised pass per variable with an OR-reduction.
+    let mut any = false;
+    for &k in &p.var {
+        let x = l.at(k);
+        for i in 0..LANES {
+            any |= !x[i].finite();
+        }
+    }
+    any
+}
+
+/// The plan's ops in order (the step of models without a fused kernel).
+fn run_ops<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, regs: &mut [[R; LANES]], nf: R) {
     for op in &p.ops {
         match op {
             CpuOp::Tau(coef) => {
@@ -174,15 +205,6 @@ fn step<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, regs: &mut [[R; LANES]], n: 
             op => op.call(l, regs),
         }
     }
-    // One vectorised pass per variable with an OR-reduction.
-    let mut any = false;
-    for &k in &p.var {
-        let x = l.at(k);
-        for i in 0..LANES {
-            any |= !x[i].finite();
-        }
-    }
-    any
 }
 
 /// Marks the lanes whose state went non-finite at step `n` (first time

@@ -1,13 +1,12 @@
 //! A plan resolved for the CPU: ops as lane loops (or fused S2 stages),
 //! names as lane indices.
 
-use crate::models::formula::FormulaModel;
 use crate::models::lanes::{index_of, LaneFn, Lanes, LANES};
 use crate::models::{lane_fn, Flows};
-use crate::num::formula::tape::Tape;
 use crate::num::precision::Real;
 use crate::plan::{Op, Plan, Source};
 
+use super::formula::{FormulaCall, FormulaStep};
 use super::kernels::{Isa, StageBuilder, StageFn};
 
 /// The plan's step, field and inputs for the CPU.
@@ -17,6 +16,9 @@ pub struct Program<'p, R> {
     /// The step as fused S2 stages `(kernel, w/2, w, time offset)`, when the
     /// plan is a splitting (preferred over `ops`).
     pub stages: Option<Vec<FusedStage<R>>>,
+    /// A formula model's step composed into one program (preferred over
+    /// `ops`).
+    pub formula_step: Option<FormulaStep<R>>,
     pub field: Vec<CpuOp<R>>,
     /// Registers (lane arrays) the block interpreter of formula ops needs.
     pub registers: usize,
@@ -34,33 +36,6 @@ pub enum CpuOp<R> {
     Call(LaneFn<R>),
     /// An op of a formula model, run by the block interpreter.
     Formula(FormulaCall<R>),
-}
-
-/// A formula op resolved to lane indices: its program's inputs (by DAG
-/// variable) and the lanes its outputs assign.
-pub struct FormulaCall<R> {
-    pub tape: Tape<R>,
-    pub inputs: Vec<usize>,
-    pub outputs: Vec<usize>,
-}
-
-impl<R: Real> FormulaCall<R> {
-    fn new(m: &FormulaModel, name: &str) -> Option<Self> {
-        let op = m.op(name)?;
-        Some(FormulaCall {
-            tape: Tape::new(&op.program),
-            inputs: m.inputs.iter().map(|n| lane(n)).collect(),
-            outputs: op.outputs.iter().map(|n| lane(n)).collect(),
-        })
-    }
-
-    /// Evaluates every output, then assigns them (simultaneous update).
-    pub fn run(&self, l: &mut Lanes<R>, regs: &mut [[R; LANES]]) {
-        self.tape.run(regs, |k| l.at(self.inputs[k as usize]));
-        for (k, &lane) in self.outputs.iter().enumerate() {
-            *l.at_mut(lane) = *self.tape.output(regs, k);
-        }
-    }
 }
 
 impl<R: Real> CpuOp<R> {
@@ -88,7 +63,7 @@ impl<'p, R: Flows> Program<'p, R> {
         // formula model, their programs are the model's.
         let call = |name: &str| match plan.model.formula() {
             Some(m) => CpuOp::Formula(
-                FormulaCall::new(m, name)
+                FormulaCall::new(m, name, isa)
                     .unwrap_or_else(|| panic!("plan names unknown formula op {name}")),
             ),
             None => CpuOp::Call(
@@ -119,6 +94,10 @@ impl<'p, R: Flows> Program<'p, R> {
             plan,
             ops,
             stages: fused_stages(plan, isa),
+            formula_step: plan
+                .model
+                .formula()
+                .and_then(|m| FormulaStep::new(plan, m, isa)),
             field,
             registers,
             needs_field: plan.needs_field(),

@@ -11,6 +11,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write;
 
+use crate::models::formula::{Cost, FormulaModel};
 use crate::models::COMMON_WGSL;
 use crate::num::dsl::to_wgsl;
 use crate::num::formula::wgsl::lit;
@@ -130,6 +131,9 @@ fn shared_text(plan: &Plan, precision: Precision) -> Result<String, CodegenError
     // A formula model's ops are emitted as WGSL directly (num/formula/wgsl.rs).
     if let Some(m) = plan.model.formula() {
         text.push_str(&m.wgsl());
+        if let Some(c) = m.compose(&plan.ops, Cost::Total) {
+            text.push_str(&FormulaModel::step_wgsl(&c));
+        }
     }
     Ok(text)
 }
@@ -301,6 +305,11 @@ impl Gen<'_> {
             for v in &self.plan.vars {
                 writeln!(step, "        prev_{v} = {v};\n        dprev_{v} = d{v};").unwrap();
             }
+        }
+        // A formula model's whole step is one function (`shared_text`).
+        if self.sigs.contains_key("formula_step") {
+            step.push_str(&self.call("formula_step"));
+            return step;
         }
         for op in &self.plan.ops {
             match op {

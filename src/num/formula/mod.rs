@@ -8,6 +8,10 @@
 //! - `diff.rs`: symbolic derivatives, built in the same DAG.
 //! - `functions.rs`: the functions a formula may call, in f64.
 //! - `eval.rs`: evaluation in f64 (the reference for both backends).
+//! - `rewrite.rs`: substitution (composing ops into a step) and the
+//!   addition theorems for `sin`/`cos` of mixed sums.
+//! - `stage.rs`: a program split into per-block, per-step shared and
+//!   per-lane parts.
 //! - `lower.rs`: roots → one straight-line program of primitive operations,
 //!   which both backends run: `tape.rs` (the CPU's block interpreter) and
 //!   `wgsl.rs` (a WGSL function for the GPU).
@@ -22,6 +26,8 @@ pub mod eval;
 pub mod functions;
 pub mod lower;
 pub mod parse;
+pub mod rewrite;
+pub mod stage;
 pub mod tape;
 pub mod wgsl;
 

@@ -17,6 +17,8 @@ enum Src<R> {
     Reg(u16),
     /// An input array, by its position in the caller's input list.
     Input(u16),
+    /// An input the same in every lane (a value of the whole ensemble).
+    Scalar(u16),
     Const(R),
 }
 
@@ -38,11 +40,39 @@ pub struct Tape<R> {
     pub registers: usize,
 }
 
+/// The instruction-set level a [`Tape`] runs at (the CPU backend's `Isa`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Wide {
+    Baseline,
+    V3,
+    V4,
+}
+
+/// Where a tape's inputs come from when it runs: input `k` as an array
+/// ([`Inputs::array`]) or, for the inputs the tape was built to read as
+/// scalars, as one value for every lane ([`Inputs::scalar`]).
+pub trait Inputs<R, const N: usize> {
+    fn array(&self, k: u16) -> &[R; N];
+    fn scalar(&self, k: u16) -> R;
+}
+
+/// Arrays by input index (their first lane as the scalar): tests, and
+/// callers whose inputs are one list.
+impl<R: Copy, const N: usize> Inputs<R, N> for [[R; N]] {
+    fn array(&self, k: u16) -> &[R; N] {
+        &self[k as usize]
+    }
+    fn scalar(&self, k: u16) -> R {
+        self[k as usize][0]
+    }
+}
+
 impl<R: Real> Tape<R> {
     /// Allocates registers for `l` (a register is free again after the last
     /// instruction that reads it; outputs are never freed). Every output is
-    /// in a register, so stores never read an input they overwrite.
-    pub fn new(l: &Lowered) -> Tape<R> {
+    /// in a register, so stores never read an input they overwrite. Inputs
+    /// for which `scalar(k)` holds are read as one value for all lanes.
+    pub fn new(l: &Lowered, scalar: impl Fn(u32) -> bool) -> Tape<R> {
         let mut instrs: Vec<Instr> = l.instrs.clone();
         let mut outputs: Vec<u32> = vec![];
         for o in &l.outputs {
@@ -59,17 +89,7 @@ impl<R: Real> Tape<R> {
                 }
             });
         }
-        let mut last = vec![usize::MAX; instrs.len()];
-        for (k, i) in instrs.iter().enumerate() {
-            for o in [i.a, i.b] {
-                if let Operand::Val(v) = o {
-                    last[v as usize] = k;
-                }
-            }
-        }
-        for o in &outputs {
-            last[*o as usize] = usize::MAX - 1;
-        }
+        let last = last_reads(&instrs, &outputs);
         let mut reg = vec![0u16; instrs.len()];
         let mut free: Vec<u16> = vec![];
         let mut registers = 0usize;
@@ -77,6 +97,7 @@ impl<R: Real> Tape<R> {
         for (k, i) in instrs.iter().enumerate() {
             let src = |o: Operand| match o {
                 Operand::Val(v) => Src::Reg(reg[v as usize]),
+                Operand::Input(v) if scalar(v) => Src::Scalar(v as u16),
                 Operand::Input(v) => Src::Input(v as u16),
                 Operand::Const(c) => Src::Const(R::from_f64(c)),
             };
@@ -119,38 +140,29 @@ impl<R: Real> Tape<R> {
     }
 
     /// Runs the program on a block: `regs` has at least [`Tape::registers`]
-    /// arrays, `input(k)` is input array `k`.
-    pub fn run<'i, const N: usize>(&self, regs: &mut [[R; N]], input: impl Fn(u16) -> &'i [R; N])
-    where
-        R: 'i,
-    {
+    /// arrays. `wide` picks the variant compiled for AVX2 + FMA (or
+    /// AVX-512), as the fused kernels do; all variants give the same bits
+    /// (no contraction into FMA; reeb's functions use exact FMA anyway).
+    pub fn run<const N: usize>(
+        &self,
+        regs: &mut [[R; N]],
+        input: &(impl Inputs<R, N> + ?Sized),
+        wide: Wide,
+    ) {
         assert!(regs.len() >= self.registers);
-        let base = regs.as_mut_ptr();
-        let mut ca = [R::default(); N];
-        let mut cb = [R::default(); N];
-        for s in &self.steps {
-            // SAFETY: `dst` is below `registers` (asserted) and differs from
-            // the operand registers (`Tape::new`), so the borrows are disjoint.
-            let d = unsafe { &mut *base.add(s.dst as usize) };
-            let fetch = |o: Src<R>, c: &'_ mut [R; N]| -> *const [R; N] {
-                match o {
-                    Src::Reg(k) => unsafe { base.add(k as usize) as *const [R; N] },
-                    Src::Input(k) => input(k) as *const [R; N],
-                    Src::Const(v) => {
-                        *c = [v; N];
-                        c as *const [R; N]
-                    }
-                }
-            };
-            // SAFETY: as above; constants live in `ca`/`cb` for this step.
-            let a = unsafe { &*fetch(s.a, &mut ca) };
-            if s.op.unary() {
-                unary(s.op, d, a);
-            } else {
-                let b = unsafe { &*fetch(s.b, &mut cb) };
-                binary(s.op, d, a, b);
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::is_x86_feature_detected as has;
+            let v3 = has!("avx2") && has!("fma");
+            // SAFETY: each variant runs only where the CPU has its features.
+            match wide {
+                Wide::V4 if v3 && has!("avx512f") => return unsafe { run_v4(self, regs, input) },
+                Wide::V3 | Wide::V4 if v3 => return unsafe { run_v3(self, regs, input) },
+                _ => {}
             }
         }
+        let _ = wide;
+        run_body(self, regs, input)
     }
 
     /// The register of output `k` after [`Tape::run`].
@@ -159,21 +171,139 @@ impl<R: Real> Tape<R> {
     }
 }
 
-#[inline(always)]
-fn map1<R: Real, const N: usize>(d: &mut [R; N], a: &[R; N], f: impl Fn(R) -> R) {
-    for i in 0..N {
-        d[i] = f(a[i]);
+/// The index of the last instruction reading each value (outputs: never).
+fn last_reads(instrs: &[Instr], outputs: &[u32]) -> Vec<usize> {
+    let mut last = vec![usize::MAX; instrs.len()];
+    for (k, i) in instrs.iter().enumerate() {
+        for o in [i.a, i.b] {
+            if let Operand::Val(v) = o {
+                last[v as usize] = k;
+            }
+        }
+    }
+    for o in outputs {
+        last[*o as usize] = usize::MAX - 1;
+    }
+    last
+}
+
+/// [`run_body`] compiled for AVX2 and FMA.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn run_v3<R: Real, const N: usize>(
+    t: &Tape<R>,
+    regs: &mut [[R; N]],
+    input: &(impl Inputs<R, N> + ?Sized),
+) {
+    run_body(t, regs, input)
+}
+
+/// [`run_body`] compiled for AVX-512.
+///
+/// # Safety
+/// The CPU must support AVX-512 F, AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx2,fma")]
+unsafe fn run_v4<R: Real, const N: usize>(
+    t: &Tape<R>,
+    regs: &mut [[R; N]],
+    input: &(impl Inputs<R, N> + ?Sized),
+) {
+    run_body(t, regs, input)
+}
+
+/// An operand while running: a lane array or one value for every lane.
+#[derive(Clone, Copy)]
+enum Val<'a, R, const N: usize> {
+    Arr(&'a [R; N]),
+    One(R),
+}
+
+/// A lane's value of an operand (monomorphised per operand kind, so the
+/// lane loop stays a plain vector loop).
+trait At<R>: Copy {
+    fn at(self, i: usize) -> R;
+}
+
+impl<R: Copy, const N: usize> At<R> for &[R; N] {
+    #[inline(always)]
+    fn at(self, i: usize) -> R {
+        self[i]
+    }
+}
+
+/// One value broadcast to every lane.
+#[derive(Clone, Copy)]
+struct One<R>(R);
+
+impl<R: Copy> At<R> for One<R> {
+    #[inline(always)]
+    fn at(self, _: usize) -> R {
+        self.0
     }
 }
 
 #[inline(always)]
-fn map2<R: Real, const N: usize>(d: &mut [R; N], a: &[R; N], b: &[R; N], f: impl Fn(R, R) -> R) {
-    for i in 0..N {
-        d[i] = f(a[i], b[i]);
+fn run_body<R: Real, const N: usize>(
+    t: &Tape<R>,
+    regs: &mut [[R; N]],
+    input: &(impl Inputs<R, N> + ?Sized),
+) {
+    let base = regs.as_mut_ptr();
+    for s in &t.steps {
+        let fetch = |o: Src<R>| -> Val<'_, R, N> {
+            match o {
+                // SAFETY: below `registers` (asserted by `run`).
+                Src::Reg(k) => Val::Arr(unsafe { &*base.add(k as usize) }),
+                Src::Input(k) => Val::Arr(input.array(k)),
+                Src::Scalar(k) => Val::One(input.scalar(k)),
+                Src::Const(v) => Val::One(v),
+            }
+        };
+        let a = fetch(s.a);
+        // SAFETY: `dst` differs from the operand registers (`Tape::new`),
+        // so this borrow is disjoint from the operands'.
+        let d = unsafe { &mut *base.add(s.dst as usize) };
+        if s.op.unary() {
+            match a {
+                Val::Arr(a) => unary(s.op, d, a),
+                Val::One(a) => unary(s.op, d, One(a)),
+            }
+        } else {
+            match (a, fetch(s.b)) {
+                (Val::Arr(a), Val::Arr(b)) => binary(s.op, d, a, b),
+                (Val::Arr(a), Val::One(b)) => binary(s.op, d, a, One(b)),
+                (Val::One(a), Val::Arr(b)) => binary(s.op, d, One(a), b),
+                (Val::One(a), Val::One(b)) => binary(s.op, d, One(a), One(b)),
+            }
+        }
     }
 }
 
-fn unary<R: Real, const N: usize>(op: Prim, d: &mut [R; N], a: &[R; N]) {
+#[inline(always)]
+fn map1<R: Real, const N: usize>(d: &mut [R; N], a: impl At<R>, f: impl Fn(R) -> R) {
+    for i in 0..N {
+        d[i] = f(a.at(i));
+    }
+}
+
+#[inline(always)]
+fn map2<R: Real, const N: usize>(
+    d: &mut [R; N],
+    a: impl At<R>,
+    b: impl At<R>,
+    f: impl Fn(R, R) -> R,
+) {
+    for i in 0..N {
+        d[i] = f(a.at(i), b.at(i));
+    }
+}
+
+#[inline(always)]
+fn unary<R: Real, const N: usize>(op: Prim, d: &mut [R; N], a: impl At<R>) {
     match op {
         Prim::Neg => map1(d, a, |x| -x),
         Prim::Call(f) => match f {
@@ -194,7 +324,8 @@ fn unary<R: Real, const N: usize>(op: Prim, d: &mut [R; N], a: &[R; N]) {
     }
 }
 
-fn binary<R: Real, const N: usize>(op: Prim, d: &mut [R; N], a: &[R; N], b: &[R; N]) {
+#[inline(always)]
+fn binary<R: Real, const N: usize>(op: Prim, d: &mut [R; N], a: impl At<R>, b: impl At<R>) {
     match op {
         Prim::Add => map2(d, a, b, |x, y| x + y),
         Prim::Sub => map2(d, a, b, |x, y| x - y),
@@ -229,7 +360,7 @@ mod tests {
             .collect();
         let g = d.gradient(roots[0], &[0, 1]);
         roots.extend(g);
-        let tape = Tape::<f64>::new(&lower(&d, &roots));
+        let tape = Tape::<f64>::new(&lower(&d, &roots), |_| false);
         const N: usize = 8;
         let mut inputs = [[0.0; N]; 3];
         for i in 0..N {
@@ -238,7 +369,7 @@ mod tests {
             inputs[2][i] = 0.1 * i as f64;
         }
         let mut regs = vec![[0.0; N]; tape.registers];
-        tape.run(&mut regs, |k| &inputs[k as usize]);
+        tape.run(&mut regs, &inputs[..], Wide::Baseline);
         for i in 0..N {
             let x = [inputs[0][i], inputs[1][i], inputs[2][i]];
             let want = d.eval(&roots, &x);

@@ -1,0 +1,297 @@
+//! Formula models on the CPU: an op (the vector field) through the block
+//! interpreter, and the whole step as one composed program
+//! (`FormulaModel::compose`) split by what its values vary with
+//! (`num/formula/stage.rs`): the block's fixed values once, the values the
+//! ensemble shares once per step for all lanes, the rest per lane.
+
+use crate::models::formula::{Cost, FormulaModel, STEP_INDEX};
+use crate::models::lanes::{index_of, Lanes, LANES};
+use crate::num::formula::stage::{split, Vary};
+use crate::num::formula::tape::{Inputs, Tape, Wide};
+use crate::num::precision::Real;
+use crate::plan::{Plan, Source};
+
+use super::kernels::Isa;
+
+/// The interpreter's level for the kernels' level.
+pub fn wide(isa: Isa) -> Wide {
+    match isa {
+        Isa::Baseline => Wide::Baseline,
+        Isa::V3 => Wide::V3,
+        Isa::V4 => Wide::V4,
+    }
+}
+
+fn lane(name: &str) -> usize {
+    index_of(name).unwrap_or_else(|| panic!("{name} is not a lane field"))
+}
+
+/// A formula op resolved to lane indices: its program's inputs (by DAG
+/// variable) and the lanes its outputs assign.
+pub struct FormulaCall<R> {
+    pub tape: Tape<R>,
+    pub inputs: Vec<usize>,
+    pub outputs: Vec<usize>,
+    pub wide: Wide,
+}
+
+/// A block's lanes as the inputs of a program, by lane index.
+struct LaneView<'a, R> {
+    l: &'a Lanes<R>,
+    lanes: &'a [usize],
+}
+
+impl<R: Real> Inputs<R, LANES> for LaneView<'_, R> {
+    #[inline(always)]
+    fn array(&self, k: u16) -> &[R; LANES] {
+        self.l.at(self.lanes[k as usize])
+    }
+    #[inline(always)]
+    fn scalar(&self, k: u16) -> R {
+        self.array(k)[0]
+    }
+}
+
+impl<R: Real> FormulaCall<R> {
+    pub fn new(m: &FormulaModel, name: &str, isa: Isa) -> Option<Self> {
+        let op = m.op(name)?;
+        Some(FormulaCall {
+            tape: Tape::new(&op.program, |_| false),
+            inputs: m.inputs.iter().map(|n| lane(n)).collect(),
+            outputs: op.outputs.iter().map(|n| lane(n)).collect(),
+            wide: wide(isa),
+        })
+    }
+
+    /// Evaluates every output, then assigns them (simultaneous update).
+    pub fn run(&self, l: &mut Lanes<R>, regs: &mut [[R; LANES]]) {
+        let view = LaneView {
+            l,
+            lanes: &self.inputs,
+        };
+        self.tape.run(regs, &view, self.wide);
+        for (k, &lane) in self.outputs.iter().enumerate() {
+            *l.at_mut(lane) = *self.tape.output(regs, k);
+        }
+    }
+}
+
+/// Where an input of the composed step comes from.
+#[derive(Debug, Clone, Copy)]
+enum In {
+    Lane(usize),
+    /// The step number.
+    Step,
+}
+
+/// A plan's whole step, composed and staged; see the module documentation.
+pub struct FormulaStep<R> {
+    fixed: Tape<R>,
+    uniform: Tape<R>,
+    lane: Tape<R>,
+    inputs: Vec<In>,
+    /// Outputs of `fixed` (they follow the inputs in the index space).
+    fixed_outputs: usize,
+    outputs: Vec<usize>,
+    wide: Wide,
+}
+
+/// A block's working memory for a [`FormulaStep`]: each part's registers.
+/// Those of `fixed` keep the block's fixed values across the steps; those
+/// of `uniform` the shared values of a window of [`LANES`] steps (lane `j`:
+/// step `window + j`), computed in one pass of the interpreter.
+pub struct StepMemory<R> {
+    fixed: Vec<[R; LANES]>,
+    uniform: Vec<[R; LANES]>,
+    window: Option<u64>,
+    lane: Vec<[R; LANES]>,
+}
+
+impl<R: Real> FormulaStep<R> {
+    /// The plan's step for formula model `m`, if every op is the model's.
+    pub fn new(plan: &Plan, m: &FormulaModel, isa: Isa) -> Option<Self> {
+        let c = m.compose(&plan.ops, Cost::PerLane)?;
+        let vary: Vec<Vary> = c
+            .inputs
+            .iter()
+            .map(|name| vary(plan, name, c.outputs.contains(name)))
+            .collect();
+        let s = split(&c.program, &vary);
+        let n = vary.len() as u32;
+        Some(FormulaStep {
+            fixed: Tape::new(&s.fixed, |_| false),
+            uniform: Tape::new(&s.uniform, |_| false),
+            lane: Tape::new(&s.lane, |k| s.scalar_in_lane(k, &vary)),
+            inputs: c
+                .inputs
+                .iter()
+                .map(|name| match *name {
+                    STEP_INDEX => In::Step,
+                    _ => In::Lane(lane(name)),
+                })
+                .collect(),
+            fixed_outputs: s.fixed.outputs.len(),
+            outputs: c.outputs.iter().map(|name| lane(name)).collect(),
+            wide: wide(isa),
+        })
+        .filter(|_| n as usize == c.inputs.len())
+    }
+
+    pub fn memory(&self) -> StepMemory<R> {
+        StepMemory {
+            fixed: vec![[R::default(); LANES]; self.fixed.registers],
+            uniform: vec![[R::default(); LANES]; self.uniform.registers],
+            window: None,
+            lane: vec![[R::default(); LANES]; self.lane.registers],
+        }
+    }
+
+    /// Computes the block's fixed values (after its inputs are loaded).
+    pub fn begin(&self, l: &Lanes<R>, m: &mut StepMemory<R>) {
+        let zero = [R::default(); LANES];
+        let view = Fixed {
+            l,
+            ins: &self.inputs,
+            zero: &zero,
+        };
+        self.fixed.run(&mut m.fixed, &view, self.wide);
+    }
+
+    /// Step `n` on every lane of the block.
+    pub fn step(&self, l: &mut Lanes<R>, m: &mut StepMemory<R>, n: u64) {
+        let window = match m.window {
+            Some(w) if (w..w + LANES as u64).contains(&n) => w,
+            _ => {
+                let steps: [R; LANES] = std::array::from_fn(|j| R::from_f64((n + j as u64) as f64));
+                let shared = Uniform {
+                    s: self,
+                    l,
+                    fixed: &m.fixed,
+                    steps: &steps,
+                };
+                self.uniform.run(&mut m.uniform, &shared, self.wide);
+                m.window = Some(n);
+                n
+            }
+        };
+        let view = PerLane {
+            s: self,
+            l,
+            fixed: &m.fixed,
+            uniform: &m.uniform,
+            j: (n - window) as usize,
+            n: R::from_f64(n as f64),
+        };
+        self.lane.run(&mut m.lane, &view, self.wide);
+        for (k, &lane) in self.outputs.iter().enumerate() {
+            *l.at_mut(lane) = *self.lane.output(&m.lane, k);
+        }
+    }
+}
+
+/// How input `name` of a composed step varies in `plan`.
+fn vary(plan: &Plan, name: &str, written: bool) -> Vary {
+    if name == STEP_INDEX {
+        return Vary {
+            lane: false,
+            step: true,
+        };
+    }
+    if written || name == "t" || name == "tau" {
+        return Vary {
+            lane: true,
+            step: true,
+        };
+    }
+    let axis = plan
+        .bindings
+        .iter()
+        .any(|(n, s)| *n == name && matches!(s, Source::Axis { .. }));
+    Vary {
+        lane: axis,
+        step: false,
+    }
+}
+
+/// The inputs of the fixed part: the block's lanes (it never reads `n`).
+struct Fixed<'a, R> {
+    l: &'a Lanes<R>,
+    ins: &'a [In],
+    zero: &'a [R; LANES],
+}
+
+impl<R: Real> Inputs<R, LANES> for Fixed<'_, R> {
+    #[inline(always)]
+    fn array(&self, k: u16) -> &[R; LANES] {
+        match self.ins[k as usize] {
+            In::Lane(i) => self.l.at(i),
+            In::Step => self.zero,
+        }
+    }
+    #[inline(always)]
+    fn scalar(&self, k: u16) -> R {
+        self.array(k)[0]
+    }
+}
+
+/// The inputs of the uniform part over a window of steps: lane `j` is
+/// step `steps[j]`; every other input it reads (and every fixed value) is
+/// the same in all lanes of the block.
+struct Uniform<'a, R> {
+    s: &'a FormulaStep<R>,
+    l: &'a Lanes<R>,
+    fixed: &'a [[R; LANES]],
+    steps: &'a [R; LANES],
+}
+
+impl<R: Real> Inputs<R, LANES> for Uniform<'_, R> {
+    #[inline(always)]
+    fn array(&self, k: u16) -> &[R; LANES] {
+        let k = k as usize;
+        match self.s.inputs.get(k) {
+            Some(In::Lane(i)) => self.l.at(*i),
+            Some(In::Step) => self.steps,
+            None => self.s.fixed.output(self.fixed, k - self.s.inputs.len()),
+        }
+    }
+    #[inline(always)]
+    fn scalar(&self, k: u16) -> R {
+        self.array(k)[0]
+    }
+}
+
+/// The inputs of the per-lane part: the lanes, the fixed values, and the
+/// uniform values and inputs as scalars.
+struct PerLane<'a, R> {
+    s: &'a FormulaStep<R>,
+    l: &'a Lanes<R>,
+    fixed: &'a [[R; LANES]],
+    uniform: &'a [[R; LANES]],
+    /// The step's lane in the uniform window.
+    j: usize,
+    n: R,
+}
+
+impl<R: Real> Inputs<R, LANES> for PerLane<'_, R> {
+    #[inline(always)]
+    fn array(&self, k: u16) -> &[R; LANES] {
+        let k = k as usize;
+        match self.s.inputs.get(k) {
+            Some(In::Lane(i)) => self.l.at(*i),
+            _ => self.s.fixed.output(self.fixed, k - self.s.inputs.len()),
+        }
+    }
+    #[inline(always)]
+    fn scalar(&self, k: u16) -> R {
+        let k = k as usize;
+        let n = self.s.inputs.len();
+        match self.s.inputs.get(k) {
+            Some(In::Lane(i)) => self.l.at(*i)[0],
+            Some(In::Step) => self.n,
+            None => self
+                .s
+                .uniform
+                .output(self.uniform, k - n - self.s.fixed_outputs)[self.j],
+        }
+    }
+}

@@ -1,0 +1,333 @@
+//! Rewriting a DAG's roots: substituting expressions for variables (to
+//! compose a step from its ops) and expanding the sine and cosine of a sum
+//! whose terms vary differently, so that the part that does not vary with
+//! the state (`m t`, a parameter) is computed where it is cheap
+//! (`stage.rs`): `cos(2q − m t) = cos 2q cos m t + sin 2q sin m t`.
+//!
+//! Nodes are rebuilt through the DAG's constructors, so the result is
+//! folded and shared like any other formula. Work goes in node order (every
+//! operand before its user), without recursion, however deep the DAG.
+
+use std::collections::{HashMap, HashSet};
+
+use super::dag::{operands, Dag, Func, Id, Node};
+
+impl Dag {
+    /// Rebuilds every node `roots` reach from its rebuilt operands, passing
+    /// each (original node, rebuilt id) through `rule`, which may replace it.
+    pub fn rewrite(
+        &mut self,
+        roots: &[Id],
+        mut rule: impl FnMut(&mut Dag, Node, Id) -> Id,
+    ) -> Vec<Id> {
+        let Some(top) = roots.iter().max() else {
+            return vec![];
+        };
+        let mut reached = vec![false; top.0 as usize + 1];
+        for r in roots {
+            reached[r.0 as usize] = true;
+        }
+        for k in (0..reached.len()).rev() {
+            if reached[k] {
+                for o in operands(self.node(Id(k as u32))) {
+                    reached[o.0 as usize] = true;
+                }
+            }
+        }
+        let mut new: HashMap<Id, Id> = HashMap::new();
+        for k in (0..reached.len()).filter(|k| reached[*k]) {
+            let id = Id(k as u32);
+            let m = |x: Id| new[&x];
+            let node = self.node(id);
+            let rebuilt = match node {
+                Node::Const(_) | Node::Var(_) => id,
+                Node::Neg(a) => self.neg(m(a)),
+                Node::Add(a, b) => self.add(m(a), m(b)),
+                Node::Mul(a, b) => self.mul(m(a), m(b)),
+                Node::Div(a, b) => self.div(m(a), m(b)),
+                Node::PowI(a, n) => self.powi(m(a), n),
+                Node::Call(f, a) => self.call(f, m(a)),
+                Node::Call2(f, a, b) => self.call2(f, m(a), m(b)),
+            };
+            let r = rule(self, node, rebuilt);
+            new.insert(id, r);
+        }
+        roots.iter().map(|r| new[r]).collect()
+    }
+
+    /// `roots` with variable `k` replaced by `values[k]`.
+    pub fn substitute(&mut self, roots: &[Id], values: &[Id]) -> Vec<Id> {
+        self.rewrite(roots, |_, node, id| match node {
+            Node::Var(k) => values[k as usize],
+            _ => id,
+        })
+    }
+
+    /// `roots` with every `sin`/`cos` of a sum of terms that depend on the
+    /// variables `varying` and terms that do not expanded by the addition
+    /// theorems.
+    pub fn expand_trig(&mut self, roots: &[Id], varying: &[bool]) -> Vec<Id> {
+        let mut dep = Depends {
+            varying,
+            of: vec![],
+        };
+        self.rewrite(roots, |d, _, id| match d.node(id) {
+            Node::Call(f @ (Func::Sin | Func::Cos), x) => {
+                let (v, c) = d.split_sum(x, &mut dep);
+                if v == d.num(0.0) || c == d.num(0.0) {
+                    return id;
+                }
+                let (sv, cv) = (d.call(Func::Sin, v), d.call(Func::Cos, v));
+                let (sc, cc) = d.sin_cos(c);
+                if f == Func::Sin {
+                    let (a, b) = (d.mul(sv, cc), d.mul(cv, sc));
+                    d.add(a, b)
+                } else {
+                    let (a, b) = (d.mul(cv, cc), d.mul(sv, sc));
+                    d.sub(a, b)
+                }
+            }
+            _ => id,
+        })
+    }
+
+    /// `(sin x, cos x)`; for `x = m·y` with an integer `2 ≤ |m| ≤ 16` by the
+    /// addition theorems from `sin y`, `cos y` (the built-in models'
+    /// recurrences), so that `cos(m t)` for every `m` of a Fourier sum costs
+    /// one sine and cosine of `t` and a few products.
+    fn sin_cos(&mut self, x: Id) -> (Id, Id) {
+        if let Node::Neg(y) = self.node(x) {
+            let (s, c) = self.sin_cos(y);
+            return (self.neg(s), c);
+        }
+        let multiple = match self.node(x) {
+            Node::Mul(a, y) => self
+                .constant(a)
+                .filter(|m| m.fract() == 0.0 && (2.0..=16.0).contains(&m.abs()))
+                .map(|m| (m, y)),
+            _ => None,
+        };
+        let Some((m, y)) = multiple else {
+            return (self.call(Func::Sin, x), self.call(Func::Cos, x));
+        };
+        let (s1, c1) = (self.call(Func::Sin, y), self.call(Func::Cos, y));
+        let (mut s, mut c) = (s1, c1);
+        for _ in 1..m.abs() as usize {
+            let (sc, cs) = (self.mul(s, c1), self.mul(c, s1));
+            let (cc, ss) = (self.mul(c, c1), self.mul(s, s1));
+            s = self.add(sc, cs);
+            c = self.sub(cc, ss);
+        }
+        if m < 0.0 {
+            s = self.neg(s);
+        }
+        (s, c)
+    }
+
+    /// A sum `x` as (its varying terms, its other terms), each summed.
+    fn split_sum(&mut self, x: Id, dep: &mut Depends) -> (Id, Id) {
+        let mut terms = vec![];
+        let mut stack = vec![x];
+        while let Some(t) = stack.pop() {
+            match self.node(t) {
+                Node::Add(a, b) => stack.extend([b, a]),
+                _ => terms.push(t),
+            }
+        }
+        let (mut v, mut c) = (self.num(0.0), self.num(0.0));
+        for t in terms {
+            if dep.varies(self, t) {
+                v = self.add(v, t);
+            } else {
+                c = self.add(c, t);
+            }
+        }
+        (v, c)
+    }
+}
+
+/// Terms of a sum, `monomial · coefficient`: the monomial a sorted product
+/// of varying factors, the coefficient a node that does not vary.
+type Terms = Vec<(Vec<Id>, Id)>;
+
+/// Sums longer than this are left as they are (collecting is quadratic).
+const MAX_TERMS: usize = 256;
+
+impl Dag {
+    /// `roots` with every varying sum whose terms share monomials in the
+    /// varying factors rewritten as `Σ monomial · (Σ coefficients)`: the
+    /// sums of coefficients do not vary, so they leave the per-lane work.
+    /// `Σₘ cₘ (sin 2q cos mt + cos 2q sin mt)` becomes
+    /// `sin 2q · Σₘ cₘ cos mt + cos 2q · Σₘ cₘ sin mt`. Sums where nothing
+    /// would be shared are kept as written.
+    pub fn collect(&mut self, roots: &[Id], varying: &[bool]) -> Vec<Id> {
+        let mut dep = Depends {
+            varying,
+            of: vec![],
+        };
+        self.rewrite(roots, |d, _, id| {
+            if !matches!(d.node(id), Node::Add(..)) || !dep.varies(d, id) {
+                return id;
+            }
+            let mut opened = HashSet::new();
+            let Some(terms) = d.terms(id, &mut dep, &mut opened) else {
+                return id;
+            };
+            let mut groups: Vec<(Vec<Id>, Id)> = vec![];
+            for (m, c) in &terms {
+                match groups.iter_mut().find(|(g, _)| g == m) {
+                    Some((_, sum)) => *sum = d.add(*sum, *c),
+                    None => groups.push((m.clone(), *c)),
+                }
+            }
+            // Varying operations after: per group the products and a
+            // coefficient (unless 1), and the sums. Before: those opened.
+            let one = d.num(1.0);
+            let after: usize = groups
+                .iter()
+                .map(|(m, c)| m.len().saturating_sub(1) + usize::from(*c != one) + 1)
+                .sum::<usize>()
+                - 1;
+            if after >= opened.len() {
+                return id;
+            }
+            // Small terms first, the state variables' own terms (x·(1 + …),
+            // the large ones) last: one rounding at the state's magnitude,
+            // as in the step written out.
+            let bare = |m: &[Id]| m.len() == 1 && matches!(d.node(m[0]), Node::Var(_));
+            groups.sort_by_key(|(m, _)| bare(m));
+            let mut total = d.num(0.0);
+            for (m, c) in groups {
+                let mut x = c;
+                for f in m {
+                    x = d.mul(f, x);
+                }
+                total = d.add(total, x);
+            }
+            total
+        })
+    }
+
+    /// `id` as terms (`None` past [`MAX_TERMS`]): sums, negations, products
+    /// and quotients by non-varying coefficients are opened; any other
+    /// varying node is a factor.
+    /// `opened` gathers the varying nodes opened (the operations the terms
+    /// replace).
+    fn terms(&mut self, id: Id, dep: &mut Depends, opened: &mut HashSet<Id>) -> Option<Terms> {
+        let one = self.num(1.0);
+        if !dep.varies(self, id) {
+            return Some(vec![(vec![], id)]);
+        }
+        if matches!(
+            self.node(id),
+            Node::Add(..) | Node::Neg(_) | Node::Mul(..) | Node::Div(..)
+        ) {
+            opened.insert(id);
+        }
+        let scale = |d: &mut Dag, t: Terms, f: &dyn Fn(&mut Dag, Id) -> Id| -> Terms {
+            t.into_iter().map(|(m, c)| (m, f(d, c))).collect()
+        };
+        let t = match self.node(id) {
+            Node::Add(a, b) => {
+                let mut t = self.terms(a, dep, opened)?;
+                t.extend(self.terms(b, dep, opened)?);
+                t
+            }
+            Node::Neg(a) => {
+                let t = self.terms(a, dep, opened)?;
+                scale(self, t, &|d, c| d.neg(c))
+            }
+            Node::Mul(a, b) if !dep.varies(self, a) || !dep.varies(self, b) => {
+                let (c, v) = if dep.varies(self, a) { (b, a) } else { (a, b) };
+                let t = self.terms(v, dep, opened)?;
+                scale(self, t, &|d, x| d.mul(c, x))
+            }
+            Node::Mul(a, b) => {
+                let (ta, tb) = (self.terms(a, dep, opened)?, self.terms(b, dep, opened)?);
+                match (&ta[..], &tb[..]) {
+                    // One term each: the product of the monomials.
+                    ([(ma, ca)], [(mb, cb)]) => {
+                        let mut m: Vec<Id> = ma.iter().chain(mb).copied().collect();
+                        m.sort_unstable();
+                        vec![(m, self.mul(*ca, *cb))]
+                    }
+                    _ => {
+                        opened.remove(&id);
+                        vec![(vec![id], one)]
+                    }
+                }
+            }
+            Node::Div(a, b) if !dep.varies(self, b) => {
+                let t = self.terms(a, dep, opened)?;
+                scale(self, t, &|d, x| d.div(x, b))
+            }
+            _ => {
+                opened.remove(&id);
+                vec![(vec![id], one)]
+            }
+        };
+        (t.len() <= MAX_TERMS).then_some(t)
+    }
+}
+
+/// Which nodes depend on the varying variables (filled in node order).
+struct Depends<'v> {
+    varying: &'v [bool],
+    of: Vec<bool>,
+}
+
+impl Depends<'_> {
+    fn varies(&mut self, d: &Dag, id: Id) -> bool {
+        for k in self.of.len()..d.nodes().len() {
+            let v = match d.node(Id(k as u32)) {
+                Node::Var(i) => self.varying.get(i as usize).copied().unwrap_or(false),
+                n => operands(n).iter().any(|o| self.of[o.0 as usize]),
+            };
+            self.of.push(v);
+        }
+        self.of[id.0 as usize]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::compile;
+    use super::*;
+
+    #[test]
+    fn substitution_composes() {
+        let mut d = Dag::new();
+        let names = ["q", "t"];
+        let f = compile(&mut d, "q^2 + sin(t)", &names).unwrap();
+        let two = d.num(2.0);
+        let q = d.var(0);
+        let q2 = d.mul(two, q);
+        let t = d.var(1);
+        let g = d.substitute(&[f], &[q2, t])[0];
+        let want = compile(&mut d, "(2*q)^2 + sin(t)", &names).unwrap();
+        assert_eq!(g, want);
+    }
+
+    #[test]
+    fn sines_of_mixed_sums_expand_and_agree() {
+        let mut d = Dag::new();
+        let names = ["q", "t", "e"];
+        let f = compile(&mut d, "e*cos(2*q - 3*t) + sin(q + t + 1) + cos(q)", &names).unwrap();
+        let g = d.expand_trig(&[f], &[true, false, false])[0];
+        let calls = |d: &Dag, r: Id| {
+            let mut n = 0;
+            let _ = d.clone().rewrite(&[r], |_, node, id| {
+                if matches!(node, Node::Call(..)) {
+                    n += 1;
+                }
+                id
+            });
+            n
+        };
+        assert!(calls(&d, g) > calls(&d, f), "expanded");
+        for x in [[0.3, 1.7, 0.2], [-2.0, 40.0, 1.5]] {
+            let (a, b) = (d.eval(&[f], &x)[0], d.eval(&[g], &x)[0]);
+            assert!((a - b).abs() < 1e-14, "{a} vs {b}");
+        }
+    }
+}
