@@ -314,3 +314,41 @@ fn formula_models_give_the_same_bits_at_every_instruction_set_level() {
         }
     }
 }
+
+/// `reeb verify SCENE` on the Duffing scene (issue 11, "done when"): the
+/// measured orders of S2 and Yoshida 6A against DOP853 within ±0.2 of 2 and
+/// 6, and the CPU–GPU agreement, in f64 and in f32.
+#[test]
+fn verify_measures_the_orders_of_the_duffing_scene() {
+    use reeb::backend::Engine;
+    use reeb::num::precision::Precision;
+    use reeb::verify::Target;
+    let text = std::fs::read_to_string("scenes/duffing.toml").unwrap();
+    let scene = Scene::parse(Path::new("scenes/duffing.toml"), &text).unwrap();
+    let gpu = common::gpu().is_some();
+    for precision in [Precision::F64, Precision::F32] {
+        let target = Target {
+            engine: Engine::Cpu,
+            precision,
+        };
+        let rows = reeb::verify_scene::run_scene(&scene, &target, |_| {});
+        for r in &rows {
+            println!("{precision:?} {} {} {}", r.name, r.measured, r.tolerance);
+            assert!(r.pass, "{precision:?}: {r:?}");
+        }
+        let order = |s: &str| {
+            rows.iter()
+                .find(|r| r.name.starts_with(&format!("order of {s} ")))
+                .map(|r| r.measured.parse::<f64>().unwrap())
+        };
+        assert!((order("s2").unwrap() - 2.0).abs() <= 0.2);
+        if precision == Precision::F64 {
+            assert!((order("yoshida6a").unwrap() - 6.0).abs() <= 0.2);
+        }
+        let agreement = rows.iter().any(|r| r.name.starts_with("CPU–GPU agreement"));
+        assert_eq!(
+            agreement, gpu,
+            "the agreement row exactly when a GPU is there"
+        );
+    }
+}
