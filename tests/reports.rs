@@ -139,3 +139,40 @@ precisions = ["f32", "f64"]
     assert!(out.join("stability.png").exists());
     std::fs::remove_dir_all(&out).unwrap();
 }
+
+/// The work–precision report takes a formula model: its schemes and its
+/// comparison integrators (built from the same formulas) at their orders.
+#[test]
+fn work_precision_takes_a_formula_model() {
+    let mut scene = Scene::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/duffing_work_precision.toml"),
+    )
+    .unwrap();
+    assert!(scene.model.formula().is_some());
+    scene.report.as_mut().unwrap().precisions = vec![reeb::num::precision::Precision::F64];
+    let out = tmp("wp-formula");
+    let md = work_precision(
+        &scene,
+        &ReportOptions {
+            out: Some(out.clone()),
+            backend: Some(BackendChoice::Cpu),
+            precision: None,
+            force: false,
+        },
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(&md).unwrap();
+    for (scheme, order) in [
+        ("s2", 2.0),
+        ("yoshida6a", 6.0),
+        ("rk4", 4.0),
+        ("leapfrog", 2.0),
+    ] {
+        let line = text
+            .lines()
+            .find(|l| l.starts_with(&format!("| {scheme} cpu f64 |")))
+            .unwrap_or_else(|| panic!("{scheme} missing:\n{text}"));
+        let measured: f64 = line.split('|').nth(3).unwrap().trim().parse().unwrap();
+        assert!((measured - order).abs() <= 0.2, "{scheme}: {measured}");
+    }
+}

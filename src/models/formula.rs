@@ -13,7 +13,7 @@ use std::collections::HashMap;
 use std::sync::Mutex;
 
 use super::lanes::Lane;
-use super::spec::{ModelSpec, Op, ParamDef, PieceOps, TimeDependence};
+use super::spec::{Method, ModelSpec, Op, ParamDef, PieceOps, TimeDependence};
 use crate::num::formula::lower::{lower, Lowered};
 use crate::num::formula::{compile, Dag, FormulaError, Func, Id};
 
@@ -569,12 +569,126 @@ impl Builder<'_> {
             field.push(self.dag.neg(sum));
             outs.push(leak(format!("d{name}")));
         }
-        self.op("formula_field", field, outs);
+        self.op("formula_field", field.clone(), outs);
         let cv = self.dag.sub(c_rate, v);
         let fs = self.dag.mul(f, s);
         let ds = self.dag.sub(cv, fs);
         self.op("formula_field_opt", vec![ds], vec!["ds"]);
+        // The comparison integrators on (q, p, s).
+        let vars: Vec<&'static str> = qs.iter().chain(&ps).copied().chain(["s"]).collect();
+        field.push(ds);
+        let rk4 = self.rk4(&vars, &field);
+        self.op("formula_rk4", rk4, vars.clone());
+        let lf = self.mechanical_leapfrog(&qs, &ps, [v, k, f], &grad_v, &grad_k);
+        self.op("formula_leapfrog", lf, vars);
         Ok(())
+    }
+
+    /// `roots` with the variables `vars` replaced by `values` and `t` by `t`.
+    fn at(&mut self, roots: &[Id], vars: &[&str], values: &[Id], t: Id) -> Vec<Id> {
+        let n = self.names.all.len() as u32 + 1;
+        let mut env: Vec<Id> = (0..n).map(|k| self.dag.var(k)).collect();
+        for (v, x) in vars.iter().zip(values) {
+            env[self.names.index(v) as usize] = *x;
+        }
+        env[self.names.index("t") as usize] = t;
+        self.dag.substitute(roots, &env)
+    }
+
+    /// `x + c·y` componentwise.
+    fn axpy(&mut self, x: &[Id], c: Id, y: &[Id]) -> Vec<Id> {
+        x.iter()
+            .zip(y)
+            .map(|(x, y)| {
+                let cy = self.dag.mul(c, *y);
+                self.dag.add(*x, cy)
+            })
+            .collect()
+    }
+
+    /// The classical RK4 step from `t` over `tau` of `vars` with the
+    /// vector field `field` (as the built-in models' `rk4_combine`).
+    fn rk4(&mut self, vars: &[&'static str], field: &[Id]) -> Vec<Id> {
+        let x: Vec<Id> = vars.iter().map(|v| self.var(v)).collect();
+        let (t, tau) = (self.var("t"), self.tau());
+        let half = self.dag.num(0.5);
+        let hh = self.dag.mul(half, tau);
+        let (t2, t4) = (self.dag.add(t, hh), self.dag.add(t, tau));
+        let k1 = self.at(field, vars, &x, t);
+        let x2 = self.axpy(&x, hh, &k1);
+        let k2 = self.at(field, vars, &x2, t2);
+        let x3 = self.axpy(&x, hh, &k2);
+        let k3 = self.at(field, vars, &x3, t2);
+        let x4 = self.axpy(&x, tau, &k3);
+        let k4 = self.at(field, vars, &x4, t4);
+        let six = self.dag.num(6.0);
+        let w = self.dag.div(tau, six);
+        let two = self.dag.num(2.0);
+        (0..x.len())
+            .map(|i| {
+                let k23 = self.dag.add(k2[i], k3[i]);
+                let mid = self.dag.mul(two, k23);
+                let sum = self.dag.add(k1[i], mid);
+                let sum = self.dag.add(sum, k4[i]);
+                let inc = self.dag.mul(w, sum);
+                self.dag.add(x[i], inc)
+            })
+            .collect()
+    }
+
+    /// Leapfrog with the damping in the acceleration (the built-in
+    /// mechanical models' method for any K): `p½ = (p − τ/2 ∇V(q, t)) /
+    /// (1 + τ/2 f(t + τ/2))`, `q' = q + τ ∇K(p½)`, the action by the
+    /// trapezoidal Lagrangian `p½·∇K(p½) − K(p½) − (V + V')/2`, then
+    /// `p' = p½ − τ/2 (∇V(q', t + τ) + f p½)`.
+    fn mechanical_leapfrog(
+        &mut self,
+        qs: &[&'static str],
+        ps: &[&'static str],
+        [v, k, f]: [Id; 3],
+        grad_v: &[Id],
+        grad_k: &[Id],
+    ) -> Vec<Id> {
+        let (t, tau, s) = (self.var("t"), self.tau(), self.var("s"));
+        let q: Vec<Id> = qs.iter().map(|n| self.var(n)).collect();
+        let p: Vec<Id> = ps.iter().map(|n| self.var(n)).collect();
+        let half = self.dag.num(0.5);
+        let hh = self.dag.mul(half, tau);
+        let (tm, t1) = (self.dag.add(t, hh), self.dag.add(t, tau));
+        let fm = self.at(&[f], &[], &[], tm)[0];
+        let hf = self.dag.mul(hh, fm);
+        let one = self.dag.num(1.0);
+        let (den, num) = (self.dag.add(one, hf), self.dag.sub(one, hf));
+        let mhh = self.dag.neg(hh);
+        let kick = self.axpy(&p, mhh, grad_v);
+        let ph: Vec<Id> = kick.iter().map(|x| self.dag.div(*x, den)).collect();
+        let dk = self.at(grad_k, ps, &ph, t);
+        let qn = self.axpy(&q, tau, &dk);
+        let kh = self.at(&[k], ps, &ph, t)[0];
+        let mut lag = self.dag.neg(kh);
+        for (a, b) in ph.iter().zip(&dk) {
+            let ab = self.dag.mul(*a, *b);
+            lag = self.dag.add(lag, ab);
+        }
+        let v1 = self.at(&[v], qs, &qn, t1)[0];
+        let vv = self.dag.add(v, v1);
+        let vmean = self.dag.mul(half, vv);
+        let l = self.dag.sub(lag, vmean);
+        let sn = self.dag.mul(s, num);
+        let tl = self.dag.mul(tau, l);
+        let top = self.dag.add(sn, tl);
+        let s1 = self.dag.div(top, den);
+        let dv1 = self.at(grad_v, qs, &qn, t1);
+        let mut out = qn;
+        for (d, x) in dv1.iter().zip(&ph) {
+            let fx = self.dag.mul(fm, *x);
+            let sum = self.dag.add(*d, fx);
+            let hs = self.dag.mul(hh, sum);
+            let pn = self.dag.sub(*x, hs);
+            out.push(pn);
+        }
+        out.push(s1);
+        out
     }
 
     /// SPEC §2.2 with general f(q), g(q, t): pieces A (f s), B (g), C (p s).
@@ -619,7 +733,35 @@ impl Builder<'_> {
         sum = self.dag.add(sum, dg);
         let dp = self.dag.neg(sum);
         self.op("formula_field_opt", vec![dp], vec!["dp"]);
+        // The comparison integrators on (q, s).
+        let rk4 = self.rk4(&["q", "s"], &[s, ds]);
+        self.op("formula_rk4", rk4, vec!["q", "s"]);
+        let lf = self.lienard_leapfrog(f, g);
+        self.op("formula_leapfrog", lf, vec!["q", "s"]);
         Ok(())
+    }
+
+    /// Leapfrog with the damping in the acceleration, velocity s (the
+    /// built-in Liénard models' method): `s½ = (s − τ/2 g(q, t)) / (1 + τ/2
+    /// f(q, t))`, `q' = q + τ s½`, `s' = s½ − τ/2 (g(q', t + τ) + f(q', t + τ) s½)`.
+    fn lienard_leapfrog(&mut self, f: Id, g: Id) -> Vec<Id> {
+        let (q, s, t, tau) = (self.var("q"), self.var("s"), self.var("t"), self.tau());
+        let half = self.dag.num(0.5);
+        let hh = self.dag.mul(half, tau);
+        let one = self.dag.num(1.0);
+        let hf = self.dag.mul(hh, f);
+        let den = self.dag.add(one, hf);
+        let hg = self.dag.mul(hh, g);
+        let top = self.dag.sub(s, hg);
+        let sh = self.dag.div(top, den);
+        let qn = self.step(q, 1.0, sh);
+        let t1 = self.dag.add(t, tau);
+        let fg = self.at(&[f, g], &["q"], &[qn], t1);
+        let fs = self.dag.mul(fg[0], sh);
+        let sum = self.dag.add(fg[1], fs);
+        let hs = self.dag.mul(hh, sum);
+        let sn = self.dag.sub(sh, hs);
+        vec![qn, sn]
     }
 }
 
@@ -698,7 +840,10 @@ fn spec(source: &Source, names: &Names, time: bool, ops: &[FormulaOp]) -> ModelS
         time_ops: &[],
         piece_ops: Box::leak(piece_ops.into_boxed_slice()),
         field_ops: &[("formula_field", false), ("formula_field_opt", true)],
-        methods: &[],
+        methods: &[
+            (Method::Rk4, "formula_rk4"),
+            (Method::Leapfrog, "formula_leapfrog"),
+        ],
         wgsl: &[],
         forcing_frequency: source
             .forcing_frequency
