@@ -140,11 +140,23 @@ pub fn spin_orbit_potential() -> String {
 
 #[test]
 fn formula_models_agree_with_the_built_ins_on_the_cpu() {
-    for scheme in ["s2", "yoshida6a", "rk4", "leapfrog"] {
+    let schemes = [
+        "s2",
+        "yoshida6a",
+        "rk4",
+        "leapfrog",
+        "variational1",
+        "variational2",
+    ];
+    for scheme in schemes {
         for pair in pairs(scheme) {
+            // The contact variational integrators are for mechanical systems.
+            if pair.name == "van_der_pol" && scheme.starts_with("variational") {
+                continue;
+            }
             // RK4 and the leapfrog evaluate f(t) = 2/t at t = 0, where the
             // built-in takes the limit of f·p and a formula cannot.
-            if pair.name == "lane_emden" && matches!(scheme, "rk4" | "leapfrog") {
+            if pair.name == "lane_emden" && scheme != "s2" && scheme != "yoshida6a" {
                 continue;
             }
             let (b, f) = (plan(&pair.builtin), plan(&pair.formula));

@@ -580,8 +580,83 @@ impl Builder<'_> {
         let rk4 = self.rk4(&vars, &field);
         self.op("formula_rk4", rk4, vars.clone());
         let lf = self.mechanical_leapfrog(&qs, &ps, [v, k, f], &grad_v, &grad_k);
-        self.op("formula_leapfrog", lf, vars);
+        self.op("formula_leapfrog", lf, vars.clone());
+        // The contact variational integrators are defined for K = |p|²/2.
+        let all: Vec<&str> = self.names.all.iter().map(|n| n.as_str()).collect();
+        let half_p2 = compile(self.dag, &format!("({default_k})/2"), &all).ok();
+        if half_p2 == Some(k) {
+            for (name, second) in [
+                ("formula_variational1", false),
+                ("formula_variational2", true),
+            ] {
+                let x = self.variational(&qs, &ps, [v, f], &grad_v, second);
+                self.op(name, x, vars.clone());
+            }
+        }
         Ok(())
+    }
+
+    /// The contact variational integrators for `K = |p|²/2` (seed 000,
+    /// examples 1, 2 and 6; the built-in mechanical models' methods):
+    /// `q' = q + τ c p − τ²/2 ∇V(q, t)`, `p' = (c p − τ/2 (∇V + ∇V')) / d`,
+    /// `s' = (c s + τ (|q' − q|²/(2τ²) − (V + V')/2)) / d` with `c = 1 − τ f`,
+    /// `d = 1` (first order) or `c = 1 − τ/2 f`, `d = 1 + τ/2 f` (second),
+    /// `f` at the step's midpoint.
+    fn variational(
+        &mut self,
+        qs: &[&'static str],
+        ps: &[&'static str],
+        [v, f]: [Id; 2],
+        grad_v: &[Id],
+        second: bool,
+    ) -> Vec<Id> {
+        let (t, tau, s) = (self.var("t"), self.tau(), self.var("s"));
+        let q: Vec<Id> = qs.iter().map(|n| self.var(n)).collect();
+        let p: Vec<Id> = ps.iter().map(|n| self.var(n)).collect();
+        let (half, one) = (self.dag.num(0.5), self.dag.num(1.0));
+        let hh = self.dag.mul(half, tau);
+        let (tm, t1) = (self.dag.add(t, hh), self.dag.add(t, tau));
+        let fm = self.at(&[f], &[], &[], tm)[0];
+        let w = if second { hh } else { tau };
+        let wf = self.dag.mul(w, fm);
+        let c = self.dag.sub(one, wf);
+        let d = if second { self.dag.add(one, wf) } else { one };
+        let tc = self.dag.mul(tau, c);
+        let htt = self.dag.mul(hh, tau);
+        let mhtt = self.dag.neg(htt);
+        let drift = self.axpy(&q, tc, &p);
+        let qn = self.axpy(&drift, mhtt, grad_v);
+        let (v1, dv1) = {
+            let mut r = self.at(&[v], qs, &qn, t1);
+            r.extend(self.at(grad_v, qs, &qn, t1));
+            (r[0], r[1..].to_vec())
+        };
+        let mut vel2 = self.dag.num(0.0);
+        for (a, b) in qn.iter().zip(&q) {
+            let dq = self.dag.sub(*a, *b);
+            let vel = self.dag.div(dq, tau);
+            let sq = self.dag.mul(vel, vel);
+            vel2 = self.dag.add(vel2, sq);
+        }
+        let kin = self.dag.mul(half, vel2);
+        let vv = self.dag.add(v, v1);
+        let vmean = self.dag.mul(half, vv);
+        let l = self.dag.sub(kin, vmean);
+        let tl = self.dag.mul(tau, l);
+        let sc = self.dag.mul(s, c);
+        let top = self.dag.add(sc, tl);
+        let s1 = self.dag.div(top, d);
+        let mut out = qn;
+        for ((pk, d0), d1) in p.iter().zip(grad_v).zip(&dv1) {
+            let cp = self.dag.mul(c, *pk);
+            let sum = self.dag.add(*d0, *d1);
+            let hs = self.dag.mul(hh, sum);
+            let num = self.dag.sub(cp, hs);
+            let pn = self.dag.div(num, d);
+            out.push(pn);
+        }
+        out.push(s1);
+        out
     }
 
     /// `roots` with the variables `vars` replaced by `values` and `t` by `t`.
@@ -809,6 +884,15 @@ fn spec(source: &Source, names: &Names, time: bool, ops: &[FormulaOp]) -> ModelS
         piece('B', "formula_b", "formula_b_opt"),
         piece('C', "formula_c", "formula_c_opt"),
     ];
+    let methods: Vec<(Method, &'static str)> = [
+        (Method::Rk4, "formula_rk4"),
+        (Method::Leapfrog, "formula_leapfrog"),
+        (Method::Variational1, "formula_variational1"),
+        (Method::Variational2, "formula_variational2"),
+    ]
+    .into_iter()
+    .filter(|(_, op)| has(op))
+    .collect();
     let params: Vec<ParamDef> = source
         .params
         .iter()
@@ -840,10 +924,7 @@ fn spec(source: &Source, names: &Names, time: bool, ops: &[FormulaOp]) -> ModelS
         time_ops: &[],
         piece_ops: Box::leak(piece_ops.into_boxed_slice()),
         field_ops: &[("formula_field", false), ("formula_field_opt", true)],
-        methods: &[
-            (Method::Rk4, "formula_rk4"),
-            (Method::Leapfrog, "formula_leapfrog"),
-        ],
+        methods: Box::leak(methods.into_boxed_slice()),
         wgsl: &[],
         forcing_frequency: source
             .forcing_frequency
