@@ -176,3 +176,47 @@ fn work_precision_takes_a_formula_model() {
         assert!((measured - order).abs() <= 0.2, "{scheme}: {measured}");
     }
 }
+
+/// The stability report takes a formula model: van der Pol written as
+/// `lienard` formulas gets the built-in model's map, cell by cell.
+#[test]
+fn stability_takes_a_formula_model() {
+    let grid = r#"
+[params]
+epsilon = { logspace = [-1.0, 2.0, 5] }
+[initial]
+q = 2.0
+s = 0.0
+[integrator]
+dt = { logspace = [-3.0, 0.0, 5] }
+t_end = 20.0
+[output]
+cycle = true
+[report]
+precisions = ["f64"]
+"#;
+    let opts = |name: &str| ReportOptions {
+        out: Some(tmp(name)),
+        backend: Some(BackendChoice::Cpu),
+        precision: None,
+        force: false,
+    };
+    let map = |text: String, name: &str| {
+        let scene = Scene::parse(Path::new("st.toml"), &text).unwrap();
+        let csv = stability(&scene, &opts(name)).unwrap();
+        let rows: Vec<String> = std::fs::read_to_string(csv)
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').take(4).collect::<Vec<_>>().join(","))
+            .collect();
+        rows
+    };
+    let builtin = map(format!("model = \"van_der_pol\"\n{grid}"), "st-builtin");
+    let formula = map(
+        format!("model = \"lienard\"\n[formula]\nf = \"epsilon*(q^2 - 1)\"\ng = \"q\"\n{grid}"),
+        "st-formula",
+    );
+    assert_eq!(builtin.len(), 25);
+    assert_eq!(formula, builtin, "epsilon, dt, precision, class per cell");
+}
