@@ -4,6 +4,9 @@
 //! (`num/formula/stage.rs`): the block's fixed values once, the values the
 //! ensemble shares once per step for all lanes, the rest per lane.
 
+// Lane loops index several arrays by lane; iterators would hide that.
+#![allow(clippy::needless_range_loop)]
+
 use crate::models::formula::{Cost, FormulaModel, STEP_INDEX};
 use crate::models::lanes::{index_of, Lanes, LANES};
 use crate::num::formula::stage::{split, Vary};
@@ -157,8 +160,9 @@ impl<R: Real> FormulaStep<R> {
         self.fixed.run(&mut m.fixed, &view, self.wide);
     }
 
-    /// Step `n` on every lane of the block.
-    pub fn step(&self, l: &mut Lanes<R>, m: &mut StepMemory<R>, n: u64) {
+    /// Step `n` on every lane of the block; returns whether a value it
+    /// assigned is non-finite in some lane.
+    pub fn step(&self, l: &mut Lanes<R>, m: &mut StepMemory<R>, n: u64) -> bool {
         let window = match m.window {
             Some(w) if (w..w + LANES as u64).contains(&n) => w,
             _ => {
@@ -183,10 +187,48 @@ impl<R: Real> FormulaStep<R> {
             n: R::from_f64(n as f64),
         };
         self.lane.run(&mut m.lane, &view, self.wide);
-        for (k, &lane) in self.outputs.iter().enumerate() {
-            *l.at_mut(lane) = *self.lane.output(&m.lane, k);
+        #[cfg(target_arch = "x86_64")]
+        if self.wide != Wide::Baseline && std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked).
+            return unsafe { commit_v3(&self.outputs, &self.lane, &m.lane, l) };
+        }
+        commit(&self.outputs, &self.lane, &m.lane, l)
+    }
+}
+
+/// Copies the step's outputs into their lanes; returns whether any is
+/// non-finite (one pass, vectorised like the step).
+#[inline(always)]
+fn commit<R: Real>(
+    outputs: &[usize],
+    tape: &Tape<R>,
+    regs: &[[R; LANES]],
+    l: &mut Lanes<R>,
+) -> bool {
+    let mut bad = false;
+    for (k, &lane) in outputs.iter().enumerate() {
+        let (src, dst) = (tape.output(regs, k), l.at_mut(lane));
+        for i in 0..LANES {
+            dst[i] = src[i];
+            bad |= !src[i].finite();
         }
     }
+    bad
+}
+
+/// [`commit`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn commit_v3<R: Real>(
+    outputs: &[usize],
+    tape: &Tape<R>,
+    regs: &[[R; LANES]],
+    l: &mut Lanes<R>,
+) -> bool {
+    commit(outputs, tape, regs, l)
 }
 
 /// How input `name` of a composed step varies in `plan`.

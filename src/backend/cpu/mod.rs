@@ -173,10 +173,15 @@ fn step<R: Flows>(
         return any;
     }
     if let (Some(f), Some(m)) = (&p.formula_step, memory) {
-        f.step(l, m, n);
-    } else {
-        run_ops(p, l, regs, nf);
+        // A variable no op assigns keeps its initial value: checked once.
+        return f.step(l, m, n) || (n == 0 && any_nonfinite(p, l));
     }
+    run_ops(p, l, regs, nf);
+    any_nonfinite(p, l)
+}
+
+/// Whether some state variable is non-finite in some lane.
+fn any_nonfinite<R: Flows>(p: &Program<R>, l: &Lanes<R>) -> bool {
     // One vectorised pass per variable with an OR-reduction.
     let mut any = false;
     for &k in &p.var {

@@ -246,6 +246,23 @@ impl<R: Copy> At<R> for One<R> {
     }
 }
 
+/// An operand's lanes (a function, not a closure, so that it is inlined
+/// into the instruction loop).
+#[inline(always)]
+fn fetch<'a, R: Real, const N: usize>(
+    base: *mut [R; N],
+    input: &'a (impl Inputs<R, N> + ?Sized),
+    o: Src<R>,
+) -> Val<'a, R, N> {
+    match o {
+        // SAFETY: below `registers` (asserted by `run`).
+        Src::Reg(k) => Val::Arr(unsafe { &*base.add(k as usize) }),
+        Src::Input(k) => Val::Arr(input.array(k)),
+        Src::Scalar(k) => Val::One(input.scalar(k)),
+        Src::Const(v) => Val::One(v),
+    }
+}
+
 #[inline(always)]
 fn run_body<R: Real, const N: usize>(
     t: &Tape<R>,
@@ -254,16 +271,7 @@ fn run_body<R: Real, const N: usize>(
 ) {
     let base = regs.as_mut_ptr();
     for s in &t.steps {
-        let fetch = |o: Src<R>| -> Val<'_, R, N> {
-            match o {
-                // SAFETY: below `registers` (asserted by `run`).
-                Src::Reg(k) => Val::Arr(unsafe { &*base.add(k as usize) }),
-                Src::Input(k) => Val::Arr(input.array(k)),
-                Src::Scalar(k) => Val::One(input.scalar(k)),
-                Src::Const(v) => Val::One(v),
-            }
-        };
-        let a = fetch(s.a);
+        let a = fetch(base, input, s.a);
         // SAFETY: `dst` differs from the operand registers (`Tape::new`),
         // so this borrow is disjoint from the operands'.
         let d = unsafe { &mut *base.add(s.dst as usize) };
@@ -273,7 +281,7 @@ fn run_body<R: Real, const N: usize>(
                 Val::One(a) => unary(s.op, d, One(a)),
             }
         } else {
-            match (a, fetch(s.b)) {
+            match (a, fetch(base, input, s.b)) {
                 (Val::Arr(a), Val::Arr(b)) => binary(s.op, d, a, b),
                 (Val::Arr(a), Val::One(b)) => binary(s.op, d, a, One(b)),
                 (Val::One(a), Val::Arr(b)) => binary(s.op, d, One(a), b),
