@@ -64,8 +64,9 @@ pub enum Cost {
     /// The work that depends on the state (the rest is shared by the lanes
     /// of a block or by the ensemble: the CPU).
     PerLane,
-    /// All the work (each GPU thread does all of it).
-    Total,
+    /// The work that changes from step to step (each GPU thread does all
+    /// of it; what no step changes is computed before the step loop).
+    PerStep,
 }
 
 /// A whole step as one program; see [`FormulaModel::compose`].
@@ -213,6 +214,9 @@ impl FormulaModel {
             .collect();
         // The rewrites pay off for some formulas only (sin(q + t) alone
         // costs more expanded): the cheapest program is kept.
+        let per_step: Vec<bool> = (0..inputs.len())
+            .map(|k| written[k] || [STEP_INDEX, "t", "tau"].contains(&inputs[k]))
+            .collect();
         let expanded = dag.expand_trig(&roots, &written);
         let collected = dag.collect(&expanded, &written);
         let program = [roots, expanded, collected]
@@ -220,7 +224,7 @@ impl FormulaModel {
             .map(|r| lower(&dag, r))
             .min_by_key(|p| match cost {
                 Cost::PerLane => work(p, &written),
-                Cost::Total => work(p, &vec![true; written.len()]),
+                Cost::PerStep => work(p, &per_step),
             })?;
         Some(Composed {
             program,
@@ -229,15 +233,41 @@ impl FormulaModel {
         })
     }
 
-    /// The WGSL function `formula_step` of a composed step: its arguments
-    /// are the kernel's locals of the same names (`nf` for [`STEP_INDEX`]).
+    /// The WGSL of a composed step: `formula_fixed`, which the kernel calls
+    /// once before its step loop, computes what no step changes (functions
+    /// of the parameters, `t0` and `dt`: a Fourier sum's coefficients) into
+    /// the kernel's locals `fx0…`; `formula_step` is the step reading them.
+    /// Arguments are the kernel's locals of the same names (`nf` for
+    /// [`STEP_INDEX`]).
     pub fn step_wgsl(c: &Composed) -> String {
-        let inputs: Vec<&str> = c
+        use crate::num::formula::stage::{split, Vary};
+        use crate::num::formula::wgsl::function_text;
+        let vary: Vec<Vary> = c
+            .inputs
+            .iter()
+            .map(|n| Vary {
+                lane: true,
+                step: c.outputs.contains(n) || [STEP_INDEX, "t", "tau"].contains(n),
+            })
+            .collect();
+        let s = split(&c.program, &vary);
+        debug_assert!(s.uniform.instrs.is_empty(), "every input varies by lane");
+        let mut inputs: Vec<&str> = c
             .inputs
             .iter()
             .map(|n| if *n == STEP_INDEX { "nf" } else { n })
             .collect();
-        crate::num::formula::wgsl::function_text("formula_step", &c.program, &inputs, &c.outputs)
+        let fixed: Vec<String> = (0..s.fixed.outputs.len())
+            .map(|k| format!("fx{k}"))
+            .collect();
+        let fixed: Vec<&str> = fixed.iter().map(|f| f.as_str()).collect();
+        let mut text = String::new();
+        if !fixed.is_empty() {
+            text.push_str(&function_text("formula_fixed", &s.fixed, &inputs, &fixed));
+        }
+        inputs.extend(&fixed);
+        text.push_str(&function_text("formula_step", &s.lane, &inputs, &c.outputs));
+        text
     }
 
     /// The lane slot of parameter `name`.

@@ -131,7 +131,7 @@ fn shared_text(plan: &Plan, precision: Precision) -> Result<String, CodegenError
     // A formula model's ops are emitted as WGSL directly (num/formula/wgsl.rs).
     if let Some(m) = plan.model.formula() {
         text.push_str(&m.wgsl());
-        if let Some(c) = m.compose(&plan.ops, Cost::Total) {
+        if let Some(c) = m.compose(&plan.ops, Cost::PerStep) {
             text.push_str(&FormulaModel::step_wgsl(&c));
         }
     }
@@ -153,6 +153,7 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
     };
     let inputs = g.inputs(precision, &mut table)?;
     g.state(precision, &mut table)?;
+    g.formula_fixed();
     let step = g.step();
     let finite = plan
         .vars
@@ -287,6 +288,19 @@ impl Gen<'_> {
             }
         }
         Ok(())
+    }
+
+    /// A formula model's values that no step changes, computed once before
+    /// the step loop into the locals `fx0…` (`FormulaModel::step_wgsl`).
+    fn formula_fixed(&mut self) {
+        let Some(sig) = self.sigs.get("formula_fixed") else {
+            return;
+        };
+        for (a, _) in sig.iter().filter(|(_, ptr)| *ptr) {
+            writeln!(self.load, "    var {a}: R = 0.0;").unwrap();
+        }
+        self.load
+            .push_str(&self.call("formula_fixed").replacen("        ", "    ", 1));
     }
 
     /// A call of the shared function `name`, arguments bound by name.

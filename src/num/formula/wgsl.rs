@@ -83,9 +83,24 @@ pub fn function_text(name: &str, l: &Lowered, inputs: &[&str], outputs: &[&str])
         Operand::Input(k) => inputs[k as usize].to_string(),
         Operand::Const(c) => lit(c),
     };
+    // The sine and cosine of one operand: one `sincos_r` at the first (each
+    // of `sin_r`, `cos_r` evaluates both).
+    let pairs = sin_cos_pairs(l);
     let mut body = String::new();
     for (k, i) in l.instrs.iter().enumerate() {
         let (a, b) = (operand(i.a), operand(i.b));
+        if let Some(&(first, is_sin)) = pairs.get(&k) {
+            if first == k {
+                writeln!(
+                    body,
+                    "    var s{k}: R;\n    var c{k}: R;\n    sincos_r({a}, &s{k}, &c{k});"
+                )
+                .unwrap();
+            }
+            let v = if is_sin { 's' } else { 'c' };
+            writeln!(body, "    let v{k}: R = {v}{first};").unwrap();
+            continue;
+        }
         let e = match i.op {
             Prim::Neg => format!("-{a}"),
             Prim::Add => format!("{a} + {b}"),
@@ -105,4 +120,29 @@ pub fn function_text(name: &str, l: &Lowered, inputs: &[&str], outputs: &[&str])
         writeln!(body, "    *{n} = out{k};").unwrap();
     }
     format!("fn {name}({}) {{\n{body}}}\n", args.join(", "))
+}
+
+/// For each `sin`/`cos` instruction whose operand also has the other one:
+/// (the first of the two, whether it is the sine).
+fn sin_cos_pairs(l: &Lowered) -> std::collections::HashMap<usize, (usize, bool)> {
+    use std::collections::HashMap;
+    let key = |o: Operand| format!("{o:?}");
+    let mut sin: HashMap<String, usize> = HashMap::new();
+    let mut cos: HashMap<String, usize> = HashMap::new();
+    for (k, i) in l.instrs.iter().enumerate() {
+        match i.op {
+            Prim::Call(Func::Sin) => sin.entry(key(i.a)).or_insert(k),
+            Prim::Call(Func::Cos) => cos.entry(key(i.a)).or_insert(k),
+            _ => continue,
+        };
+    }
+    let mut out = HashMap::new();
+    for (x, &ks) in &sin {
+        if let Some(&kc) = cos.get(x) {
+            let first = ks.min(kc);
+            out.insert(ks, (first, true));
+            out.insert(kc, (first, false));
+        }
+    }
+    out
 }
