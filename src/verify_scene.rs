@@ -161,47 +161,42 @@ fn agreement(scene: &Scene, precision: Precision) -> Option<Check> {
             1e-9,
         ));
     }
-    // In f32 a chaotic scene amplifies round-off past any fixed bound in
-    // 200 steps (Duffing: 7e-2), on either backend: the GPU's f32 error
-    // against the CPU in f64 is held to twice the CPU's own f32 error.
+    Some(f32_agreement(name, plan, &c, &g))
+}
+
+/// The f32 agreement row: a chaotic scene amplifies round-off past any
+/// fixed bound in 200 steps (Duffing: 7e-2), on either backend, so the
+/// GPU's f32 error against the CPU in f64 is held to twice the CPU's own
+/// f32 error, and both must stop the same trajectories.
+fn f32_agreement(name: String, plan: &Plan, c: &Observations<f64>, g: &Observations<f64>) -> Check {
     let truth = match Engine::Cpu.run_f64(plan, Precision::F64) {
         Ok((t, _)) => t,
-        Err(e) => return Some(failed("agreement", name, e.to_string())),
+        Err(e) => return failed("agreement", name, e.to_string()),
     };
     let (cpu_err, gpu_err) = (
-        largest_difference(&truth, &c, true),
-        largest_difference(&truth, &g, true),
+        largest_difference(&truth, c, true),
+        largest_difference(&truth, g, true),
     );
-    // Where the CPU's and the GPU's f32 runs both finish, they must agree on
-    // which trajectories stopped.
-    if c.nonfinite_step != g.nonfinite_step {
-        let stopped = |o: &Observations<f64>| o.nonfinite_step.iter().filter(|s| **s > 0).count();
+    let stopped = |o: &Observations<f64>| o.nonfinite_step.iter().filter(|s| **s > 0).count();
+    let differ = c
+        .nonfinite_step
+        .iter()
+        .zip(&g.nonfinite_step)
+        .filter(|(a, b)| (**a > 0) != (**b > 0))
+        .count();
+    if differ > 0 {
         let what = format!(
             "the same trajectories stop (CPU {}, GPU {})",
-            stopped(&c),
-            stopped(&g)
+            stopped(c),
+            stopped(g)
         );
-        let diff = c
-            .nonfinite_step
-            .iter()
-            .zip(&g.nonfinite_step)
-            .filter(|(a, b)| (**a > 0) != (**b > 0))
-            .count();
-        if diff > 0 {
-            return Some(bound("agreement", name, &what, diff as f64, 0.0));
-        }
+        return bound("agreement", name, &what, differ as f64, 0.0);
     }
     let what = format!(
         "GPU f32 error against f64 (CPU's f32 error {})",
         fmt(cpu_err)
     );
-    Some(bound(
-        "agreement",
-        name,
-        &what,
-        gpu_err,
-        (2.0 * cpu_err).max(1e-3),
-    ))
+    bound("agreement", name, &what, gpu_err, (2.0 * cpu_err).max(1e-3))
 }
 
 /// The largest difference of two runs' final values, relative to

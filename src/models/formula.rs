@@ -446,6 +446,18 @@ fn check_source(source: &Source) -> Result<(), ModelError> {
     Ok(())
 }
 
+/// A mechanical system's formulas in the DAG: positions and momenta, V, K,
+/// f and the gradients of V and K.
+struct MechanicalParts {
+    qs: Vec<&'static str>,
+    ps: Vec<&'static str>,
+    v: Id,
+    k: Id,
+    f: Id,
+    grad_v: Vec<Id>,
+    grad_k: Vec<Id>,
+}
+
 /// Builds the ops of a model in one DAG.
 struct Builder<'a> {
     dag: &'a mut Dag,
@@ -604,25 +616,17 @@ impl Builder<'_> {
         let fs = self.dag.mul(f, s);
         let ds = self.dag.sub(cv, fs);
         self.op("formula_field_opt", vec![ds], vec!["ds"]);
-        // The comparison integrators on (q, p, s).
-        let vars: Vec<&'static str> = qs.iter().chain(&ps).copied().chain(["s"]).collect();
         field.push(ds);
-        let rk4 = self.rk4(&vars, &field);
-        self.op("formula_rk4", rk4, vars.clone());
-        let lf = self.mechanical_leapfrog(&qs, &ps, [v, k, f], &grad_v, &grad_k);
-        self.op("formula_leapfrog", lf, vars.clone());
-        // The contact variational integrators are defined for K = |p|²/2.
-        let all: Vec<&str> = self.names.all.iter().map(|n| n.as_str()).collect();
-        let half_p2 = compile(self.dag, &format!("({default_k})/2"), &all).ok();
-        if half_p2 == Some(k) {
-            for (name, second) in [
-                ("formula_variational1", false),
-                ("formula_variational2", true),
-            ] {
-                let x = self.variational(&qs, &ps, [v, f], &grad_v, second);
-                self.op(name, x, vars.clone());
-            }
-        }
+        let m = MechanicalParts {
+            qs,
+            ps,
+            v,
+            k,
+            f,
+            grad_v,
+            grad_k,
+        };
+        self.mechanical_methods(&m, &field, &default_k);
         Ok(())
     }
 
@@ -632,14 +636,9 @@ impl Builder<'_> {
     /// `s' = (c s + τ (|q' − q|²/(2τ²) − (V + V')/2)) / d` with `c = 1 − τ f`,
     /// `d = 1` (first order) or `c = 1 − τ/2 f`, `d = 1 + τ/2 f` (second),
     /// `f` at the step's midpoint.
-    fn variational(
-        &mut self,
-        qs: &[&'static str],
-        ps: &[&'static str],
-        [v, f]: [Id; 2],
-        grad_v: &[Id],
-        second: bool,
-    ) -> Vec<Id> {
+    fn variational(&mut self, m: &MechanicalParts, second: bool) -> Vec<Id> {
+        let (qs, ps, grad_v) = (&m.qs[..], &m.ps[..], &m.grad_v[..]);
+        let (v, f) = (m.v, m.f);
         let (t, tau, s) = (self.var("t"), self.tau(), self.var("s"));
         let q: Vec<Id> = qs.iter().map(|n| self.var(n)).collect();
         let p: Vec<Id> = ps.iter().map(|n| self.var(n)).collect();
@@ -687,6 +686,27 @@ impl Builder<'_> {
         }
         out.push(s1);
         out
+    }
+
+    /// The comparison integrators on (q, p, s), `field` their vector field;
+    /// the contact variational ones only for `K = |p|²/2`.
+    fn mechanical_methods(&mut self, m: &MechanicalParts, field: &[Id], default_k: &str) {
+        let vars: Vec<&'static str> = m.qs.iter().chain(&m.ps).copied().chain(["s"]).collect();
+        let rk4 = self.rk4(&vars, field);
+        self.op("formula_rk4", rk4, vars.clone());
+        let lf = self.mechanical_leapfrog(m);
+        self.op("formula_leapfrog", lf, vars.clone());
+        let all: Vec<&str> = self.names.all.iter().map(|n| n.as_str()).collect();
+        let half_p2 = compile(self.dag, &format!("({default_k})/2"), &all).ok();
+        if half_p2 == Some(m.k) {
+            for (name, second) in [
+                ("formula_variational1", false),
+                ("formula_variational2", true),
+            ] {
+                let x = self.variational(m, second);
+                self.op(name, x, vars.clone());
+            }
+        }
     }
 
     /// `roots` with the variables `vars` replaced by `values` and `t` by `t`.
@@ -746,14 +766,9 @@ impl Builder<'_> {
     /// (1 + τ/2 f(t + τ/2))`, `q' = q + τ ∇K(p½)`, the action by the
     /// trapezoidal Lagrangian `p½·∇K(p½) − K(p½) − (V + V')/2`, then
     /// `p' = p½ − τ/2 (∇V(q', t + τ) + f p½)`.
-    fn mechanical_leapfrog(
-        &mut self,
-        qs: &[&'static str],
-        ps: &[&'static str],
-        [v, k, f]: [Id; 3],
-        grad_v: &[Id],
-        grad_k: &[Id],
-    ) -> Vec<Id> {
+    fn mechanical_leapfrog(&mut self, m: &MechanicalParts) -> Vec<Id> {
+        let (qs, ps, grad_v, grad_k) = (&m.qs[..], &m.ps[..], &m.grad_v[..], &m.grad_k[..]);
+        let (v, k, f) = (m.v, m.k, m.f);
         let (t, tau, s) = (self.var("t"), self.tau(), self.var("s"));
         let q: Vec<Id> = qs.iter().map(|n| self.var(n)).collect();
         let p: Vec<Id> = ps.iter().map(|n| self.var(n)).collect();

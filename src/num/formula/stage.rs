@@ -55,9 +55,9 @@ fn part(v: Vary) -> Part {
     }
 }
 
-/// Splits `l`, whose input `k` varies as `vary[k]`.
-pub fn split(l: &Lowered, vary: &[Vary]) -> Staged {
-    let n = vary.len() as u32;
+/// Each instruction's part, and whether its value is read by another part
+/// (or is a program output computed outside the lane part).
+fn classify(l: &Lowered, vary: &[Vary]) -> (Vec<Part>, Vec<bool>) {
     let none = Vary {
         lane: false,
         step: false,
@@ -77,7 +77,6 @@ pub fn split(l: &Lowered, vary: &[Vary]) -> Staged {
         });
     }
     let parts: Vec<Part> = of.iter().map(|v| part(*v)).collect();
-    // Values read across parts become outputs of their part.
     let mut exported = vec![false; l.instrs.len()];
     for (k, i) in l.instrs.iter().enumerate() {
         for o in [i.a, i.b] {
@@ -91,6 +90,13 @@ pub fn split(l: &Lowered, vary: &[Vary]) -> Staged {
             exported[v as usize] |= parts[v as usize] != Part::Lane;
         }
     }
+    (parts, exported)
+}
+
+/// Splits `l`, whose input `k` varies as `vary[k]`.
+pub fn split(l: &Lowered, vary: &[Vary]) -> Staged {
+    let n = vary.len() as u32;
+    let (parts, exported) = classify(l, vary);
     let mut s = Staged {
         inputs: n,
         ..Staged::default()
