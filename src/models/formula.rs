@@ -79,6 +79,19 @@ pub struct Composed {
     pub outputs: Vec<&'static str>,
 }
 
+impl Composed {
+    /// Does input `name` change from step to step?
+    pub fn changes_each_step(&self, name: &str) -> bool {
+        changes_each_step(name, self.outputs.contains(&name))
+    }
+}
+
+/// Does an input of a composed step change from step to step: the state
+/// it assigns, the step number, and the time and sub-step derived from it?
+fn changes_each_step(name: &str, assigned: bool) -> bool {
+    assigned || [STEP_INDEX, "t", "tau"].contains(&name)
+}
+
 /// One op: a program and the lane fields its outputs assign.
 #[derive(Debug)]
 pub struct FormulaOp {
@@ -215,7 +228,7 @@ impl FormulaModel {
         // The rewrites pay off for some formulas only (sin(q + t) alone
         // costs more expanded): the cheapest program is kept.
         let per_step: Vec<bool> = (0..inputs.len())
-            .map(|k| written[k] || [STEP_INDEX, "t", "tau"].contains(&inputs[k]))
+            .map(|k| changes_each_step(inputs[k], written[k]))
             .collect();
         let expanded = dag.expand_trig(&roots, &written);
         let collected = dag.collect(&expanded, &written);
@@ -247,7 +260,7 @@ impl FormulaModel {
             .iter()
             .map(|n| Vary {
                 lane: true,
-                step: c.outputs.contains(n) || [STEP_INDEX, "t", "tau"].contains(n),
+                step: c.changes_each_step(n),
             })
             .collect();
         let s = split(&c.program, &vary);

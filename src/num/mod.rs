@@ -4,6 +4,7 @@
 
 pub mod dsl;
 pub mod formula;
+pub mod isa;
 pub mod math;
 pub mod names;
 pub mod precision;

@@ -10,20 +10,11 @@
 use crate::models::formula::{Cost, FormulaModel, STEP_INDEX};
 use crate::models::lanes::{index_of, Lanes, LANES};
 use crate::num::formula::stage::{split, Vary};
-use crate::num::formula::tape::{Inputs, Tape, Wide};
+use crate::num::formula::tape::{Inputs, Tape};
 use crate::num::precision::Real;
 use crate::plan::{Plan, Source};
 
 use super::kernels::Isa;
-
-/// The interpreter's level for the kernels' level.
-pub fn wide(isa: Isa) -> Wide {
-    match isa {
-        Isa::Baseline => Wide::Baseline,
-        Isa::V3 => Wide::V3,
-        Isa::V4 => Wide::V4,
-    }
-}
 
 fn lane(name: &str) -> usize {
     index_of(name).unwrap_or_else(|| panic!("{name} is not a lane field"))
@@ -35,7 +26,7 @@ pub struct FormulaCall<R> {
     pub tape: Tape<R>,
     pub inputs: Vec<usize>,
     pub outputs: Vec<usize>,
-    pub wide: Wide,
+    pub isa: Isa,
 }
 
 /// A block's lanes as the inputs of a program, by lane index.
@@ -62,7 +53,7 @@ impl<R: Real> FormulaCall<R> {
             tape: Tape::new(&op.program, |_| false),
             inputs: m.inputs.iter().map(|n| lane(n)).collect(),
             outputs: op.outputs.iter().map(|n| lane(n)).collect(),
-            wide: wide(isa),
+            isa,
         })
     }
 
@@ -72,7 +63,7 @@ impl<R: Real> FormulaCall<R> {
             l,
             lanes: &self.inputs,
         };
-        self.tape.run(regs, &view, self.wide);
+        self.tape.run(regs, &view, self.isa);
         for (k, &lane) in self.outputs.iter().enumerate() {
             *l.at_mut(lane) = *self.tape.output(regs, k);
         }
@@ -96,7 +87,7 @@ pub struct FormulaStep<R> {
     /// Outputs of `fixed` (they follow the inputs in the index space).
     fixed_outputs: usize,
     outputs: Vec<usize>,
-    wide: Wide,
+    isa: Isa,
 }
 
 /// A block's working memory for a [`FormulaStep`]: each part's registers.
@@ -117,7 +108,7 @@ impl<R: Real> FormulaStep<R> {
         let vary: Vec<Vary> = c
             .inputs
             .iter()
-            .map(|name| vary(plan, name, c.outputs.contains(name)))
+            .map(|name| vary(plan, name, c.changes_each_step(name)))
             .collect();
         let s = split(&c.program, &vary);
         let n = vary.len() as u32;
@@ -135,7 +126,7 @@ impl<R: Real> FormulaStep<R> {
                 .collect(),
             fixed_outputs: s.fixed.outputs.len(),
             outputs: c.outputs.iter().map(|name| lane(name)).collect(),
-            wide: wide(isa),
+            isa,
         })
         .filter(|_| n as usize == c.inputs.len())
     }
@@ -151,13 +142,15 @@ impl<R: Real> FormulaStep<R> {
 
     /// Computes the block's fixed values (after its inputs are loaded).
     pub fn begin(&self, l: &Lanes<R>, m: &mut StepMemory<R>) {
-        let zero = [R::default(); LANES];
-        let view = Fixed {
+        // The same view as the uniform part's: the fixed part reads neither
+        // `n` nor fixed values, so neither is there yet.
+        let view = Uniform {
+            s: self,
             l,
-            ins: &self.inputs,
-            zero: &zero,
+            fixed: &[],
+            steps: &[R::default(); LANES],
         };
-        self.fixed.run(&mut m.fixed, &view, self.wide);
+        self.fixed.run(&mut m.fixed, &view, self.isa);
     }
 
     /// Step `n` on every lane of the block; returns whether a value it
@@ -173,7 +166,7 @@ impl<R: Real> FormulaStep<R> {
                     fixed: &m.fixed,
                     steps: &steps,
                 };
-                self.uniform.run(&mut m.uniform, &shared, self.wide);
+                self.uniform.run(&mut m.uniform, &shared, self.isa);
                 m.window = Some(n);
                 n
             }
@@ -186,9 +179,9 @@ impl<R: Real> FormulaStep<R> {
             j: (n - window) as usize,
             n: R::from_f64(n as f64),
         };
-        self.lane.run(&mut m.lane, &view, self.wide);
+        self.lane.run(&mut m.lane, &view, self.isa);
         #[cfg(target_arch = "x86_64")]
-        if self.wide != Wide::Baseline && std::arch::is_x86_feature_detected!("avx2") {
+        if self.isa != Isa::Baseline && std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2 (checked).
             return unsafe { commit_v3(&self.outputs, &self.lane, &m.lane, l) };
         }
@@ -231,17 +224,13 @@ unsafe fn commit_v3<R: Real>(
     commit(outputs, tape, regs, l)
 }
 
-/// How input `name` of a composed step varies in `plan`.
-fn vary(plan: &Plan, name: &str, written: bool) -> Vary {
-    if name == STEP_INDEX {
+/// How input `name` of a composed step varies in `plan`: the step number
+/// is the same in every lane, an input a step changes (`per_step`) is per
+/// lane, any other per lane exactly when it is bound to an axis.
+fn vary(plan: &Plan, name: &str, per_step: bool) -> Vary {
+    if per_step {
         return Vary {
-            lane: false,
-            step: true,
-        };
-    }
-    if written || name == "t" || name == "tau" {
-        return Vary {
-            lane: true,
+            lane: name != STEP_INDEX,
             step: true,
         };
     }
@@ -252,27 +241,6 @@ fn vary(plan: &Plan, name: &str, written: bool) -> Vary {
     Vary {
         lane: axis,
         step: false,
-    }
-}
-
-/// The inputs of the fixed part: the block's lanes (it never reads `n`).
-struct Fixed<'a, R> {
-    l: &'a Lanes<R>,
-    ins: &'a [In],
-    zero: &'a [R; LANES],
-}
-
-impl<R: Real> Inputs<R, LANES> for Fixed<'_, R> {
-    #[inline(always)]
-    fn array(&self, k: u16) -> &[R; LANES] {
-        match self.ins[k as usize] {
-            In::Lane(i) => self.l.at(i),
-            In::Step => self.zero,
-        }
-    }
-    #[inline(always)]
-    fn scalar(&self, k: u16) -> R {
-        self.array(k)[0]
     }
 }
 

@@ -5,6 +5,7 @@
 
 use crate::models::lanes::{Lane, Lanes, LANES};
 use crate::models::pieces::{Pieces, PiecesVisitor};
+pub use crate::num::isa::Isa;
 use crate::num::precision::Real;
 
 /// One fused S2 stage over a block: `(lanes, half, full, time offset, step)`;
@@ -120,28 +121,6 @@ pub unsafe fn fused_stage_v4<
     nf: R,
 ) -> bool {
     fused_stage_body::<R, P, P1, P2, P3, OPT, TIME>(l, half, full, c, nf)
-}
-
-/// The instruction-set level of the fused kernels on this CPU.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Isa {
-    /// Any x86-64 (or other architecture).
-    Baseline,
-    /// AVX2 + FMA.
-    V3,
-    /// AVX-512.
-    V4,
-}
-
-impl Isa {
-    /// The level's name, as `REEB_CPU_ISA` spells it, with its features.
-    pub fn name(self) -> &'static str {
-        match self {
-            Isa::Baseline => "baseline (x86-64 SSE2, or the target's default)",
-            Isa::V3 => "v3 (AVX2 + FMA)",
-            Isa::V4 => "v4 (AVX-512)",
-        }
-    }
 }
 
 /// The values `REEB_CPU_ISA` may take.

@@ -77,7 +77,7 @@ struct Lowering<'d> {
 }
 
 /// A hashable key of an operand.
-fn key(o: Operand) -> u64 {
+pub(super) fn key(o: Operand) -> u64 {
     match o {
         Operand::Val(k) => k as u64,
         Operand::Input(k) => (1 << 40) | k as u64,

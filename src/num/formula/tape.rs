@@ -9,6 +9,7 @@
 
 use super::dag::{Func, Func2};
 use super::lower::{Instr, Lowered, Operand, Prim};
+use crate::num::isa::Isa;
 use crate::num::precision::Real;
 
 /// An operand resolved for the CPU.
@@ -38,14 +39,6 @@ pub struct Tape<R> {
     outputs: Vec<u16>,
     /// Registers the program needs.
     pub registers: usize,
-}
-
-/// The instruction-set level a [`Tape`] runs at (the CPU backend's `Isa`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Wide {
-    Baseline,
-    V3,
-    V4,
 }
 
 /// Where a tape's inputs come from when it runs: input `k` as an array
@@ -140,14 +133,14 @@ impl<R: Real> Tape<R> {
     }
 
     /// Runs the program on a block: `regs` has at least [`Tape::registers`]
-    /// arrays. `wide` picks the variant compiled for AVX2 + FMA (or
+    /// arrays. `isa` picks the variant compiled for AVX2 + FMA (or
     /// AVX-512), as the fused kernels do; all variants give the same bits
     /// (no contraction into FMA; reeb's functions use exact FMA anyway).
     pub fn run<const N: usize>(
         &self,
         regs: &mut [[R; N]],
         input: &(impl Inputs<R, N> + ?Sized),
-        wide: Wide,
+        isa: Isa,
     ) {
         assert!(regs.len() >= self.registers);
         #[cfg(target_arch = "x86_64")]
@@ -155,13 +148,13 @@ impl<R: Real> Tape<R> {
             use std::arch::is_x86_feature_detected as has;
             let v3 = has!("avx2") && has!("fma");
             // SAFETY: each variant runs only where the CPU has its features.
-            match wide {
-                Wide::V4 if v3 && has!("avx512f") => return unsafe { run_v4(self, regs, input) },
-                Wide::V3 | Wide::V4 if v3 => return unsafe { run_v3(self, regs, input) },
+            match isa {
+                Isa::V4 if v3 && has!("avx512f") => return unsafe { run_v4(self, regs, input) },
+                Isa::V3 | Isa::V4 if v3 => return unsafe { run_v3(self, regs, input) },
                 _ => {}
             }
         }
-        let _ = wide;
+        let _ = isa;
         run_body(self, regs, input)
     }
 
@@ -377,7 +370,7 @@ mod tests {
             inputs[2][i] = 0.1 * i as f64;
         }
         let mut regs = vec![[0.0; N]; tape.registers];
-        tape.run(&mut regs, &inputs[..], Wide::Baseline);
+        tape.run(&mut regs, &inputs[..], Isa::Baseline);
         for i in 0..N {
             let x = [inputs[0][i], inputs[1][i], inputs[2][i]];
             let want = d.eval(&roots, &x);

@@ -4,7 +4,7 @@
 use std::fmt::Write;
 
 use super::dag::{Func, Func2};
-use super::lower::{Lowered, Operand, Prim};
+use super::lower::{key, Lowered, Operand, Prim};
 
 /// A WGSL literal for `v` (abstract float: full f64 precision, converted by
 /// the compiler to the working precision exactly as `as f32` does).
@@ -126,9 +126,8 @@ pub fn function_text(name: &str, l: &Lowered, inputs: &[&str], outputs: &[&str])
 /// (the first of the two, whether it is the sine).
 fn sin_cos_pairs(l: &Lowered) -> std::collections::HashMap<usize, (usize, bool)> {
     use std::collections::HashMap;
-    let key = |o: Operand| format!("{o:?}");
-    let mut sin: HashMap<String, usize> = HashMap::new();
-    let mut cos: HashMap<String, usize> = HashMap::new();
+    let mut sin: HashMap<u64, usize> = HashMap::new();
+    let mut cos: HashMap<u64, usize> = HashMap::new();
     for (k, i) in l.instrs.iter().enumerate() {
         match i.op {
             Prim::Call(Func::Sin) => sin.entry(key(i.a)).or_insert(k),
