@@ -226,18 +226,26 @@ impl FormulaModel {
             .map(|k| env[k])
             .collect();
         // The rewrites pay off for some formulas only (sin(q + t) alone
-        // costs more expanded): the cheapest program is kept.
+        // costs more expanded): the cheapest program is kept. Each candidate
+        // gathers its constant factors; the last also merges the Fourier
+        // terms of ±m (one coefficient per cos mt, as the built-ins have).
         let per_step: Vec<bool> = (0..inputs.len())
             .map(|k| changes_each_step(inputs[k], written[k]))
             .collect();
         let expanded = dag.expand_trig(&roots, &written);
         let collected = dag.collect(&expanded, &written);
-        let program = [roots, expanded, collected]
+        let [roots, expanded, collected] =
+            [roots, expanded, collected].map(|r| dag.fold_coefficients(&r, &per_step));
+        let merged = dag.merge_like_terms(&collected, &per_step);
+        let program = [roots, expanded, collected, merged]
             .iter()
             .map(|r| lower(&dag, r))
-            .min_by_key(|p| match cost {
-                Cost::PerLane => work(p, &written),
-                Cost::PerStep => work(p, &per_step),
+            .min_by_key(|p| {
+                let varying = match cost {
+                    Cost::PerLane => work(p, &written),
+                    Cost::PerStep => work(p, &per_step),
+                };
+                (varying, p.instrs.len())
             })?;
         Some(Composed {
             program,

@@ -92,8 +92,8 @@ impl Dag {
     }
 
     /// `(sin x, cos x)`; for `x = m·y` with an integer `2 ≤ |m| ≤ 16` by the
-    /// addition theorems from `sin y`, `cos y` (the built-in models'
-    /// recurrences), so that `cos(m t)` for every `m` of a Fourier sum costs
+    /// recurrences `cos (k+1)y = 2 cos y · cos ky − cos (k−1)y` (and `sin`
+    /// alike) from `sin y`, `cos y`, as the built-in models do, so that `cos(m t)` for every `m` of a Fourier sum costs
     /// one sine and cosine of `t` and a few products.
     fn sin_cos(&mut self, x: Id) -> (Id, Id) {
         if let Node::Neg(y) = self.node(x) {
@@ -112,11 +112,13 @@ impl Dag {
         };
         let (s1, c1) = (self.call(Func::Sin, y), self.call(Func::Cos, y));
         let (mut s, mut c) = (s1, c1);
+        let two = self.num(2.0);
+        let tc = self.mul(two, c1);
+        let (mut sp, mut cp) = (self.num(0.0), self.num(1.0));
         for _ in 1..m.abs() as usize {
-            let (sc, cs) = (self.mul(s, c1), self.mul(c, s1));
-            let (cc, ss) = (self.mul(c, c1), self.mul(s, s1));
-            s = self.add(sc, cs);
-            c = self.sub(cc, ss);
+            let (a, b) = (self.mul(tc, s), self.mul(tc, c));
+            let (sn, cn) = (self.sub(a, sp), self.sub(b, cp));
+            (sp, cp, s, c) = (s, c, sn, cn);
         }
         if m < 0.0 {
             s = self.neg(s);
@@ -143,6 +145,111 @@ impl Dag {
             }
         }
         (v, c)
+    }
+}
+
+impl Dag {
+    /// `roots` with the factors of each varying product that do not vary
+    /// (constants, parameters, signs) gathered into one coefficient:
+    /// `c·(2·(−x))` becomes `(−2c)·x` and `x/c` becomes `(1/c)·x`, so that
+    /// the coefficient is computed with the values that do not vary (once,
+    /// before the steps) and the varying work is one product.
+    pub fn fold_coefficients(&mut self, roots: &[Id], varying: &[bool]) -> Vec<Id> {
+        let mut dep = Depends {
+            varying,
+            of: vec![],
+        };
+        let one = self.num(1.0);
+        self.rewrite(roots, |d, _, id| {
+            if !dep.varies(d, id) {
+                return id;
+            }
+            let (c, v) = match d.node(id) {
+                Node::Neg(_) => d.coefficient(id, &mut dep),
+                Node::Mul(a, b) => {
+                    let (ca, va) = d.coefficient(a, &mut dep);
+                    let (cb, vb) = d.coefficient(b, &mut dep);
+                    // With one coefficient, moving it saves nothing and
+                    // would unshare `a` (the 2 cos t of a recurrence).
+                    if ca == one || cb == one {
+                        return id;
+                    }
+                    let c = d.mul(ca, cb);
+                    (c, d.mul(va, vb))
+                }
+                Node::Div(a, b) if !dep.varies(d, b) => {
+                    let (c, v) = d.coefficient(a, &mut dep);
+                    (d.div(c, b), v)
+                }
+                Node::Div(a, b) => {
+                    let (c, v) = d.coefficient(a, &mut dep);
+                    (c, d.div(v, b))
+                }
+                _ => return id,
+            };
+            d.mul(c, v)
+        })
+    }
+
+    /// `roots` with the terms of each varying sum that differ only in a
+    /// coefficient that does not vary merged: `a·cos 5t + b·cos 5t` becomes
+    /// `(a + b)·cos 5t` (the terms of `cos(2q + 5t)` and `cos(2q − 5t)` of
+    /// a Fourier sum). The order of the first of each kind is kept.
+    pub fn merge_like_terms(&mut self, roots: &[Id], varying: &[bool]) -> Vec<Id> {
+        let mut dep = Depends {
+            varying,
+            of: vec![],
+        };
+        self.rewrite(roots, |d, _, id| {
+            if !matches!(d.node(id), Node::Add(..)) || !dep.varies(d, id) {
+                return id;
+            }
+            let mut terms = vec![];
+            let mut stack = vec![id];
+            while let Some(t) = stack.pop() {
+                match d.node(t) {
+                    Node::Add(a, b) if terms.len() < MAX_TERMS => stack.extend([b, a]),
+                    _ => terms.push(t),
+                }
+            }
+            let n = terms.len();
+            let mut groups: Vec<(Id, Id)> = vec![];
+            for t in terms {
+                let (c, v) = d.coefficient(t, &mut dep);
+                match groups.iter_mut().find(|(g, _)| *g == v) {
+                    Some((_, sum)) => *sum = d.add(*sum, c),
+                    None => groups.push((v, c)),
+                }
+            }
+            if groups.len() == n {
+                return id;
+            }
+            let mut total = d.num(0.0);
+            for (v, c) in groups {
+                let x = d.mul(c, v);
+                total = d.add(total, x);
+            }
+            total
+        })
+    }
+
+    /// A varying or fixed `x` as (coefficient that does not vary, varying
+    /// rest): `(c, y)` for `c·y` and `−(c·y)`, `(1, x)` for any other
+    /// varying `x`, `(x, 1)` for a fixed one.
+    fn coefficient(&mut self, x: Id, dep: &mut Depends) -> (Id, Id) {
+        let one = self.num(1.0);
+        if !dep.varies(self, x) {
+            return (x, one);
+        }
+        match self.node(x) {
+            Node::Neg(y) => {
+                let (c, v) = self.coefficient(y, dep);
+                (self.neg(c), v)
+            }
+            Node::Mul(a, b) if !dep.varies(self, a) => (a, b),
+            Node::Mul(a, b) if !dep.varies(self, b) => (b, a),
+            _ => (one, x),
+        }
     }
 }
 
@@ -292,6 +399,7 @@ impl Depends<'_> {
 #[cfg(test)]
 mod tests {
     use super::super::compile;
+    use super::super::lower::Prim;
     use super::*;
 
     #[test]
@@ -329,5 +437,47 @@ mod tests {
             let (a, b) = (d.eval(&[f], &x)[0], d.eval(&[g], &x)[0]);
             assert!((a - b).abs() < 1e-14, "{a} vs {b}");
         }
+    }
+    #[test]
+    fn multiple_angles_by_the_recurrences_agree_up_to_sixteen() {
+        let mut d = Dag::new();
+        let names = ["q", "t"];
+        for m in [2, 9, -7, 16] {
+            let f = compile(&mut d, &format!("cos(q - {m}*t) + sin(q + {m}*t)"), &names).unwrap();
+            let g = d.expand_trig(&[f], &[true, false])[0];
+            for t in [0.01, 0.7, 3.1, -40.0] {
+                let x = [0.4, t];
+                let (a, b) = (d.eval(&[f], &x)[0], d.eval(&[g], &x)[0]);
+                assert!((a - b).abs() < 1e-12, "m = {m}, t = {t}: {a} vs {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn constant_factors_gather_into_one_coefficient() {
+        let mut d = Dag::new();
+        let names = ["q", "e"];
+        let f = compile(&mut d, "e*(2*(-(q^2 + q))) + (q*e)/4", &names).unwrap();
+        let g = d.fold_coefficients(&[f], &[true, false])[0];
+        let want = compile(&mut d, "(-2*e)*(q^2 + q) + (e/4)*q", &names).unwrap();
+        assert_eq!(g, want);
+        let x = [0.3, 1.7];
+        assert!((d.eval(&[f], &x)[0] - d.eval(&[g], &x)[0]).abs() < 1e-15);
+    }
+
+    #[test]
+    fn like_terms_merge_into_one_product() {
+        let mut d = Dag::new();
+        let names = ["q", "a", "b", "c"];
+        let f = compile(&mut d, "a*cos(q) + c*sin(q) + b*cos(q) + a + b", &names).unwrap();
+        let g = d.merge_like_terms(&[f], &[true, false, false, false])[0];
+        let x = [0.3, 1.5, -0.25, 2.0];
+        let (a, b) = (d.eval(&[f], &x)[0], d.eval(&[g], &x)[0]);
+        assert!((a - b).abs() < 1e-15, "{a} vs {b}");
+        let products = |r: Id| {
+            let p = super::super::lower::lower(&d, &[r]);
+            p.instrs.iter().filter(|i| i.op == Prim::Mul).count()
+        };
+        assert_eq!((products(f), products(g)), (3, 2));
     }
 }
