@@ -6,7 +6,7 @@
 
 // Keep in sync with `struct Uniforms` of src/backend/gpu/run.rs.
 struct Uniforms {
-    // Global index of the chunk's first trajectory.
+    // Grid index of the chunk's first trajectory (the plan's first row included).
     base: u32,
     // Trajectories in the chunk, and the stride of the per-trajectory arrays.
     count: u32,

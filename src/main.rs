@@ -25,6 +25,23 @@ struct Cli {
     command: Command,
 }
 
+/// How `reeb run` streams, resumes and shards.
+#[derive(clap::Args)]
+struct StreamArgs {
+    /// Continue the run a kill interrupted in DIR.partial (the same scene):
+    /// finished chunks are kept, the others integrated.
+    #[arg(long)]
+    resume: bool,
+    /// Integrate only the K-th of N contiguous parts of the ensemble into the
+    /// shared DIR.partial (0 <= K < N); `reeb merge DIR` finishes the run.
+    #[arg(long, value_name = "K/N")]
+    shard: Option<reeb::output::run::Shard>,
+    /// Trajectories per chunk, the unit of memory, checkpoint and shard
+    /// (default: outputs of at most 1 GiB per chunk).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    chunk_trajectories: Option<u64>,
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Integrate a scene: arrays (.npy), summary.json and pictures in one directory.
@@ -44,6 +61,17 @@ enum Command {
         #[arg(long)]
         preview: bool,
         /// Replace the output directory even when it holds files reeb did not write (they are deleted).
+        #[arg(long)]
+        force: bool,
+        #[command(flatten)]
+        stream: StreamArgs,
+    },
+    /// Finish a run integrated in shards (`reeb run --shard K/N`): check that
+    /// every shard finished, then write summary.json and the pictures.
+    Merge {
+        /// The output directory the shards wrote (its DIR.partial).
+        dir: PathBuf,
+        /// Replace DIR even when it holds files reeb did not write (they are deleted).
         #[arg(long)]
         force: bool,
     },
@@ -155,7 +183,9 @@ fn main() -> ExitCode {
             precision,
             preview,
             force,
-        } => run(scene, out, backend, precision, preview, force),
+            stream,
+        } => run(scene, out, backend, precision, preview, force, stream),
+        Command::Merge { dir, force } => merge(&dir, force),
         Command::Check {
             scene,
             precision,
@@ -207,6 +237,7 @@ fn run(
     precision: Option<Precision>,
     preview: bool,
     force: bool,
+    stream: StreamArgs,
 ) -> Result<ExitCode> {
     let mut scene = Scene::load(&scene)?;
     if preview {
@@ -219,8 +250,20 @@ fn run(
         progress: std::io::stderr().is_terminal(),
         max_output_bytes: None,
         force,
+        resume: stream.resume,
+        shard: stream.shard,
+        chunk_trajectories: stream
+            .chunk_trajectories
+            .map(|n| usize::try_from(n).unwrap_or(usize::MAX)),
     };
     let report = run_scene(&scene, &opts)?;
+    println!("{}", report.line);
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `reeb merge DIR`.
+fn merge(dir: &Path, force: bool) -> Result<ExitCode> {
+    let report = reeb::output::run::merge(dir, force)?;
     println!("{}", report.line);
     Ok(ExitCode::SUCCESS)
 }

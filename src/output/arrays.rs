@@ -1,6 +1,7 @@
 //! The arrays of a run directory (`.npy`): axis values, final values,
 //! trajectories, Poincaré points, cycle statistics, status. Every array's
-//! leading dimensions are the scene's axes, in file order.
+//! leading dimensions are the scene's axes, in file order, so the rows of a
+//! chunk of trajectories are one contiguous slab of each (`npy.rs`).
 
 use std::io::BufWriter;
 use std::path::Path;
@@ -8,7 +9,7 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use npyz::WriterBuilder;
 
-use crate::models::Flows;
+use crate::num::precision::Real;
 use crate::plan::observations::Observations;
 use crate::scene::{OutVar, Scene};
 
@@ -32,17 +33,9 @@ pub fn write_npy<T: npyz::AutoSerialize + npyz::Serialize>(
     write().with_context(|| format!("writing {}", path.display()))
 }
 
-/// Writes every array of `obs` into `dir`; returns the file names.
-pub fn write_arrays<R: Flows>(
-    scene: &Scene,
-    dir: &Path,
-    obs: &Observations<R>,
-) -> Result<Vec<String>> {
-    let w = Writer {
-        dir,
-        shape: scene.shape().iter().map(|s| *s as u64).collect(),
-    };
-    let mut files: Vec<String> = vec![];
+/// Writes the axis values, `axis_<name>.npy`; returns the file names.
+pub fn write_axes(scene: &Scene, dir: &Path) -> Result<Vec<String>> {
+    let mut files = vec![];
     for ax in &scene.axes {
         let name = format!("axis_{}.npy", ax.name);
         write_npy(
@@ -52,105 +45,111 @@ pub fn write_arrays<R: Flows>(
         )?;
         files.push(name);
     }
-    w.vars(&scene.final_vars, &obs.final_values, 0, "final", &mut files)?;
-    if let Some((_, vars)) = &scene.trajectory {
-        w.vars(vars, &obs.trajectory, obs.frames, "trajectory", &mut files)?;
-    }
-    if let Some((_, vars, _)) = &scene.poincare {
-        w.vars(vars, &obs.poincare, obs.max_points, "poincare", &mut files)?;
-        w.per_trajectory(
-            "poincare_count.npy",
-            obs.poincare_count.iter().copied(),
-            &mut files,
-        )?;
-    }
-    if scene.cycle.is_some() {
-        w.per_trajectory(
-            "cycle_amplitude.npy",
-            obs.cycle_amplitude.iter().copied(),
-            &mut files,
-        )?;
-        w.per_trajectory(
-            "cycle_period.npy",
-            obs.cycle_period.iter().copied(),
-            &mut files,
-        )?;
-    }
-    // status: 0 ok, 1 non-finite; status_step: the step it became non-finite (−1: never).
-    let steps = &obs.nonfinite_step;
-    w.per_trajectory(
-        "status.npy",
-        steps.iter().map(|s| u8::from(*s != 0)),
-        &mut files,
-    )?;
-    let step_or_never = |s: &u32| if *s == 0 { -1i64 } else { *s as i64 };
-    w.per_trajectory(
-        "status_step.npy",
-        steps.iter().map(step_or_never),
-        &mut files,
-    )?;
     Ok(files)
 }
 
-/// Writes arrays of the scene's shape (plus trailing dimensions) into a directory.
-struct Writer<'a> {
-    dir: &'a Path,
-    shape: Vec<u64>,
+/// One per-trajectory array of a run: its file, numpy type, the dimensions
+/// after the scene's axes, and the rows a set of observations holds.
+pub struct Array {
+    pub file: String,
+    pub descr: &'static str,
+    pub inner: Vec<u64>,
+    pub bytes: Vec<u8>,
 }
 
-impl Writer<'_> {
-    fn dims(&self, extra: &[u64]) -> Vec<u64> {
-        self.shape.iter().chain(extra).copied().collect()
+impl Array {
+    /// The full shape, for a scene of `shape`.
+    pub fn shape(&self, shape: &[usize]) -> Vec<u64> {
+        shape.iter().map(|s| *s as u64).chain(self.inner.clone()).collect()
     }
+}
 
-    /// One value per trajectory.
-    fn per_trajectory<T: npyz::AutoSerialize + npyz::Serialize>(
-        &self,
-        name: &str,
-        data: impl IntoIterator<Item = T>,
-        files: &mut Vec<String>,
-    ) -> Result<()> {
-        write_npy(&self.dir.join(name), &self.dims(&[]), data)?;
-        files.push(name.to_string());
-        Ok(())
+/// Every per-trajectory array of `obs` (a chunk of a scene's rows, or the
+/// whole), in file order: final values, trajectories, Poincaré points and
+/// counts, cycle statistics, status. With `obs.n = 0` it lists the arrays
+/// (their bytes empty).
+pub fn arrays<R: Real>(scene: &Scene, obs: &Observations<R>) -> Result<Vec<Array>> {
+    let mut out = vec![];
+    vars(&scene.final_vars, &obs.final_values, 0, "final", &mut out)?;
+    if let Some((_, vs)) = &scene.trajectory {
+        vars(vs, &obs.trajectory, obs.frames, "trajectory", &mut out)?;
     }
+    if let Some((_, vs, _)) = &scene.poincare {
+        vars(vs, &obs.poincare, obs.max_points, "poincare", &mut out)?;
+        out.push(scalar("poincare_count.npy", "<u4", &obs.poincare_count));
+    }
+    if scene.cycle.is_some() {
+        out.push(scalar("cycle_amplitude.npy", real::<R>(), &obs.cycle_amplitude));
+        out.push(scalar("cycle_period.npy", real::<R>(), &obs.cycle_period));
+    }
+    // status: 0 ok, 1 non-finite; status_step: the step it became non-finite (−1: never).
+    let steps = &obs.nonfinite_step;
+    let status: Vec<u8> = steps.iter().map(|s| u8::from(*s != 0)).collect();
+    out.push(scalar("status.npy", "|u1", &status));
+    let step: Vec<i64> = steps
+        .iter()
+        .map(|s| if *s == 0 { -1 } else { *s as i64 })
+        .collect();
+    out.push(scalar("status_step.npy", "<i8", &step));
+    Ok(out)
+}
 
-    /// `<prefix>_<var>.npy` per output variable, `inner` values per
-    /// trajectory (frames, points; 0: one), a trailing component axis for
-    /// vectors (Kepler's `q` is `[q1, q2]`).
-    fn vars<R: Flows>(
-        &self,
-        vars: &[OutVar],
-        arrays: &[(String, Vec<R>)],
-        inner: usize,
-        prefix: &str,
-        files: &mut Vec<String>,
-    ) -> Result<()> {
-        for v in vars {
-            let comps: Vec<&Vec<R>> = v
-                .components
-                .iter()
-                .map(|c| {
-                    arrays
-                        .iter()
-                        .find(|(n, _)| n == c)
-                        .map(|(_, x)| x)
-                        .context("recorded component")
-                })
-                .collect::<Result<_>>()?;
-            let inner_dims = [inner as u64];
-            let mut dims = self.dims(if inner > 0 { &inner_dims } else { &[] });
-            let name = format!("{prefix}_{}.npy", v.name);
-            if comps.len() == 1 {
-                write_npy(&self.dir.join(&name), &dims, comps[0].iter().copied())?;
-            } else {
-                dims.push(comps.len() as u64);
-                let len = comps[0].len();
-                let interleaved = (0..len).flat_map(|i| comps.iter().map(move |c| c[i]));
-                write_npy(&self.dir.join(&name), &dims, interleaved)?;
-            }
-            files.push(name);
-        }
-        Ok(())
+/// The numpy type of the working precision.
+fn real<R: Real>() -> &'static str {
+    if std::mem::size_of::<R>() == 4 {
+        "<f4"
+    } else {
+        "<f8"
     }
+}
+
+/// One value per trajectory. (Little-endian: reeb runs on x86-64 and
+/// aarch64.)
+fn scalar<T: bytemuck::Pod>(file: &str, descr: &'static str, data: &[T]) -> Array {
+    Array {
+        file: file.into(),
+        descr,
+        inner: vec![],
+        bytes: bytemuck::cast_slice(data).to_vec(),
+    }
+}
+
+/// `<prefix>_<var>.npy` per output variable, `inner` values per trajectory
+/// (frames, points; 0: one), a trailing component axis for vectors
+/// (Kepler's `q` is `[q1, q2]`).
+fn vars<R: Real>(
+    vars: &[OutVar],
+    arrays: &[(String, Vec<R>)],
+    inner: usize,
+    prefix: &str,
+    out: &mut Vec<Array>,
+) -> Result<()> {
+    for v in vars {
+        let comps: Vec<&Vec<R>> = v
+            .components
+            .iter()
+            .map(|c| {
+                arrays
+                    .iter()
+                    .find(|(n, _)| n == c)
+                    .map(|(_, x)| x)
+                    .context("recorded component")
+            })
+            .collect::<Result<_>>()?;
+        let mut dims = if inner > 0 { vec![inner as u64] } else { vec![] };
+        let values: Vec<R> = if comps.len() == 1 {
+            comps[0].clone()
+        } else {
+            dims.push(comps.len() as u64);
+            let len = comps[0].len();
+            (0..len).flat_map(|i| comps.iter().map(move |c| c[i])).collect()
+        };
+        out.push(Array {
+            file: format!("{prefix}_{}.npy", v.name),
+            descr: real::<R>(),
+            inner: dims,
+            bytes: bytemuck::cast_slice(&values).to_vec(),
+        });
+    }
+    Ok(())
 }

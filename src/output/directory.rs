@@ -47,24 +47,43 @@ pub struct Claim {
     partial: PathBuf,
     lock: Option<File>,
     force: bool,
-    committed: bool,
+    /// Committed, or kept for a later run: not removed when dropped.
+    kept: bool,
+}
+
+/// How a run takes `DIR.partial`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// Alone, from nothing: a stale partial is emptied.
+    Fresh,
+    /// Alone, continuing a stale partial's work (`--resume`, `reeb merge`).
+    Resume,
+    /// Beside other shards of the same run, each holding a shared lock; a
+    /// run alone (exclusive) waits for none of them and is refused.
+    Shared,
 }
 
 /// Claims `out` for writing: every refusal here comes before any work.
 /// `keep` are files that must survive (the scene file); `force` allows
 /// replacing a folder that holds other files.
 pub fn claim(out: &Path, keep: &[&Path], force: bool) -> Result<Claim> {
+    claim_as(out, keep, force, Mode::Fresh)
+}
+
+/// [`claim`] in a [`Mode`].
+pub fn claim_as(out: &Path, keep: &[&Path], force: bool, mode: Mode) -> Result<Claim> {
     let abs = absolute(out, true)?;
     refuse_protected(out, &abs, keep)?;
     classify(out, force)?;
     let partial = partial_path(&abs);
-    let lock = lock_partial(&partial)?;
+    let lock = lock_partial(&partial, mode)?;
     Ok(Claim {
         out: out.to_path_buf(),
         partial,
         lock: Some(lock),
         force,
-        committed: false,
+        // What a resumed run or a shard finds is not its own to remove.
+        kept: mode != Mode::Fresh,
     })
 }
 
@@ -87,6 +106,11 @@ impl Claim {
         &self.partial
     }
 
+    /// `DIR`, where the work goes when committed.
+    pub fn out(&self) -> &Path {
+        &self.out
+    }
+
     /// Refuses when the disk holding `DIR.partial` has less free space than
     /// `need` bytes.
     pub fn check_space(&self, need: u64) -> Result<()> {
@@ -102,6 +126,12 @@ impl Claim {
             );
         }
         Ok(())
+    }
+
+    /// Leaves the partial in place when the claim ends uncommitted (its
+    /// finished chunks are kept for `--resume` or `reeb merge`).
+    pub fn keep(&mut self) {
+        self.kept = true;
     }
 
     /// Makes the partial durable and swaps it into `DIR`; returns `DIR`.
@@ -120,12 +150,12 @@ impl Claim {
         let now = match now {
             Ok(now) => now,
             Err(e) => {
-                self.committed = true; // keep the results
+                self.kept = true; // keep the results
                 return Err(e);
             }
         };
         swap_in(&self.partial, &self.out, &now)?;
-        self.committed = true;
+        self.kept = true;
         self.lock = None;
         sync_dir(parent_of(&self.out))?;
         if now != Existing::Nothing {
@@ -137,7 +167,7 @@ impl Claim {
 
 impl Drop for Claim {
     fn drop(&mut self) {
-        if !self.committed {
+        if !self.kept {
             // Ours, locked: a failed run leaves nothing that looks complete.
             let _ = std::fs::remove_dir_all(&self.partial);
         }
@@ -304,7 +334,7 @@ fn partial_path(abs: &Path) -> PathBuf {
 }
 
 /// Creates or takes over `partial`, locked for this process.
-fn lock_partial(partial: &Path) -> Result<File> {
+fn lock_partial(partial: &Path, mode: Mode) -> Result<File> {
     // A fresh partial is built under a private name, locked, and only then
     // given its public name: another run never sees it unlocked.
     let mut tmp_name = partial.file_name().unwrap_or_default().to_os_string();
@@ -315,11 +345,19 @@ fn lock_partial(partial: &Path) -> Result<File> {
     let lock = open_locked(&tmp)?.context("a folder of our own is locked")?;
     write_owner(&tmp)?;
     match rename_no_replace(&tmp, partial) {
+        Ok(()) if mode == Mode::Shared => {
+            lock.lock_shared()
+                .with_context(|| format!("locking {}", partial.display()))?;
+            Ok(lock)
+        }
         Ok(()) => Ok(lock),
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
             drop(lock);
             let _ = std::fs::remove_dir_all(&tmp);
-            take_over(partial)
+            match mode {
+                Mode::Shared => join_shared(partial),
+                _ => take_over(partial, mode == Mode::Fresh),
+            }
         }
         Err(e) => {
             drop(lock);
@@ -329,9 +367,14 @@ fn lock_partial(partial: &Path) -> Result<File> {
     }
 }
 
-/// Takes over an existing `partial` whose owner is gone; refuses a live one.
-fn take_over(partial: &Path) -> Result<File> {
+/// Takes over an existing `partial` whose owner is gone, emptied if
+/// `empty`; refuses a live one.
+fn take_over(partial: &Path, empty: bool) -> Result<File> {
     let (lock, owner) = stale_partial(partial)?;
+    if !empty {
+        write_owner(partial)?;
+        return Ok(lock);
+    }
     eprintln!(
         "warning: {} was left by a run that did not finish ({}); reusing it",
         partial.display(),
@@ -348,6 +391,36 @@ fn take_over(partial: &Path) -> Result<File> {
     }
     write_owner(partial)?;
     Ok(lock)
+}
+
+/// Joins the shards writing an existing `partial` (a shared lock); refuses
+/// one a run alone holds, and one reeb did not make.
+fn join_shared(partial: &Path) -> Result<File> {
+    if !std::fs::symlink_metadata(partial).is_ok_and(|m| m.is_dir()) {
+        bail!(
+            "{} exists and is not a folder reeb left; remove it or choose another --out",
+            partial.display()
+        );
+    }
+    let f = File::open(partial).with_context(|| format!("opening {}", partial.display()))?;
+    match f.try_lock_shared() {
+        Ok(()) => {}
+        Err(std::fs::TryLockError::WouldBlock) => bail!(
+            "{} is being written by a reeb run that is not a shard ({}); wait for it to finish, or choose another --out",
+            partial.display(),
+            std::fs::read_to_string(partial.join(OWNER_FILE)).unwrap_or_default().trim()
+        ),
+        Err(std::fs::TryLockError::Error(e)) => {
+            return Err(e).with_context(|| format!("locking {}", partial.display()))
+        }
+    }
+    if !partial.join(OWNER_FILE).exists() {
+        bail!(
+            "{} exists but was not made by reeb (no {OWNER_FILE}); remove it or choose another --out",
+            partial.display()
+        );
+    }
+    Ok(f)
 }
 
 /// An existing `partial` that reeb left and whose owner is gone: its lock,
@@ -532,6 +605,13 @@ fn renameat2(from: &Path, to: &Path, flags: libc::c_uint) -> std::io::Result<()>
 }
 
 /// Free bytes for an unprivileged user on the filesystem of `path`.
+/// Free bytes on the disk that holds `path` (or would: its nearest
+/// existing ancestor); `None` where unknown.
+pub fn free_space_for(path: &Path) -> Option<u64> {
+    let abs = std::path::absolute(path).ok()?;
+    abs.ancestors().find(|a| a.exists()).and_then(free_space)
+}
+
 fn free_space(path: &Path) -> Option<u64> {
     #[cfg(unix)]
     {

@@ -2,7 +2,11 @@
 //! directory), the arrays, and the pictures drawn with the plotting module.
 
 pub mod arrays;
+pub mod chunks;
 pub mod directory;
+pub mod journal;
+pub mod npy;
 pub mod pictures;
 pub mod plot;
 pub mod run;
+pub mod stream;

@@ -1,27 +1,30 @@
 //! `reeb run`: a scene through a backend into a directory of arrays, a
-//! summary and pictures.
+//! summary and pictures; `reeb merge`: the shards of one run made whole.
 //!
 //! The directory is claimed before any work and written as `<dir>.partial`
 //! (`directory.rs`), then swapped into place: a run that fails or is killed
 //! never leaves a directory that looks complete, and nothing the user did
 //! not ask reeb to replace is touched; `summary.json` is the last file
-//! written.
+//! written. The ensemble is integrated chunk by chunk (`stream.rs`), each
+//! written to disk and marked finished (`journal.rs`), so memory is bounded
+//! by a chunk, a killed run resumes, and shards share one directory.
 
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::time::Duration;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 
 use crate::backend::Engine;
 use crate::models::Flows;
 use crate::num::precision::Precision;
-use crate::output::arrays::write_arrays;
+use crate::output::arrays::write_axes;
 pub use crate::output::arrays::write_npy;
-use crate::output::directory::{self, Claim};
-use crate::plan::observations::Observations;
-use crate::plan::size::Estimate;
+use crate::output::chunks::{self, Chunks};
+use crate::output::directory::{self, Claim, Mode};
+use crate::output::journal::{self, Record};
+use crate::output::stream::{self, Target};
+use crate::plan::observations::bytes_per_trajectory;
+use crate::plan::size::{available_memory, Estimate};
 use crate::scene::{BackendChoice, Scene, SceneWarning, SubRun};
 
 /// What a finished run reports.
@@ -39,13 +42,40 @@ pub struct RunOptions {
     pub precision: Option<Precision>,
     /// Show a progress bar (on stderr, when it is a terminal).
     pub progress: bool,
-    /// Largest output size accepted before running (default: 70 % of available memory).
+    /// Largest output size accepted before running (default: the free disk
+    /// where the outputs go).
     pub max_output_bytes: Option<u64>,
     /// Replace `out` even when it holds files reeb did not write.
     pub force: bool,
+    /// Continue the chunks a killed run of the same scene left in `out.partial`.
+    pub resume: bool,
+    /// Integrate only this part of the ensemble (`--shard K/N`).
+    pub shard: Option<Shard>,
+    /// Trajectories per chunk (default: outputs of at most 1 GiB per chunk).
+    pub chunk_trajectories: Option<usize>,
 }
 
-/// Runs `scene` and writes its directory.
+/// Part `index` of `count` contiguous parts of a run's chunks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl std::str::FromStr for Shard {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Shard, String> {
+        let bad = || format!("`{s}` is not K/N with 0 <= K < N (e.g. 0/4)");
+        let (k, n) = s.split_once('/').ok_or_else(bad)?;
+        let (index, count) = (k.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+        if count == 0 || index >= count {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+}
+
+/// Runs `scene` and writes its directory (or, with a shard, its part of it).
 pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
     let precision = opts.precision.unwrap_or(scene.precision);
     let choice = opts.backend.unwrap_or(scene.backend);
@@ -55,21 +85,25 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
         estimate,
         out,
     } = gates(scene, precision, opts.out.as_deref(), opts.max_output_bytes)?;
-    let claim = directory::claim(&out, &[&scene.path], opts.force)?;
-    // On disk the scene's arrays once: half the memory estimate.
-    claim.check_space(estimate.bytes / 2)?;
+    let mode = match (opts.shard, opts.resume) {
+        (Some(_), _) => Mode::Shared,
+        (None, true) => Mode::Resume,
+        (None, false) => Mode::Fresh,
+    };
+    let claim = directory::claim_as(&out, &[&scene.path], opts.force, mode)?;
+    claim.check_space(estimate.bytes)?;
     let (engine, notice) = Engine::resolve(choice, precision)?;
     if let Some(n) = notice {
         eprintln!("{n}");
     }
     let made = Made {
-        engine: &engine,
+        engine: Some(&engine),
         precision,
         warnings: &warnings,
     };
     match precision {
-        Precision::F32 => run_typed::<f32>(scene, subs, claim, opts, &made),
-        Precision::F64 => run_typed::<f64>(scene, subs, claim, opts, &made),
+        Precision::F32 => run_typed::<f32>(scene, &subs, claim, opts, &made),
+        Precision::F64 => run_typed::<f64>(scene, &subs, claim, opts, &made),
     }
 }
 
@@ -85,7 +119,7 @@ pub struct Gated {
 /// The gates `reeb run` applies before any work, and `reeb check` as they
 /// are: the checks of the working precision (refusals; warnings printed),
 /// the plans, and the size of the outputs against `max_output_bytes` (by
-/// default 70 % of the available memory). The output directory's own gate
+/// default the free disk where they go). The output directory's own gate
 /// follows: [`directory::claim`] for a run, [`directory::check`] for check.
 pub fn gates(
     scene: &Scene,
@@ -98,8 +132,9 @@ pub fn gates(
         eprintln!("warning: {w}");
     }
     let subs = scene.sub_runs()?;
-    let estimate = scene.size_gate(&subs, precision, max_output_bytes)?;
     let out = out.map_or_else(|| Path::new("runs").join(&scene.name), Path::to_path_buf);
+    let limit = max_output_bytes.or_else(|| directory::free_space_for(&out));
+    let estimate = scene.size_gate(&subs, precision, Some(limit.unwrap_or(u64::MAX)))?;
     Ok(Gated {
         warnings,
         subs,
@@ -108,59 +143,190 @@ pub fn gates(
     })
 }
 
-/// How a run is made: engine, precision, and the warnings it was given.
+/// How a run is made: engine (none for `reeb merge`), precision, and the
+/// warnings it was given.
 struct Made<'a> {
-    engine: &'a Engine,
+    engine: Option<&'a Engine>,
     precision: Precision,
     warnings: &'a [SceneWarning],
 }
 
 fn run_typed<R: Flows>(
     scene: &Scene,
-    subs: Vec<SubRun>,
-    claim: Claim,
+    subs: &[SubRun],
+    mut claim: Claim,
     opts: &RunOptions,
     made: &Made,
 ) -> Result<RunReport> {
-    let (engine, precision) = (made.engine, made.precision);
-    let run = integrate_scene::<R>(scene, &subs, engine, opts.progress)?;
-    let partial = claim.dir();
-    let mut files = write_arrays(scene, partial, &run.observations)?;
-    match crate::output::pictures::draw(scene, partial, &run.observations) {
+    let engine = made.engine.context("an engine")?;
+    let mut record = Record {
+        reeb_version: env!("CARGO_PKG_VERSION").into(),
+        scene_path: scene.path.display().to_string(),
+        scene_text: scene.text.clone(),
+        preview: scene.preview,
+        precision: made.precision.name().into(),
+        backend: engine.name().into(),
+        adapter: engine.describe(),
+        format: "npy".into(),
+        chunks: chunks_of(scene, subs, opts.chunk_trajectories, made.precision),
+    };
+    let dir = claim.dir().to_path_buf();
+    let fresh = Record::read(&dir)?.is_none();
+    if fresh && opts.resume {
+        eprintln!(
+            "note: {} holds no earlier run to resume; starting from the beginning",
+            dir.display()
+        );
+    }
+    // A run continued keeps its chunks unless asked for others (shards on
+    // machines of different memory agree on the first shard's).
+    let old = record.establish(&dir)?;
+    if opts.chunk_trajectories.is_none() && old.chunks.shape == record.chunks.shape {
+        record.chunks = old.chunks.clone();
+    }
+    record.check_same(&old, &dir)?;
+    // From here on a failure keeps the finished chunks for --resume.
+    claim.keep();
+    let all = 0..record.chunks.count();
+    let mine = opts.shard.map_or(all, |s| record.chunks.shard(s.index, s.count));
+    let target = Target {
+        scene,
+        subs,
+        engine,
+        chunks: &record.chunks,
+        dir: &dir,
+    };
+    stream::integrate::<R>(&target, mine.clone(), opts.progress)?;
+    if let Some(s) = opts.shard {
+        let line = format!(
+            "{}: shard {}/{} (chunks {}..{} of {}) done → {}; when every shard has finished: reeb merge {}",
+            scene.name,
+            s.index,
+            s.count,
+            mine.start,
+            mine.end,
+            record.chunks.count(),
+            dir.display(),
+            claim.out().display()
+        );
+        let summary = serde_json::json!({"shard": [s.index, s.count], "chunks": [mine.start, mine.end]});
+        return Ok(RunReport {
+            out: dir,
+            summary,
+            line,
+        });
+    }
+    finish::<R>(scene, subs, claim, &record, made)
+}
+
+/// `reeb merge DIR`: checks that every chunk of the streamed run in
+/// `DIR.partial` finished (every shard), then writes the pictures and
+/// `summary.json` and puts the directory in place.
+pub fn merge(out: &Path, force: bool) -> Result<RunReport> {
+    let claim = directory::claim_as(out, &[], force, Mode::Resume)?;
+    let dir = claim.dir().to_path_buf();
+    let Some(record) = Record::read(&dir)? else {
+        bail!(
+            "{} holds no sharded run to merge (no {}): run the shards first with reeb run SCENE --out {} --shard K/N",
+            dir.display(),
+            journal::RECORD_FILE,
+            out.display()
+        );
+    };
+    let mut scene = Scene::parse(Path::new(&record.scene_path), &record.scene_text)
+        .with_context(|| format!("the scene recorded in {}", dir.display()))?;
+    if let Some((values, steps)) = record.preview {
+        scene = scene.preview(values, steps);
+    }
+    let precision: Precision = record
+        .precision
+        .parse()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let warnings = scene.checks(precision)?;
+    let subs = scene.sub_runs()?;
+    let made = Made {
+        engine: None,
+        precision,
+        warnings: &warnings,
+    };
+    match precision {
+        Precision::F32 => finish::<f32>(&scene, &subs, claim, &record, &made),
+        Precision::F64 => finish::<f64>(&scene, &subs, claim, &record, &made),
+    }
+}
+
+/// The chunks of a new run of `scene`: `rows` trajectories each, or outputs
+/// of at most [`chunks::DEFAULT_BUDGET`] bytes (less on a small machine).
+fn chunks_of(scene: &Scene, subs: &[SubRun], rows: Option<usize>, precision: Precision) -> Chunks {
+    let shape = scene.shape();
+    if let Some(rows) = rows {
+        return Chunks::with_rows(&shape, rows);
+    }
+    let per_row = subs
+        .iter()
+        .filter_map(|s| bytes_per_trajectory(&s.plan, precision))
+        .max()
+        .unwrap_or(8);
+    let budget = available_memory().map_or(chunks::DEFAULT_BUDGET, |m| (m / 8).min(chunks::DEFAULT_BUDGET));
+    Chunks::with_budget(&shape, per_row, budget)
+}
+
+/// Pictures, summary and commit of a run whose chunks have all finished.
+fn finish<R: Flows>(
+    scene: &Scene,
+    subs: &[SubRun],
+    claim: Claim,
+    record: &Record,
+    made: &Made,
+) -> Result<RunReport> {
+    let dir = claim.dir().to_path_buf();
+    let done = stream::finished(&dir, &record.chunks)?;
+    let mut files = write_axes(scene, &dir)?;
+    let observations = stream::read_back::<R>(scene, subs, &dir)?;
+    files.extend(stream::array_list::<R>(scene, subs)?.into_iter().map(|a| a.file));
+    match crate::output::pictures::draw(scene, &dir, &observations) {
         Ok(p) => files.extend(p),
         Err(e) => eprintln!("warning: pictures not drawn: {e:#}"),
     }
-    let summary = summary(scene, &subs, made, &run, &files);
-    write_json(&partial.join("summary.json"), &summary)?;
+    let max_steps = subs.iter().map(|s| s.plan.steps).max().unwrap_or(0);
+    let ran = Ran {
+        seconds: done.iter().map(|d| d.seconds).sum(),
+        traj_steps: done.iter().map(|d| d.traj_steps).sum(),
+        ok: done.iter().map(|d| d.ok).sum(),
+        max_steps,
+        chunks: done.len(),
+    };
+    let summary = summary(scene, subs, made, record, &ran, &files);
+    write_json(&dir.join("summary.json"), &summary)?;
+    journal::remove(&dir)?;
     let out = claim.commit()?;
-    let n = scene.ensemble_size();
-    let ok = run.observations.count_ok();
+    let n = scene.ensemble_size() as u64;
     let line = format!(
         "{}: {} trajectories × {} steps on {} ({}) in {:.3} s: {:.3e} trajectory-steps/s; {} ok, {} non-finite → {}",
         scene.name,
         n,
-        run.max_steps,
-        engine.name(),
-        precision,
-        run.seconds,
-        run.rate(),
-        ok,
-        n - ok,
+        ran.max_steps,
+        record.backend,
+        made.precision,
+        ran.seconds,
+        ran.rate(),
+        ran.ok,
+        n - ran.ok,
         out.display()
     );
     Ok(RunReport { out, summary, line })
 }
 
-/// A scene integrated: its arrays (rows in the scene's axis order) and timing.
-struct SceneRun<R> {
-    observations: Observations<R>,
+/// The integration of a run, added up over its chunks.
+struct Ran {
     seconds: f64,
-    timing: &'static str,
-    max_steps: u64,
     traj_steps: u64,
+    ok: u64,
+    max_steps: u64,
+    chunks: usize,
 }
 
-impl<R> SceneRun<R> {
+impl Ran {
     /// Trajectory-steps per second of the integration.
     fn rate(&self) -> f64 {
         if self.seconds > 0.0 {
@@ -169,91 +335,6 @@ impl<R> SceneRun<R> {
             f64::NAN
         }
     }
-}
-
-/// Integrates every sub-run of `scene` and places its rows in the scene's
-/// arrays, with a progress bar on stderr if asked for.
-fn integrate_scene<R: Flows>(
-    scene: &Scene,
-    subs: &[SubRun],
-    engine: &Engine,
-    progress: bool,
-) -> Result<SceneRun<R>> {
-    // Saturating: a count for the progress bar and the rate, never a size.
-    let total: u64 = subs
-        .iter()
-        .map(|s| s.plan.traj_steps())
-        .fold(0, u64::saturating_add);
-    let done = AtomicU64::new(0);
-    let bar = (progress && total > 0)
-        .then(|| progress_bar(total, format!("{} on {}", scene.name, engine.name())));
-    let finished = std::sync::atomic::AtomicBool::new(false);
-    let (shape, strides) = (scene.shape(), scene.strides());
-    let mut whole: Option<Observations<R>> = None;
-    let (mut seconds, mut timing, mut max_steps) = (0.0, "wall clock", 0);
-    std::thread::scope(|scope| -> Result<()> {
-        if let Some(b) = &bar {
-            let (b, done, finished) = (b.clone(), &done, &finished);
-            scope.spawn(move || {
-                while !finished.load(Ordering::Relaxed) {
-                    b.set_position(done.load(Ordering::Relaxed));
-                    std::thread::sleep(Duration::from_millis(100));
-                }
-            });
-        }
-        let result = (|| -> Result<()> {
-            for sub in subs {
-                let run = engine.run::<R>(&sub.plan, Some(&done))?;
-                seconds += run.seconds;
-                timing = run.timing;
-                max_steps = max_steps.max(sub.plan.steps);
-                if subs.len() == 1 {
-                    whole = Some(run.observations);
-                    continue;
-                }
-                whole
-                    .get_or_insert_with(|| scene_arrays(scene, subs))
-                    .place_rows(&run.observations, sub.scene_rows(&shape, &strides));
-            }
-            Ok(())
-        })();
-        finished.store(true, Ordering::Relaxed);
-        result
-    })?;
-    if let Some(b) = &bar {
-        b.finish_and_clear();
-    }
-    Ok(SceneRun {
-        observations: whole.context("the scene produced no run")?,
-        seconds,
-        timing,
-        max_steps,
-        traj_steps: total,
-    })
-}
-
-/// Arrays for the whole scene, shaped by its longest sub-run, NaN-filled.
-fn scene_arrays<R: Flows>(scene: &Scene, subs: &[SubRun]) -> Observations<R> {
-    let longest = subs.iter().max_by_key(|s| s.plan.steps).expect("a sub-run");
-    let mut whole = longest.plan.clone();
-    whole.n = scene.ensemble_size();
-    Observations::for_plan(&whole)
-}
-
-fn progress_bar(total: u64, message: String) -> indicatif::ProgressBar {
-    let b = indicatif::ProgressBar::with_draw_target(
-        Some(total),
-        indicatif::ProgressDrawTarget::stderr(),
-    );
-    b.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} {msg} [{bar:30}] {percent:>3}% {elapsed} (eta {eta}) {per_sec}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-        .progress_chars("=> "),
-    );
-    b.set_message(message);
-    b
 }
 
 /// Writes `value` as pretty JSON to `path`.
@@ -285,21 +366,15 @@ pub fn provenance(cpu_ran: bool) -> serde_json::Map<String, serde_json::Value> {
 }
 
 /// The contents of summary.json.
-fn summary<R>(
+fn summary(
     scene: &Scene,
     subs: &[SubRun],
     made: &Made,
-    run: &SceneRun<R>,
+    record: &Record,
+    ran: &Ran,
     files: &[String],
 ) -> serde_json::Value {
-    let (engine, precision) = (made.engine, made.precision);
-    let n = scene.ensemble_size();
-    let ok = run
-        .observations
-        .nonfinite_step
-        .iter()
-        .filter(|s| **s == 0)
-        .count();
+    let n = scene.ensemble_size() as u64;
     let mut value = serde_json::json!({
         "reeb_version": env!("CARGO_PKG_VERSION"),
         "scene": {
@@ -313,24 +388,25 @@ fn summary<R>(
             "axes": scene.axes.iter().map(|a| serde_json::json!({"name": a.name, "field": a.field, "len": a.values.len(), "first": a.values.first(), "last": a.values.last()})).collect::<Vec<_>>(),
             "text": scene.text,
         },
-        "backend": engine.name(),
-        "adapter": engine.describe(),
-        "precision": precision.name(),
+        "backend": record.backend,
+        "adapter": record.adapter,
+        "precision": made.precision.name(),
         "ensemble_size": n,
         "shape": scene.shape(),
-        "steps": run.max_steps,
+        "steps": ran.max_steps,
         "steps_per_run": subs.iter().map(|s| s.plan.steps).collect::<Vec<_>>(),
-        "traj_steps": run.traj_steps,
-        "integration_seconds": run.seconds,
-        "timing": run.timing,
-        "traj_steps_per_s": run.rate(),
+        "traj_steps": ran.traj_steps,
+        "integration_seconds": ran.seconds,
+        "timing": if record.backend == "gpu" { "gpu timestamps or wall clock" } else { "wall clock" },
+        "traj_steps_per_s": ran.rate(),
         "evaluations_per_step": Some(scene.scheme.evaluations()),
-        "status": {"ok": ok, "non_finite": n - ok},
+        "status": {"ok": ran.ok, "non_finite": n - ran.ok},
+        "chunks": {"count": ran.chunks, "trajectories": record.chunks.largest(), "format": record.format},
         "warnings": made.warnings.iter().map(|w| w.to_string()).collect::<Vec<_>>(),
         "files": files,
     });
     if let serde_json::Value::Object(map) = &mut value {
-        map.extend(provenance(matches!(engine, Engine::Cpu)));
+        map.extend(provenance(record.backend == "cpu"));
     }
     value
 }

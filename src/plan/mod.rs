@@ -36,6 +36,10 @@ pub struct Plan {
     pub axes: Vec<Axis>,
     /// Row-major strides of the axes (first axis slowest).
     pub strides: Vec<usize>,
+    /// The plan integrates the trajectories `first..first + n` of its grid
+    /// (a chunk of a streamed run, or a shard); 0 and the whole grid unless
+    /// [`Plan::rows`] narrowed it.
+    pub first: usize,
     pub n: usize,
     /// Integrated state variables (lane field names), canonical order.
     pub vars: Vec<&'static str>,
@@ -129,6 +133,7 @@ impl Plan {
             scheme: problem.scheme.clone(),
             axes: problem.axes.clone(),
             strides: row_major_strides(&lens),
+            first: 0,
             n: problem.ensemble_size(),
             vars,
             time,
@@ -201,9 +206,20 @@ impl Plan {
         p
     }
 
+    /// The same plan for its trajectories `rows` only (indices into the
+    /// plan's own rows): trajectory `i` of the result is `rows.start + i`.
+    pub fn rows(&self, rows: std::ops::Range<usize>) -> Plan {
+        debug_assert!(rows.end <= self.n);
+        let mut p = self.clone();
+        p.first += rows.start;
+        p.n = rows.len();
+        p
+    }
+
     /// Output times of the trajectory observer (or the final time alone) for
     /// trajectory `traj`.
     pub fn output_times(&self, traj: usize) -> Vec<f64> {
+        let traj = self.first + traj;
         let t0 = self.binding("t0").value_at(traj, &self.strides);
         let dt = self.binding("dt").value_at(traj, &self.strides);
         match &self.observers.trajectory {

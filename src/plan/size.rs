@@ -7,7 +7,7 @@ use std::path::Path;
 
 use crate::num::precision::Precision;
 
-use super::observations::{bytes_per_trajectory, estimate_bytes};
+use super::observations::bytes_per_trajectory;
 use super::Plan;
 
 /// Memory this process may still allocate, in bytes, if known: the smaller
@@ -85,8 +85,7 @@ pub fn bytes(b: u64) -> String {
 pub struct Estimate {
     /// Trajectories of all the plans together.
     pub trajectories: u64,
-    /// Bytes of the observations, twice over while the sub-runs' rows are
-    /// placed in the scene's arrays.
+    /// Bytes of the scene's arrays.
     pub bytes: u64,
     /// The limit they were checked against.
     pub limit: u64,
@@ -101,10 +100,9 @@ pub struct SizeError(pub String);
 pub const RECORD_LESS: &str = "record less: a larger output.trajectory.every, fewer output.trajectory.vars or output.poincare.vars, a smaller output.poincare.max_points, or fewer values along an axis";
 
 /// The gate on the outputs of `plans` (the sub-runs of the scene at `path`)
-/// in `precision`: their observations must fit in `limit` bytes, twice over
-/// while they are placed in the scene's arrays: at least twice the
-/// sub-runs' together and, with several sub-runs, the scene's arrays (shaped
-/// by the longest plan) beside the largest sub-run's. Refused with the
+/// in `precision`: the scene's arrays (shaped by the longest plan) must fit
+/// in `limit` bytes, the free disk where they go (`reeb run` streams them
+/// there chunk by chunk, so memory does not bound them). Refused with the
 /// estimate and the knobs to change.
 pub fn output_gate(
     path: &Path,
@@ -129,7 +127,7 @@ pub fn output_gate(
             limit,
         }),
         _ => Err(SizeError(format!(
-            "{}: the outputs of {trajectories} {} need {} and {} is available; {RECORD_LESS}",
+            "{}: the outputs of {trajectories} {} need {} and {} is available on disk; {RECORD_LESS}",
             path.display(),
             if trajectories == 1 {
                 "trajectory"
@@ -147,21 +145,8 @@ pub fn output_gate(
 
 /// The bytes [`output_gate`] compares with its limit; `None` beyond 64 bits.
 fn outputs_bytes(plans: &[&Plan], trajectories: u64, precision: Precision) -> Option<u64> {
-    let each: Vec<u64> = plans
-        .iter()
-        .map(|p| estimate_bytes(p, precision))
-        .collect::<Option<_>>()?;
-    let twice = each
-        .iter()
-        .try_fold(0u64, |a, b| a.checked_add(*b))?
-        .checked_mul(2)?;
-    if plans.len() < 2 {
-        return Some(twice);
-    }
     let longest = plans.iter().max_by_key(|p| p.steps)?;
-    let whole = trajectories.checked_mul(bytes_per_trajectory(longest, precision)?)?;
-    let largest = each.iter().copied().max().unwrap_or(0);
-    Some(twice.max(whole.checked_add(largest)?))
+    trajectories.checked_mul(bytes_per_trajectory(longest, precision)?)
 }
 
 #[cfg(test)]

@@ -32,7 +32,7 @@ pub fn lane_of(plan: &Plan, traj: usize) -> Lane<f64> {
     let mut x = Lane::<f64>::default();
     for (name, src) in &plan.bindings {
         if let Some(f) = x.get_mut(name) {
-            *f = src.value_at(traj, &plan.strides);
+            *f = src.value_at(plan.first + traj, &plan.strides);
         }
     }
     x

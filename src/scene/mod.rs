@@ -148,6 +148,8 @@ pub struct Scene {
     pub text: String,
     /// Preview: at most this many steps per plan.
     pub step_cap: Option<u64>,
+    /// `(values, steps)` of [`Scene::preview`] if this is a preview.
+    pub preview: Option<(usize, u64)>,
     spans: BTreeMap<String, Range<usize>>,
 }
 
@@ -175,18 +177,45 @@ impl SubRun {
         shape: &'a [usize],
         strides: &'a [usize],
     ) -> impl Iterator<Item = usize> + 'a {
-        let free: Vec<usize> = (0..shape.len())
-            .filter(|k| !self.fixed.iter().any(|(f, _)| f == k))
-            .collect();
-        let fixed_offset: usize = self.fixed.iter().map(|(k, i)| i * strides[*k]).sum();
-        (0..self.plan.n).map(move |j| {
-            let free_offset: usize = free
-                .iter()
-                .enumerate()
-                .map(|(fk, k)| (j / self.plan.strides[fk]) % shape[*k] * strides[*k])
-                .sum();
-            fixed_offset + free_offset
-        })
+        (0..self.plan.n).map(move |j| self.scene_row(j, shape, strides))
+    }
+
+    /// The scene row of this plan's trajectory `j` (increasing with `j`).
+    pub fn scene_row(&self, j: usize, shape: &[usize], strides: &[usize]) -> usize {
+        let fixed = |k: usize| self.fixed.iter().find(|(f, _)| *f == k).map(|(_, i)| *i);
+        let mut free = 0;
+        let mut row = 0;
+        for k in 0..shape.len() {
+            let index = fixed(k).unwrap_or_else(|| {
+                free += 1;
+                (j / self.plan.strides[free - 1]) % shape[k]
+            });
+            row += index * strides[k];
+        }
+        row
+    }
+
+    /// This plan's trajectories whose scene rows lie in `rows` (contiguous,
+    /// as the map to scene rows increases).
+    pub fn rows_within(
+        &self,
+        rows: &std::ops::Range<usize>,
+        shape: &[usize],
+        strides: &[usize],
+    ) -> std::ops::Range<usize> {
+        let below = |x: usize| {
+            let (mut lo, mut hi) = (0, self.plan.n);
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                if self.scene_row(mid, shape, strides) < x {
+                    lo = mid + 1;
+                } else {
+                    hi = mid;
+                }
+            }
+            lo
+        };
+        below(rows.start)..below(rows.end)
     }
 }
 
@@ -207,6 +236,7 @@ impl Scene {
             }
         }
         s.step_cap = Some(steps);
+        s.preview = Some((values, steps));
         if let Some((every, _)) = &mut s.trajectory {
             *every = (*every).min((steps / 10).max(1));
         }

@@ -307,6 +307,7 @@ impl Scene {
             report,
             text: text.to_string(),
             step_cap: None,
+            preview: None,
             spans: p.into_spans(),
         };
         // Everything the plan checks (parameters, values, scheme for the

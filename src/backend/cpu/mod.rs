@@ -147,7 +147,7 @@ fn load_inputs<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, base: usize, count: u
     for &(k, src) in &p.bindings {
         let a = l.at_mut(k);
         for (i, x) in a.iter_mut().enumerate() {
-            *x = R::from_f64(src.value_at(base + i.min(count - 1), &p.plan.strides));
+            *x = R::from_f64(src.value_at(p.plan.first + base + i.min(count - 1), &p.plan.strides));
         }
     }
 }

@@ -195,10 +195,11 @@ fn check_fits(ctx: &GpuContext, plan: &Plan, precision: Precision) -> Result<(),
     if precision == Precision::F64 && !ctx.shader_f64 {
         return Err(GpuError::NoF64(ctx.describe()));
     }
-    if plan.n > u32::MAX as usize || plan.steps > u32::MAX as u64 - 1 {
+    let rows = plan.first.saturating_add(plan.n);
+    if rows > u32::MAX as usize || plan.steps > u32::MAX as u64 - 1 {
         return Err(GpuError::TooLarge(format!(
             "the GPU backend counts trajectories and steps in 32 bits: {} trajectories, {} steps",
-            plan.n, plan.steps
+            rows, plan.steps
         )));
     }
     Ok(())
@@ -466,7 +467,7 @@ impl Dispatcher<'_> {
         while step0 < plan.steps {
             let (nsteps, frame0, nframes) = sizes.window(step0, plan.steps, count, *budget);
             let u = Uniforms {
-                base: base as u32,
+                base: (plan.first as u64 + base) as u32,
                 count: count as u32,
                 cap: sizes.cap as u32,
                 step0: step0 as u32,
@@ -645,6 +646,7 @@ fn collect<R: Flows>(
 
 /// `t0 + steps·dt` of trajectory `g`, in the working precision.
 fn final_time<R: Flows>(plan: &Plan, g: usize) -> R {
+    let g = plan.first + g;
     let t0 = R::from_f64(plan.binding("t0").value_at(g, &plan.strides));
     let dt = R::from_f64(plan.binding("dt").value_at(g, &plan.strides));
     t0 + R::from_f64(plan.steps as f64) * dt

@@ -1,0 +1,182 @@
+//! What a streamed run keeps in `DIR.partial` besides its arrays, so that a
+//! resumed run, a shard or `reeb merge` knows it continues the same run:
+//! the run's record (`.reeb-run.json`: the scene's text, precision,
+//! backend, chunks) and one marker per finished chunk (`.reeb-chunks/K`),
+//! written after the chunk's rows are durable. A chunk without its marker
+//! is integrated again, so a kill at any moment loses at most the chunks in
+//! flight.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use serde::{Deserialize, Serialize};
+
+use crate::output::chunks::Chunks;
+
+pub const RECORD_FILE: &str = ".reeb-run.json";
+pub const CHUNKS_DIR: &str = ".reeb-chunks";
+
+/// What makes two runs the same run: their outputs agree bit for bit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Record {
+    pub reeb_version: String,
+    /// The scene file as given, and its text.
+    pub scene_path: String,
+    pub scene_text: String,
+    /// `(values, steps)` if the run is the scene's `--preview`.
+    pub preview: Option<(usize, u64)>,
+    pub precision: String,
+    pub backend: String,
+    /// The adapter's description (not compared: a shard may run on any
+    /// GPU of its kind).
+    pub adapter: String,
+    pub format: String,
+    pub chunks: Chunks,
+}
+
+/// A finished chunk: what the summary adds up.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Done {
+    /// Trajectories that finished with a finite state.
+    pub ok: u64,
+    pub traj_steps: u64,
+    pub seconds: f64,
+}
+
+impl Record {
+    /// Reads the record of `dir`, if it has one.
+    pub fn read(dir: &Path) -> Result<Option<Record>> {
+        let path = dir.join(RECORD_FILE);
+        match std::fs::read_to_string(&path) {
+            Ok(text) => serde_json::from_str(&text)
+                .map(Some)
+                .with_context(|| format!("reading {}", path.display())),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+            Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
+        }
+    }
+
+    /// The record of `dir`: the one there, or this one written if there is
+    /// none. Shards starting together agree on the first one written (a
+    /// hard link creates it or fails, atomically).
+    pub fn establish(&self, dir: &Path) -> Result<Record> {
+        std::fs::create_dir_all(dir.join(CHUNKS_DIR))
+            .with_context(|| format!("creating {}", dir.join(CHUNKS_DIR).display()))?;
+        let path = dir.join(RECORD_FILE);
+        let tmp = dir.join(format!("{RECORD_FILE}.{}.tmp", std::process::id()));
+        let text = serde_json::to_string_pretty(self)?;
+        let write = || -> std::io::Result<()> {
+            let f = std::fs::File::create(&tmp)?;
+            std::io::Write::write_all(&mut &f, text.as_bytes())?;
+            f.sync_all()
+        };
+        write().with_context(|| format!("writing {}", tmp.display()))?;
+        let linked = std::fs::hard_link(&tmp, &path);
+        let _ = std::fs::remove_file(&tmp);
+        match linked {
+            Ok(()) => Ok(self.clone()),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                Record::read(dir)?.with_context(|| format!("reading {}", path.display()))
+            }
+            Err(e) => Err(e).with_context(|| format!("writing {}", path.display())),
+        }
+    }
+
+    /// Refuses to continue `old` as `self`, saying what changed.
+    pub fn check_same(&self, old: &Record, dir: &Path) -> Result<()> {
+        let mut changes = vec![];
+        for (what, a, b) in [
+            ("precision", &old.precision, &self.precision),
+            ("backend", &old.backend, &self.backend),
+            ("format", &old.format, &self.format),
+        ] {
+            if a != b {
+                changes.push(format!("{what} {a} → {b}"));
+            }
+        }
+        if old.preview != self.preview {
+            let show = |p: Option<(usize, u64)>| if p.is_some() { "a preview" } else { "the whole scene" };
+            changes.push(format!("{} → {}", show(old.preview), show(self.preview)));
+        }
+        if old.chunks != self.chunks {
+            changes.push(format!(
+                "chunks of {} → {} trajectories",
+                old.chunks.largest(),
+                self.chunks.largest()
+            ));
+        }
+        if let Some(line) = first_difference(&old.scene_text, &self.scene_text) {
+            changes.push(line);
+        }
+        if changes.is_empty() {
+            return Ok(());
+        }
+        bail!(
+            "{} holds part of a different run: {}; run it again without --resume to start over, or choose another --out",
+            dir.display(),
+            changes.join("; ")
+        )
+    }
+}
+
+/// The first line where two scene texts differ, as the user reads it.
+fn first_difference(old: &str, new: &str) -> Option<String> {
+    let (a, b): (Vec<&str>, Vec<&str>) = (old.lines().collect(), new.lines().collect());
+    let n = a.len().max(b.len());
+    (0..n)
+        .find(|k| a.get(*k).map(|s| s.trim()) != b.get(*k).map(|s| s.trim()))
+        .map(|k| {
+            let show = |s: Option<&&str>| s.map_or("(nothing)".to_string(), |s| format!("`{}`", s.trim()));
+            format!(
+                "the scene's line {} was {} and is now {}",
+                k + 1,
+                show(a.get(k)),
+                show(b.get(k))
+            )
+        })
+}
+
+fn marker(dir: &Path, k: usize) -> PathBuf {
+    dir.join(CHUNKS_DIR).join(format!("{k}.json"))
+}
+
+/// Marks chunk `k` of `dir` finished (after its rows are durable).
+pub fn mark_done(dir: &Path, k: usize, done: &Done) -> Result<()> {
+    let text = serde_json::to_string(done)?;
+    write_atomic(&marker(dir, k), text.as_bytes())
+}
+
+/// The finished chunk `k` of `dir`, if it is.
+pub fn done(dir: &Path, k: usize) -> Option<Done> {
+    let text = std::fs::read_to_string(marker(dir, k)).ok()?;
+    serde_json::from_str(&text).ok()
+}
+
+/// Writes `path` through a temporary file and a rename, durably.
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".{}.tmp", std::process::id()));
+    let tmp = path.with_file_name(name);
+    let write = || -> std::io::Result<()> {
+        let f = std::fs::File::create(&tmp)?;
+        std::io::Write::write_all(&mut &f, bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    };
+    write().with_context(|| format!("writing {}", path.display()))
+}
+
+/// Removes the journal from a finished run's folder (before it is
+/// committed: a complete output holds only its listed files).
+pub fn remove(dir: &Path) -> Result<()> {
+    let chunks = dir.join(CHUNKS_DIR);
+    if chunks.exists() {
+        std::fs::remove_dir_all(&chunks)
+            .with_context(|| format!("removing {}", chunks.display()))?;
+    }
+    let record = dir.join(RECORD_FILE);
+    if record.exists() {
+        std::fs::remove_file(&record).with_context(|| format!("removing {}", record.display()))?;
+    }
+    Ok(())
+}

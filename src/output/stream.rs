@@ -1,0 +1,280 @@
+//! A run streamed to disk: its chunks (`chunks.rs`) integrated one after
+//! the other, each written into its slab of every array (`npy.rs`) and
+//! marked finished (`journal.rs`), so that memory holds one chunk whatever
+//! the size of the run; and the finished arrays read back for the pictures.
+
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Duration;
+
+use anyhow::{bail, Context, Result};
+
+use crate::backend::Engine;
+use crate::models::Flows;
+use crate::num::precision::Real;
+use crate::output::arrays::{arrays, Array};
+use crate::output::chunks::Chunks;
+use crate::output::journal::{self, Done};
+use crate::output::npy::{read_rows, Slabs};
+use crate::plan::observations::Observations;
+use crate::plan::size::bytes;
+use crate::plan::Plan;
+use crate::scene::{Scene, SubRun};
+
+/// Frames and section points are read back for the pictures up to this
+/// many bytes; beyond, only the per-trajectory values are.
+const PICTURE_BUDGET: u64 = 1 << 30;
+
+/// What a streamed run integrates, and where.
+pub struct Target<'a> {
+    pub scene: &'a Scene,
+    pub subs: &'a [SubRun],
+    pub engine: &'a Engine,
+    pub chunks: &'a Chunks,
+    /// `DIR.partial`.
+    pub dir: &'a Path,
+}
+
+/// Integrates the chunks `mine` that have not finished, each into its slabs
+/// and then marked finished; a progress bar counts the finished ones too.
+pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Result<()> {
+    let shape = t.scene.shape();
+    let rows = t.chunks.rows() as u64;
+    let slabs: Vec<(PathBuf, Slabs)> = array_list::<R>(t.scene, t.subs)?
+        .iter()
+        .map(|a| {
+            let path = t.dir.join(&a.file);
+            Slabs::open(&path, a.descr, &a.shape(&shape), rows).map(|s| (path, s))
+        })
+        .collect::<Result<_>>()?;
+    let total: u64 = mine.clone().map(|k| traj_steps(t, k)).sum();
+    let done = AtomicU64::new(0);
+    let bar = (progress && total > 0).then(|| {
+        progress_bar(
+            total,
+            format!("{} on {}", t.scene.name, t.engine.name()),
+        )
+    });
+    let finished = AtomicBool::new(false);
+    std::thread::scope(|scope| -> Result<()> {
+        if let Some(b) = &bar {
+            let (b, done, finished) = (b.clone(), &done, &finished);
+            scope.spawn(move || {
+                while !finished.load(Ordering::Relaxed) {
+                    b.set_position(done.load(Ordering::Relaxed));
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+            });
+        }
+        let result = mine.clone().try_for_each(|k| {
+            if journal::done(t.dir, k).is_some() {
+                done.fetch_add(traj_steps(t, k), Ordering::Relaxed);
+                return Ok(());
+            }
+            chunk::<R>(t, k, &slabs, &done)
+        });
+        finished.store(true, Ordering::Relaxed);
+        result
+    })?;
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    Ok(())
+}
+
+/// Integrates chunk `k`, writes its rows, makes them durable, marks it.
+fn chunk<R: Flows>(
+    t: &Target,
+    k: usize,
+    slabs: &[(PathBuf, Slabs)],
+    done: &AtomicU64,
+) -> Result<()> {
+    let rows = t.chunks.range(k);
+    let (obs, seconds) = integrate_rows::<R>(t, rows.clone(), done)?;
+    for ((path, slab), array) in slabs.iter().zip(arrays(t.scene, &obs)?) {
+        slab.write_rows(rows.start as u64, &array.bytes, path)?;
+    }
+    for (path, slab) in slabs {
+        slab.sync(path)?;
+    }
+    let mark = Done {
+        ok: obs.count_ok() as u64,
+        traj_steps: traj_steps(t, k),
+        seconds,
+    };
+    journal::mark_done(t.dir, k, &mark)
+}
+
+/// The observations of the scene's `rows`, from every sub-run that has
+/// some of them; and the seconds the integration took.
+fn integrate_rows<R: Flows>(
+    t: &Target,
+    rows: Range<usize>,
+    progress: &AtomicU64,
+) -> Result<(Observations<R>, f64)> {
+    if let [sub] = t.subs {
+        let run = t.engine.run::<R>(&sub.plan.rows(rows), Some(progress))?;
+        return Ok((run.observations, run.seconds));
+    }
+    let (shape, strides) = (t.scene.shape(), t.scene.strides());
+    let mut whole = Observations::<R>::for_plan(&longest(t.subs, rows.len()));
+    let mut seconds = 0.0;
+    for sub in t.subs {
+        let own = sub.rows_within(&rows, &shape, &strides);
+        if own.is_empty() {
+            continue;
+        }
+        let run = t.engine.run::<R>(&sub.plan.rows(own.clone()), Some(progress))?;
+        seconds += run.seconds;
+        let at = own.map(|j| sub.scene_row(j, &shape, &strides) - rows.start);
+        whole.place_rows(&run.observations, at);
+    }
+    Ok((whole, seconds))
+}
+
+/// Trajectory-steps of chunk `k`.
+fn traj_steps(t: &Target, k: usize) -> u64 {
+    let (shape, strides) = (t.scene.shape(), t.scene.strides());
+    let rows = t.chunks.range(k);
+    t.subs
+        .iter()
+        .map(|s| s.rows_within(&rows, &shape, &strides).len() as u64 * s.plan.steps)
+        .sum()
+}
+
+/// The longest sub-run's plan for `n` trajectories: it shapes the arrays.
+fn longest(subs: &[SubRun], n: usize) -> Plan {
+    let mut p = subs
+        .iter()
+        .max_by_key(|s| s.plan.steps)
+        .map(|s| s.plan.clone())
+        .expect("a scene has a sub-run");
+    p.first = 0;
+    p.n = n;
+    p
+}
+
+/// The per-trajectory arrays of the scene's run (bytes empty).
+pub fn array_list<R: Flows>(scene: &Scene, subs: &[SubRun]) -> Result<Vec<Array>> {
+    arrays(scene, &Observations::<R>::for_plan(&longest(subs, 0)))
+}
+
+/// What every chunk's marker says; refuses while any has not finished.
+pub fn finished(dir: &Path, chunks: &Chunks) -> Result<Vec<Done>> {
+    let all: Vec<Option<Done>> = (0..chunks.count()).map(|k| journal::done(dir, k)).collect();
+    let missing: Vec<usize> = (0..all.len()).filter(|k| all[*k].is_none()).collect();
+    if let Some(first) = missing.first() {
+        bail!(
+            "{}: {} of {} chunks have not finished (the first: chunk {first}, trajectories {:?}); run the shards that hold them again with --resume",
+            dir.display(),
+            missing.len(),
+            all.len(),
+            chunks.range(*first)
+        );
+    }
+    Ok(all.into_iter().flatten().collect())
+}
+
+/// The run's arrays read back from `dir`, for the pictures: every
+/// per-trajectory value, and the frames and section points if they take at
+/// most [`PICTURE_BUDGET`] bytes.
+pub fn read_back<R: Flows>(scene: &Scene, subs: &[SubRun], dir: &Path) -> Result<Observations<R>> {
+    let mut plan = longest(subs, scene.ensemble_size());
+    let lengths = Observations::<R>::lengths(&plan).map_err(anyhow::Error::msg)?;
+    let values = lengths.trajectory * plan.trajectory_vars.len()
+        + lengths.poincare * plan.poincare_vars.len();
+    let big = values as u64 * std::mem::size_of::<R>() as u64;
+    if big > PICTURE_BUDGET {
+        eprintln!(
+            "note: the frames and section points ({}) are larger than the pictures read back ({}): trajectory and Poincaré pictures are not drawn; the arrays are complete",
+            bytes(big),
+            bytes(PICTURE_BUDGET)
+        );
+        plan.observers.trajectory = None;
+        plan.trajectory_vars.clear();
+        plan.observers.poincare = None;
+        plan.poincare_vars.clear();
+    }
+    let mut obs = Observations::<R>::for_plan(&plan);
+    load(scene, dir, &mut obs)?;
+    Ok(obs)
+}
+
+/// Fills `obs` from the arrays in `dir` (the inverse of [`arrays`]).
+fn load<R: Real>(scene: &Scene, dir: &Path, obs: &mut Observations<R>) -> Result<()> {
+    let n = obs.n as u64;
+    for v in &scene.final_vars {
+        let file = format!("final_{}.npy", v.name);
+        components(dir, &file, n, &v.components, &mut obs.final_values)?;
+    }
+    if let (Some((_, vars)), true) = (&scene.trajectory, obs.frames > 0) {
+        for v in vars {
+            let file = format!("trajectory_{}.npy", v.name);
+            components(dir, &file, n, &v.components, &mut obs.trajectory)?;
+        }
+    }
+    if let (Some((_, vars, _)), true) = (&scene.poincare, obs.max_points > 0) {
+        for v in vars {
+            let file = format!("poincare_{}.npy", v.name);
+            components(dir, &file, n, &v.components, &mut obs.poincare)?;
+        }
+        obs.poincare_count = values(dir, "poincare_count.npy", n, 4)?;
+    }
+    if scene.cycle.is_some() {
+        let size = std::mem::size_of::<R>() as u64;
+        obs.cycle_amplitude = values(dir, "cycle_amplitude.npy", n, size)?;
+        obs.cycle_period = values(dir, "cycle_period.npy", n, size)?;
+    }
+    let steps: Vec<i64> = values(dir, "status_step.npy", n, 8)?;
+    obs.nonfinite_step = steps.iter().map(|s| (*s).max(0) as u32).collect();
+    Ok(())
+}
+
+/// The data of `file` ( `n` rows of `row_bytes`) as values.
+fn values<T: bytemuck::Pod>(dir: &Path, file: &str, n: u64, row_bytes: u64) -> Result<Vec<T>> {
+    let raw = read_rows(&dir.join(file), 0, n, row_bytes)?;
+    Ok(bytemuck::pod_collect_to_vec(&raw))
+}
+
+/// Spreads the interleaved components of `file` into the arrays `dst` of
+/// their names.
+fn components<R: Real>(
+    dir: &Path,
+    file: &str,
+    n: u64,
+    names: &[String],
+    dst: &mut [(String, Vec<R>)],
+) -> Result<()> {
+    let Some(len) = dst.first().map(|(_, d)| d.len() as u64) else {
+        return Ok(());
+    };
+    let per_row = len / n.max(1) * names.len() as u64 * std::mem::size_of::<R>() as u64;
+    let all: Vec<R> = values(dir, file, n, per_row)?;
+    for (c, name) in names.iter().enumerate() {
+        let (_, d) = dst
+            .iter_mut()
+            .find(|(v, _)| v == name)
+            .with_context(|| format!("{file}: component {name}"))?;
+        for (i, x) in d.iter_mut().enumerate() {
+            *x = all[i * names.len() + c];
+        }
+    }
+    Ok(())
+}
+
+fn progress_bar(total: u64, message: String) -> indicatif::ProgressBar {
+    let b = indicatif::ProgressBar::with_draw_target(
+        Some(total),
+        indicatif::ProgressDrawTarget::stderr(),
+    );
+    b.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} {msg} [{bar:30}] {percent:>3}% {elapsed} (eta {eta}) {per_sec}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    b.set_message(message);
+    b
+}
