@@ -60,7 +60,11 @@ pub struct Array {
 impl Array {
     /// The full shape, for a scene of `shape`.
     pub fn shape(&self, shape: &[usize]) -> Vec<u64> {
-        shape.iter().map(|s| *s as u64).chain(self.inner.clone()).collect()
+        shape
+            .iter()
+            .map(|s| *s as u64)
+            .chain(self.inner.clone())
+            .collect()
     }
 }
 
@@ -79,7 +83,11 @@ pub fn arrays<R: Real>(scene: &Scene, obs: &Observations<R>) -> Result<Vec<Array
         out.push(scalar("poincare_count.npy", "<u4", &obs.poincare_count));
     }
     if scene.cycle.is_some() {
-        out.push(scalar("cycle_amplitude.npy", real::<R>(), &obs.cycle_amplitude));
+        out.push(scalar(
+            "cycle_amplitude.npy",
+            real::<R>(),
+            &obs.cycle_amplitude,
+        ));
         out.push(scalar("cycle_period.npy", real::<R>(), &obs.cycle_period));
     }
     // status: 0 ok, 1 non-finite; status_step: the step it became non-finite (−1: never).
@@ -136,13 +144,19 @@ fn vars<R: Real>(
                     .context("recorded component")
             })
             .collect::<Result<_>>()?;
-        let mut dims = if inner > 0 { vec![inner as u64] } else { vec![] };
+        let mut dims = if inner > 0 {
+            vec![inner as u64]
+        } else {
+            vec![]
+        };
         let values: Vec<R> = if comps.len() == 1 {
             comps[0].clone()
         } else {
             dims.push(comps.len() as u64);
             let len = comps[0].len();
-            (0..len).flat_map(|i| comps.iter().map(move |c| c[i])).collect()
+            (0..len)
+                .flat_map(|i| comps.iter().map(move |c| c[i]))
+                .collect()
         };
         out.push(Array {
             file: format!("{prefix}_{}.npy", v.name),

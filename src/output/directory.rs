@@ -620,7 +620,8 @@ fn free_space(path: &Path) -> Option<u64> {
         let c = CString::new(path.as_os_str().as_bytes()).ok()?;
         // SAFETY: a valid path and a zeroed out-struct the call fills.
         let mut s: libc::statvfs = unsafe { std::mem::zeroed() };
-        if unsafe { libc::statvfs(c.as_ptr(), &mut s) } != 0 {
+        // A filesystem without blocks (/proc) has no free space to tell.
+        if unsafe { libc::statvfs(c.as_ptr(), &mut s) } != 0 || s.f_blocks == 0 {
             return None;
         }
         Some((s.f_bavail as u64).saturating_mul(s.f_frsize as u64))

@@ -95,7 +95,13 @@ impl Record {
             }
         }
         if old.preview != self.preview {
-            let show = |p: Option<(usize, u64)>| if p.is_some() { "a preview" } else { "the whole scene" };
+            let show = |p: Option<(usize, u64)>| {
+                if p.is_some() {
+                    "a preview"
+                } else {
+                    "the whole scene"
+                }
+            };
             changes.push(format!("{} → {}", show(old.preview), show(self.preview)));
         }
         if old.chunks != self.chunks {
@@ -126,7 +132,8 @@ fn first_difference(old: &str, new: &str) -> Option<String> {
     (0..n)
         .find(|k| a.get(*k).map(|s| s.trim()) != b.get(*k).map(|s| s.trim()))
         .map(|k| {
-            let show = |s: Option<&&str>| s.map_or("(nothing)".to_string(), |s| format!("`{}`", s.trim()));
+            let show =
+                |s: Option<&&str>| s.map_or("(nothing)".to_string(), |s| format!("`{}`", s.trim()));
             format!(
                 "the scene's line {} was {} and is now {}",
                 k + 1,

@@ -67,7 +67,10 @@ impl std::str::FromStr for Shard {
     fn from_str(s: &str) -> Result<Shard, String> {
         let bad = || format!("`{s}` is not K/N with 0 <= K < N (e.g. 0/4)");
         let (k, n) = s.split_once('/').ok_or_else(bad)?;
-        let (index, count) = (k.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+        let (index, count) = (
+            k.trim().parse().map_err(|_| bad())?,
+            n.trim().parse().map_err(|_| bad())?,
+        );
         if count == 0 || index >= count {
             return Err(bad());
         }
@@ -188,7 +191,9 @@ fn run_typed<R: Flows>(
     // From here on a failure keeps the finished chunks for --resume.
     claim.keep();
     let all = 0..record.chunks.count();
-    let mine = opts.shard.map_or(all, |s| record.chunks.shard(s.index, s.count));
+    let mine = opts
+        .shard
+        .map_or(all, |s| record.chunks.shard(s.index, s.count));
     let target = Target {
         scene,
         subs,
@@ -209,7 +214,8 @@ fn run_typed<R: Flows>(
             dir.display(),
             claim.out().display()
         );
-        let summary = serde_json::json!({"shard": [s.index, s.count], "chunks": [mine.start, mine.end]});
+        let summary =
+            serde_json::json!({"shard": [s.index, s.count], "chunks": [mine.start, mine.end]});
         return Ok(RunReport {
             out: dir,
             summary,
@@ -267,7 +273,9 @@ fn chunks_of(scene: &Scene, subs: &[SubRun], rows: Option<usize>, precision: Pre
         .filter_map(|s| bytes_per_trajectory(&s.plan, precision))
         .max()
         .unwrap_or(8);
-    let budget = available_memory().map_or(chunks::DEFAULT_BUDGET, |m| (m / 8).min(chunks::DEFAULT_BUDGET));
+    let budget = available_memory().map_or(chunks::DEFAULT_BUDGET, |m| {
+        (m / 8).min(chunks::DEFAULT_BUDGET)
+    });
     Chunks::with_budget(&shape, per_row, budget)
 }
 
@@ -283,7 +291,11 @@ fn finish<R: Flows>(
     let done = stream::finished(&dir, &record.chunks)?;
     let mut files = write_axes(scene, &dir)?;
     let observations = stream::read_back::<R>(scene, subs, &dir)?;
-    files.extend(stream::array_list::<R>(scene, subs)?.into_iter().map(|a| a.file));
+    files.extend(
+        stream::array_list::<R>(scene, subs)?
+            .into_iter()
+            .map(|a| a.file),
+    );
     match crate::output::pictures::draw(scene, &dir, &observations) {
         Ok(p) => files.extend(p),
         Err(e) => eprintln!("warning: pictures not drawn: {e:#}"),

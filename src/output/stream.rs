@@ -50,12 +50,8 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
         .collect::<Result<_>>()?;
     let total: u64 = mine.clone().map(|k| traj_steps(t, k)).sum();
     let done = AtomicU64::new(0);
-    let bar = (progress && total > 0).then(|| {
-        progress_bar(
-            total,
-            format!("{} on {}", t.scene.name, t.engine.name()),
-        )
-    });
+    let bar = (progress && total > 0)
+        .then(|| progress_bar(total, format!("{} on {}", t.scene.name, t.engine.name())));
     let finished = AtomicBool::new(false);
     std::thread::scope(|scope| -> Result<()> {
         if let Some(b) = &bar {
@@ -125,7 +121,9 @@ fn integrate_rows<R: Flows>(
         if own.is_empty() {
             continue;
         }
-        let run = t.engine.run::<R>(&sub.plan.rows(own.clone()), Some(progress))?;
+        let run = t
+            .engine
+            .run::<R>(&sub.plan.rows(own.clone()), Some(progress))?;
         seconds += run.seconds;
         let at = own.map(|j| sub.scene_row(j, &shape, &strides) - rows.start);
         whole.place_rows(&run.observations, at);

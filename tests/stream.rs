@@ -1,0 +1,270 @@
+//! Streamed runs (issue 12): a run in chunks, a run killed and resumed, and
+//! a run in shards merged all give arrays bitwise identical to one run in
+//! one chunk; a changed scene is refused on resume; `reeb merge` refuses a
+//! run whose shards have not all finished.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+mod common;
+
+const REEB: &str = env!("CARGO_BIN_EXE_reeb");
+
+/// A fresh folder under the target directory.
+fn tmp(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("stream-{name}"));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn reeb(args: &[&str]) -> Output {
+    Command::new(REEB).args(args).output().unwrap()
+}
+
+fn ok(args: &[&str]) -> String {
+    let o = reeb(args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "reeb {args:?}: {err}");
+    String::from_utf8_lossy(&o.stdout).into_owned() + &err
+}
+
+/// Every `.npy` of `a` and `b`, byte for byte.
+fn same_arrays(a: &Path, b: &Path) {
+    let list = |d: &Path| {
+        let mut v: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".npy"))
+            .collect();
+        v.sort();
+        v
+    };
+    let (la, lb) = (list(a), list(b));
+    assert_eq!(la, lb, "{} vs {}", a.display(), b.display());
+    assert!(la.len() >= 5, "{la:?}");
+    for f in &la {
+        let (x, y) = (
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+        );
+        assert!(
+            x == y,
+            "{f} differs between {} and {}",
+            a.display(),
+            b.display()
+        );
+    }
+}
+
+/// A van der Pol grid with a `dt` axis (two plans interleaved in the
+/// rows), frames, cycle statistics and a stroboscopic section.
+fn grid_scene(dir: &Path, steps: u64, every: u64, backend: &str) -> PathBuf {
+    let text = format!(
+        r#"model = "van_der_pol"
+[params]
+epsilon = {{ linspace = [0.5, 2.0, 6] }}
+[initial]
+q = {{ linspace = [0.5, 2.5, 7] }}
+[integrator]
+scheme = "s2"
+dt = [0.01, 0.02]
+t_end = {t}
+[output]
+final = ["q", "s"]
+trajectory = {{ every = {every}, vars = ["q"] }}
+cycle = true
+poincare = {{ period = 1.0, max_points = 20, vars = ["q", "p"] }}
+[run]
+backend = "{backend}"
+precision = "f64"
+"#,
+        t = steps as f64 * 0.01
+    );
+    let path = dir.join("grid.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn chunks_of_any_size_give_the_same_bits_as_one() {
+    let d = tmp("chunks");
+    let scene = grid_scene(&d, 400, 50, "cpu");
+    let one = d.join("one");
+    ok(&[
+        "run",
+        s(&scene),
+        "--out",
+        s(&one),
+        "--chunk-trajectories",
+        "1000000",
+    ]);
+    for rows in ["1", "5", "7", "30"] {
+        let out = d.join(format!("c{rows}"));
+        ok(&[
+            "run",
+            s(&scene),
+            "--out",
+            s(&out),
+            "--chunk-trajectories",
+            rows,
+        ]);
+        same_arrays(&one, &out);
+    }
+    let summary = std::fs::read_to_string(d.join("c5/summary.json")).unwrap();
+    assert!(summary.contains("\"count\": 24"), "{summary}");
+}
+
+#[test]
+fn chunks_on_the_gpu_give_the_same_bits_as_one() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let d = tmp("gpu-chunks");
+    let scene = grid_scene(&d, 400, 50, "gpu");
+    let one = d.join("one");
+    ok(&["run", s(&scene), "--out", s(&one)]);
+    let out = d.join("c7");
+    ok(&[
+        "run",
+        s(&scene),
+        "--out",
+        s(&out),
+        "--chunk-trajectories",
+        "7",
+    ]);
+    same_arrays(&one, &out);
+}
+
+/// Waits until `partial` has a finished chunk (and the run has not ended).
+fn wait_for_a_chunk(partial: &Path, child: &mut std::process::Child) {
+    let start = Instant::now();
+    while std::fs::read_dir(partial.join(".reeb-chunks")).map_or(0, |d| d.count()) == 0 {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the run ended before it was killed"
+        );
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no chunk finished"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn a_run_killed_with_sigkill_resumes_to_the_same_bits() {
+    let d = tmp("resume");
+    let scene = grid_scene(&d, 400_000, 5000, "cpu");
+    let one = d.join("one");
+    ok(&["run", s(&scene), "--out", s(&one)]);
+    let out = d.join("killed");
+    let args = [
+        "run",
+        s(&scene),
+        "--out",
+        s(&out),
+        "--chunk-trajectories",
+        "6",
+    ];
+    let mut child = Command::new(REEB).args(args).spawn().unwrap();
+    let partial = d.join("killed.partial");
+    wait_for_a_chunk(&partial, &mut child);
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    assert!(!out.exists(), "a killed run looks complete");
+    let done = std::fs::read_dir(partial.join(".reeb-chunks"))
+        .unwrap()
+        .count();
+    assert!(
+        (1..14).contains(&done),
+        "{done} chunks finished before the kill"
+    );
+    // A changed scene is refused, and the finished chunks are kept.
+    let changed = d.join("changed.toml");
+    let text = std::fs::read_to_string(&scene).unwrap();
+    std::fs::write(&changed, text.replace("max_points = 20", "max_points = 21")).unwrap();
+    let o = reeb(&["run", s(&changed), "--out", s(&out), "--resume"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("different run") && err.contains("max_points = 21"),
+        "{err}"
+    );
+    assert!(
+        partial.join(".reeb-chunks").exists(),
+        "the refusal removed the finished chunks"
+    );
+    ok(&["run", s(&scene), "--out", s(&out), "--resume"]);
+    same_arrays(&one, &out);
+}
+
+#[test]
+fn shards_run_together_and_merged_give_the_same_bits_as_one_run() {
+    let d = tmp("shards");
+    let scene = grid_scene(&d, 2000, 50, "cpu");
+    let one = d.join("one");
+    ok(&["run", s(&scene), "--out", s(&one)]);
+    let out = d.join("sharded");
+    // Merging before every shard has finished is refused.
+    ok(&[
+        "run",
+        s(&scene),
+        "--out",
+        s(&out),
+        "--shard",
+        "1/4",
+        "--chunk-trajectories",
+        "5",
+    ]);
+    let o = reeb(&["merge", s(&out)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("have not finished"),
+        "{err}"
+    );
+    // All four at once, into one folder.
+    let children: Vec<_> = (0..4)
+        .map(|k| {
+            let shard = format!("{k}/4");
+            Command::new(REEB)
+                .args(["run", s(&scene), "--out", s(&out), "--shard", &shard])
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for c in children {
+        let c = c.wait_with_output().unwrap();
+        assert!(c.status.success(), "{}", String::from_utf8_lossy(&c.stderr));
+    }
+    let line = ok(&["merge", s(&out)]);
+    assert!(line.contains("84 trajectories"), "{line}");
+    same_arrays(&one, &out);
+    assert!(out.join("summary.json").exists() && !d.join("sharded.partial").exists());
+}
+
+#[test]
+fn bad_shards_are_refused_naming_the_flag() {
+    let d = tmp("bad-shard");
+    let scene = grid_scene(&d, 100, 50, "cpu");
+    for bad in ["4/4", "1/0", "a/b", "3"] {
+        let o = reeb(&["run", s(&scene), "--out", s(&d.join("o")), "--shard", bad]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains("--shard"),
+            "{bad}: {err}"
+        );
+    }
+    let o = reeb(&["merge", s(&d.join("nothing"))]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("no sharded run"),
+        "{err}"
+    );
+}
