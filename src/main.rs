@@ -40,6 +40,10 @@ struct StreamArgs {
     /// (default: outputs of at most 1 GiB per chunk).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     chunk_trajectories: Option<u64>,
+    /// Run on GPU adapter INDEX (as `reeb info` numbers them from 0): one
+    /// shard per GPU of a node.
+    #[arg(long, value_name = "INDEX")]
+    adapter: Option<usize>,
 }
 
 #[derive(Subcommand)]
@@ -255,6 +259,7 @@ fn run(
         chunk_trajectories: stream
             .chunk_trajectories
             .map(|n| usize::try_from(n).unwrap_or(usize::MAX)),
+        adapter: stream.adapter,
     };
     let report = run_scene(&scene, &opts)?;
     println!("{}", report.line);
@@ -539,10 +544,10 @@ fn info() -> Result<ExitCode> {
     if adapters.is_empty() {
         println!("no GPU adapter (install a Vulkan driver; mesa-vulkan-drivers gives the software one, lavapipe)");
     }
-    for a in &adapters {
+    for (k, a) in adapters.iter().enumerate() {
         println!("adapter: {}", a.name);
         println!(
-            "  backend {}, type {}, driver {}",
+            "  index {k} (--adapter {k}), backend {}, type {}, driver {}",
             a.backend, a.device_type, a.driver
         );
         println!(

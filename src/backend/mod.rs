@@ -60,17 +60,28 @@ impl Engine {
         choice: BackendChoice,
         precision: Precision,
     ) -> Result<(Engine, Option<String>), GpuError> {
+        Engine::resolve_on(choice, precision, None)
+    }
+
+    /// [`Engine::resolve`] with the GPU pinned to adapter `index` (`--adapter`:
+    /// one shard per GPU of a node); a pinned adapter is used even when it
+    /// is a software one.
+    pub fn resolve_on(
+        choice: BackendChoice,
+        precision: Precision,
+        index: Option<usize>,
+    ) -> Result<(Engine, Option<String>), GpuError> {
         let f64_missing = |ctx: &GpuContext| precision == Precision::F64 && !ctx.shader_f64;
-        match choice {
-            BackendChoice::Cpu => Ok((Engine::Cpu, None)),
-            BackendChoice::Gpu => {
-                let ctx = GpuContext::new()?;
+        match (choice, index) {
+            (BackendChoice::Cpu, _) => Ok((Engine::Cpu, None)),
+            (BackendChoice::Gpu, _) | (BackendChoice::Auto, Some(_)) => {
+                let ctx = GpuContext::on(index)?;
                 if f64_missing(&ctx) {
                     return Err(GpuError::NoF64(ctx.describe()));
                 }
                 Ok((Engine::Gpu(Box::new(ctx)), None))
             }
-            BackendChoice::Auto => Ok(match GpuContext::new() {
+            (BackendChoice::Auto, None) => Ok(match GpuContext::new() {
                 Err(e) => (Engine::Cpu, Some(format!("note: no GPU adapter ({}); running on the CPU", first_line(&e.to_string())))),
                 Ok(ctx) if gpu::is_software(&ctx.info) => (Engine::Cpu, Some(format!("note: only a software GPU adapter ({}); running on the CPU (use --backend gpu to run it anyway)", ctx.info.name))),
                 Ok(ctx) if f64_missing(&ctx) => (Engine::Cpu, Some(format!("note: {} has no f64 shaders; running on the CPU", ctx.info.name))),

@@ -3,6 +3,7 @@
 //! leading dimensions are the scene's axes, in file order, so the rows of a
 //! chunk of trajectories are one contiguous slab of each (`npy.rs`).
 
+use std::borrow::Cow;
 use std::io::BufWriter;
 use std::path::Path;
 
@@ -49,15 +50,16 @@ pub fn write_axes(scene: &Scene, dir: &Path) -> Result<Vec<String>> {
 }
 
 /// One per-trajectory array of a run: its file, numpy type, the dimensions
-/// after the scene's axes, and the rows a set of observations holds.
-pub struct Array {
+/// after the scene's axes, and the rows a set of observations holds (the
+/// observations' own memory where the layout is the same).
+pub struct Array<'a> {
     pub file: String,
     pub descr: &'static str,
     pub inner: Vec<u64>,
-    pub bytes: Vec<u8>,
+    pub bytes: Cow<'a, [u8]>,
 }
 
-impl Array {
+impl Array<'_> {
     /// The full shape, for a scene of `shape`.
     pub fn shape(&self, shape: &[usize]) -> Vec<u64> {
         shape
@@ -72,7 +74,7 @@ impl Array {
 /// whole), in file order: final values, trajectories, Poincaré points and
 /// counts, cycle statistics, status. With `obs.n = 0` it lists the arrays
 /// (their bytes empty).
-pub fn arrays<R: Real>(scene: &Scene, obs: &Observations<R>) -> Result<Vec<Array>> {
+pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Vec<Array<'a>>> {
     let mut out = vec![];
     vars(&scene.final_vars, &obs.final_values, 0, "final", &mut out)?;
     if let Some((_, vs)) = &scene.trajectory {
@@ -93,12 +95,12 @@ pub fn arrays<R: Real>(scene: &Scene, obs: &Observations<R>) -> Result<Vec<Array
     // status: 0 ok, 1 non-finite; status_step: the step it became non-finite (−1: never).
     let steps = &obs.nonfinite_step;
     let status: Vec<u8> = steps.iter().map(|s| u8::from(*s != 0)).collect();
-    out.push(scalar("status.npy", "|u1", &status));
+    out.push(owned(scalar("status.npy", "|u1", &status)));
     let step: Vec<i64> = steps
         .iter()
         .map(|s| if *s == 0 { -1 } else { *s as i64 })
         .collect();
-    out.push(scalar("status_step.npy", "<i8", &step));
+    out.push(owned(scalar("status_step.npy", "<i8", &step)));
     Ok(out)
 }
 
@@ -113,27 +115,37 @@ fn real<R: Real>() -> &'static str {
 
 /// One value per trajectory. (Little-endian: reeb runs on x86-64 and
 /// aarch64.)
-fn scalar<T: bytemuck::Pod>(file: &str, descr: &'static str, data: &[T]) -> Array {
+fn scalar<'a, T: bytemuck::Pod>(file: &str, descr: &'static str, data: &'a [T]) -> Array<'a> {
     Array {
         file: file.into(),
         descr,
         inner: vec![],
-        bytes: bytemuck::cast_slice(data).to_vec(),
+        bytes: Cow::Borrowed(bytemuck::cast_slice(data)),
+    }
+}
+
+/// `a` owning its bytes (made from a temporary).
+fn owned(a: Array) -> Array<'static> {
+    Array {
+        bytes: Cow::Owned(a.bytes.into_owned()),
+        file: a.file,
+        descr: a.descr,
+        inner: a.inner,
     }
 }
 
 /// `<prefix>_<var>.npy` per output variable, `inner` values per trajectory
 /// (frames, points; 0: one), a trailing component axis for vectors
 /// (Kepler's `q` is `[q1, q2]`).
-fn vars<R: Real>(
+fn vars<'a, R: Real>(
     vars: &[OutVar],
-    arrays: &[(String, Vec<R>)],
+    arrays: &'a [(String, Vec<R>)],
     inner: usize,
     prefix: &str,
-    out: &mut Vec<Array>,
+    out: &mut Vec<Array<'a>>,
 ) -> Result<()> {
     for v in vars {
-        let comps: Vec<&Vec<R>> = v
+        let comps: Vec<&'a Vec<R>> = v
             .components
             .iter()
             .map(|c| {
@@ -149,20 +161,21 @@ fn vars<R: Real>(
         } else {
             vec![]
         };
-        let values: Vec<R> = if comps.len() == 1 {
-            comps[0].clone()
+        let bytes = if comps.len() == 1 {
+            Cow::Borrowed(bytemuck::cast_slice(comps[0].as_slice()))
         } else {
             dims.push(comps.len() as u64);
             let len = comps[0].len();
-            (0..len)
+            let values: Vec<R> = (0..len)
                 .flat_map(|i| comps.iter().map(move |c| c[i]))
-                .collect()
+                .collect();
+            Cow::Owned(bytemuck::cast_slice(&values).to_vec())
         };
         out.push(Array {
             file: format!("{prefix}_{}.npy", v.name),
             descr: real::<R>(),
             inner: dims,
-            bytes: bytemuck::cast_slice(&values).to_vec(),
+            bytes,
         });
     }
     Ok(())

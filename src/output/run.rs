@@ -53,6 +53,8 @@ pub struct RunOptions {
     pub shard: Option<Shard>,
     /// Trajectories per chunk (default: outputs of at most 1 GiB per chunk).
     pub chunk_trajectories: Option<usize>,
+    /// Run on this GPU adapter (`--adapter`, as `reeb info` numbers them).
+    pub adapter: Option<usize>,
 }
 
 /// Part `index` of `count` contiguous parts of a run's chunks.
@@ -93,9 +95,12 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
         (None, true) => Mode::Resume,
         (None, false) => Mode::Fresh,
     };
+    if opts.adapter.is_some() && choice == BackendChoice::Cpu {
+        bail!("--adapter pins a GPU adapter, and this run's backend is cpu; leave out one or the other");
+    }
     let claim = directory::claim_as(&out, &[&scene.path], opts.force, mode)?;
     claim.check_space(estimate.bytes)?;
-    let (engine, notice) = Engine::resolve(choice, precision)?;
+    let (engine, notice) = Engine::resolve_on(choice, precision, opts.adapter)?;
     if let Some(n) = notice {
         eprintln!("{n}");
     }

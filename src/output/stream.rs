@@ -154,8 +154,15 @@ fn longest(subs: &[SubRun], n: usize) -> Plan {
 }
 
 /// The per-trajectory arrays of the scene's run (bytes empty).
-pub fn array_list<R: Flows>(scene: &Scene, subs: &[SubRun]) -> Result<Vec<Array>> {
-    arrays(scene, &Observations::<R>::for_plan(&longest(subs, 0)))
+pub fn array_list<R: Flows>(scene: &Scene, subs: &[SubRun]) -> Result<Vec<Array<'static>>> {
+    let empty = Observations::<R>::for_plan(&longest(subs, 0));
+    Ok(arrays(scene, &empty)?
+        .into_iter()
+        .map(|a| Array {
+            bytes: Vec::new().into(),
+            ..a
+        })
+        .collect())
 }
 
 /// What every chunk's marker says; refuses while any has not finished.

@@ -11,6 +11,10 @@ pub enum GpuError {
     NoAdapter(String),
     #[error("WGPU_ADAPTER_NAME={0:?} matches none of the adapters: {1}")]
     NoMatchingAdapter(String, String),
+    #[error(
+        "--adapter {0}: there are {1} adapters (numbered from 0 as `reeb info` lists them: {2})"
+    )]
+    NoAdapterIndex(usize, usize, String),
     #[error("the adapter {0} has no SHADER_F64: run with --precision f32, or on the CPU backend")]
     NoF64(String),
     #[error("requesting the device failed: {0}")]
@@ -82,7 +86,8 @@ pub fn list_adapters() -> Vec<AdapterSummary> {
 /// Picks the adapter: the one whose name contains `WGPU_ADAPTER_NAME` (case
 /// insensitive) if that is set, else a discrete GPU, else an integrated or
 /// virtual one, else a software one (lavapipe).
-fn choose_adapter(inst: &wgpu::Instance) -> Result<wgpu::Adapter, GpuError> {
+/// `index` (of `--adapter`, in the order `reeb info` lists) comes first.
+fn choose_adapter(inst: &wgpu::Instance, index: Option<usize>) -> Result<wgpu::Adapter, GpuError> {
     let adapters = pollster::block_on(inst.enumerate_adapters(wgpu::Backends::all()));
     let names = || {
         adapters
@@ -91,6 +96,12 @@ fn choose_adapter(inst: &wgpu::Instance) -> Result<wgpu::Adapter, GpuError> {
             .collect::<Vec<_>>()
             .join(", ")
     };
+    if let Some(k) = index {
+        return adapters
+            .get(k)
+            .cloned()
+            .ok_or_else(|| GpuError::NoAdapterIndex(k, adapters.len(), names()));
+    }
     if let Ok(want) = std::env::var("WGPU_ADAPTER_NAME") {
         let w = want.to_lowercase();
         return adapters
@@ -143,8 +154,13 @@ impl GpuContext {
     /// Opens the adapter chosen by [`choose_adapter`] with its own limits, and
     /// SHADER_F64 and TIMESTAMP_QUERY where it has them.
     pub fn new() -> Result<GpuContext, GpuError> {
+        GpuContext::on(None)
+    }
+
+    /// [`GpuContext::new`] on adapter `index` of `reeb info`'s list, if given.
+    pub fn on(index: Option<usize>) -> Result<GpuContext, GpuError> {
         let inst = instance();
-        let adapter = choose_adapter(&inst)?;
+        let adapter = choose_adapter(&inst, index)?;
         let info = adapter.get_info();
         let features =
             adapter.features() & (wgpu::Features::SHADER_F64 | wgpu::Features::TIMESTAMP_QUERY);
