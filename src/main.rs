@@ -44,6 +44,10 @@ struct StreamArgs {
     /// shard per GPU of a node.
     #[arg(long, value_name = "INDEX")]
     adapter: Option<usize>,
+    /// Override the scene's output.format: npy (one file per array) or zarr
+    /// (one Zarr v3 store, DIR/run.zarr, for xarray and dask).
+    #[arg(long)]
+    format: Option<reeb::scene::Format>,
 }
 
 #[derive(Subcommand)]
@@ -260,6 +264,7 @@ fn run(
             .chunk_trajectories
             .map(|n| usize::try_from(n).unwrap_or(usize::MAX)),
         adapter: stream.adapter,
+        format: stream.format,
     };
     let report = run_scene(&scene, &opts)?;
     println!("{}", report.line);

@@ -56,6 +56,8 @@ pub struct Array<'a> {
     pub file: String,
     pub descr: &'static str,
     pub inner: Vec<u64>,
+    /// The names of the `inner` dimensions: `frame`, `point`, `component`.
+    pub inner_names: Vec<&'static str>,
     pub bytes: Cow<'a, [u8]>,
 }
 
@@ -120,6 +122,7 @@ fn scalar<'a, T: bytemuck::Pod>(file: &str, descr: &'static str, data: &'a [T]) 
         file: file.into(),
         descr,
         inner: vec![],
+        inner_names: vec![],
         bytes: Cow::Borrowed(bytemuck::cast_slice(data)),
     }
 }
@@ -131,6 +134,7 @@ fn owned(a: Array) -> Array<'static> {
         file: a.file,
         descr: a.descr,
         inner: a.inner,
+        inner_names: a.inner_names,
     }
 }
 
@@ -161,10 +165,17 @@ fn vars<'a, R: Real>(
         } else {
             vec![]
         };
+        let per = if prefix == "poincare" {
+            "point"
+        } else {
+            "frame"
+        };
+        let mut names = if inner > 0 { vec![per] } else { vec![] };
         let bytes = if comps.len() == 1 {
             Cow::Borrowed(bytemuck::cast_slice(comps[0].as_slice()))
         } else {
             dims.push(comps.len() as u64);
+            names.push("component");
             let len = comps[0].len();
             let values: Vec<R> = (0..len)
                 .flat_map(|i| comps.iter().map(move |c| c[i]))
@@ -175,6 +186,7 @@ fn vars<'a, R: Real>(
             file: format!("{prefix}_{}.npy", v.name),
             descr: real::<R>(),
             inner: dims,
+            inner_names: names,
             bytes,
         });
     }

@@ -522,9 +522,13 @@ fn swap_in(partial: &Path, out: &Path, existing: &Existing) -> Result<()> {
 fn remove_old(old: &Path, existing: &Existing) {
     let result = match existing {
         Existing::Forced => std::fs::remove_dir_all(old),
+        // A listed folder is reeb's too (the Zarr store `run.zarr`).
         Existing::ReebOutput(names) => names
             .iter()
-            .try_for_each(|n| std::fs::remove_file(old.join(n)))
+            .try_for_each(|n| match old.join(n) {
+                p if p.is_dir() && !p.is_symlink() => std::fs::remove_dir_all(p),
+                p => std::fs::remove_file(p),
+            })
             .and_then(|()| std::fs::remove_dir(old)),
         _ => std::fs::remove_dir(old),
     };

@@ -10,3 +10,4 @@ pub mod pictures;
 pub mod plot;
 pub mod run;
 pub mod stream;
+pub mod zarr;

@@ -23,9 +23,10 @@ use crate::output::chunks::{self, Chunks};
 use crate::output::directory::{self, Claim, Mode};
 use crate::output::journal::{self, Record};
 use crate::output::stream::{self, Target};
+use crate::output::zarr;
 use crate::plan::observations::bytes_per_trajectory;
 use crate::plan::size::{available_memory, Estimate};
-use crate::scene::{BackendChoice, Scene, SceneWarning, SubRun};
+use crate::scene::{BackendChoice, Format, Scene, SceneWarning, SubRun};
 
 /// What a finished run reports.
 pub struct RunReport {
@@ -55,6 +56,8 @@ pub struct RunOptions {
     pub chunk_trajectories: Option<usize>,
     /// Run on this GPU adapter (`--adapter`, as `reeb info` numbers them).
     pub adapter: Option<usize>,
+    /// Override the scene's `output.format` (`--format`).
+    pub format: Option<Format>,
 }
 
 /// Part `index` of `count` contiguous parts of a run's chunks.
@@ -175,7 +178,7 @@ fn run_typed<R: Flows>(
         precision: made.precision.name().into(),
         backend: engine.name().into(),
         adapter: engine.describe(),
-        format: "npy".into(),
+        format: opts.format.unwrap_or(scene.format).name().into(),
         chunks: chunks_of(scene, subs, opts.chunk_trajectories, made.precision),
     };
     let dir = claim.dir().to_path_buf();
@@ -205,6 +208,7 @@ fn run_typed<R: Flows>(
         engine,
         chunks: &record.chunks,
         dir: &dir,
+        format: format_of(&record)?,
     };
     stream::integrate::<R>(&target, mine.clone(), opts.progress)?;
     if let Some(s) = opts.shard {
@@ -228,6 +232,11 @@ fn run_typed<R: Flows>(
         });
     }
     finish::<R>(scene, subs, claim, &record, made)
+}
+
+/// The format a record names.
+fn format_of(record: &Record) -> Result<Format> {
+    record.format.parse().map_err(anyhow::Error::msg)
 }
 
 /// `reeb merge DIR`: checks that every chunk of the streamed run in
@@ -294,13 +303,19 @@ fn finish<R: Flows>(
 ) -> Result<RunReport> {
     let dir = claim.dir().to_path_buf();
     let done = stream::finished(&dir, &record.chunks)?;
-    let mut files = write_axes(scene, &dir)?;
-    let observations = stream::read_back::<R>(scene, subs, &dir)?;
-    files.extend(
-        stream::array_list::<R>(scene, subs)?
-            .into_iter()
-            .map(|a| a.file),
-    );
+    let format = format_of(record)?;
+    let mut files = match format {
+        Format::Npy => write_axes(scene, &dir)?,
+        Format::Zarr => vec![],
+    };
+    let observations = stream::read_back::<R>(scene, subs, &dir, format)?;
+    match format {
+        Format::Npy => {
+            let list = stream::array_list::<R>(scene, subs)?;
+            files.extend(list.into_iter().map(|a| a.file));
+        }
+        Format::Zarr => files.push(zarr::STORE.into()),
+    }
     match crate::output::pictures::draw(scene, &dir, &observations) {
         Ok(p) => files.extend(p),
         Err(e) => eprintln!("warning: pictures not drawn: {e:#}"),
@@ -314,6 +329,9 @@ fn finish<R: Flows>(
         chunks: done.len(),
     };
     let summary = summary(scene, subs, made, record, &ran, &files);
+    if format == Format::Zarr {
+        zarr::finish(&dir, scene, summary.clone())?;
+    }
     write_json(&dir.join("summary.json"), &summary)?;
     journal::remove(&dir)?;
     let out = claim.commit()?;

@@ -17,10 +17,11 @@ use crate::output::arrays::{arrays, Array};
 use crate::output::chunks::Chunks;
 use crate::output::journal::{self, Done};
 use crate::output::npy::{read_rows, Slabs};
+use crate::output::zarr;
 use crate::plan::observations::Observations;
 use crate::plan::size::bytes;
 use crate::plan::Plan;
-use crate::scene::{Scene, SubRun};
+use crate::scene::{Format, Scene, SubRun};
 
 /// Frames and section points are read back for the pictures up to this
 /// many bytes; beyond, only the per-trajectory values are.
@@ -34,20 +35,53 @@ pub struct Target<'a> {
     pub chunks: &'a Chunks,
     /// `DIR.partial`.
     pub dir: &'a Path,
+    pub format: Format,
+}
+
+/// Where a run's chunks go: `.npy` files written in slabs, or a Zarr store.
+enum Sink {
+    Npy(Vec<(PathBuf, Slabs)>),
+    Zarr(zarr::Store),
+}
+
+impl Sink {
+    /// Opens (or creates) every array of the run.
+    fn open<R: Flows>(t: &Target) -> Result<Sink> {
+        let list = array_list::<R>(t.scene, t.subs)?;
+        let shape = t.scene.shape();
+        Ok(match t.format {
+            Format::Npy => Sink::Npy(
+                list.iter()
+                    .map(|a| {
+                        let path = t.dir.join(&a.file);
+                        let rows = t.chunks.rows() as u64;
+                        Slabs::open(&path, a.descr, &a.shape(&shape), rows).map(|s| (path, s))
+                    })
+                    .collect::<Result<_>>()?,
+            ),
+            Format::Zarr => Sink::Zarr(zarr::Store::open(t.dir, t.scene, &list, t.chunks)?),
+        })
+    }
+
+    /// Writes chunk `k` (`list` holds its rows) and makes it durable.
+    fn write(&self, t: &Target, k: usize, list: &[Array]) -> Result<()> {
+        match self {
+            Sink::Npy(slabs) => {
+                let first = t.chunks.range(k).start as u64;
+                for ((path, slab), array) in slabs.iter().zip(list) {
+                    slab.write_rows(first, &array.bytes, path)?;
+                }
+                slabs.iter().try_for_each(|(path, slab)| slab.sync(path))
+            }
+            Sink::Zarr(store) => store.write_chunk(t.chunks, k, list),
+        }
+    }
 }
 
 /// Integrates the chunks `mine` that have not finished, each into its slabs
 /// and then marked finished; a progress bar counts the finished ones too.
 pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Result<()> {
-    let shape = t.scene.shape();
-    let rows = t.chunks.rows() as u64;
-    let slabs: Vec<(PathBuf, Slabs)> = array_list::<R>(t.scene, t.subs)?
-        .iter()
-        .map(|a| {
-            let path = t.dir.join(&a.file);
-            Slabs::open(&path, a.descr, &a.shape(&shape), rows).map(|s| (path, s))
-        })
-        .collect::<Result<_>>()?;
+    let sink = Sink::open::<R>(t)?;
     let total: u64 = mine.clone().map(|k| traj_steps(t, k)).sum();
     let done = AtomicU64::new(0);
     let bar = (progress && total > 0)
@@ -68,7 +102,7 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
                 done.fetch_add(traj_steps(t, k), Ordering::Relaxed);
                 return Ok(());
             }
-            chunk::<R>(t, k, &slabs, &done)
+            chunk::<R>(t, k, &sink, &done)
         });
         finished.store(true, Ordering::Relaxed);
         result
@@ -80,20 +114,9 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
 }
 
 /// Integrates chunk `k`, writes its rows, makes them durable, marks it.
-fn chunk<R: Flows>(
-    t: &Target,
-    k: usize,
-    slabs: &[(PathBuf, Slabs)],
-    done: &AtomicU64,
-) -> Result<()> {
-    let rows = t.chunks.range(k);
-    let (obs, seconds) = integrate_rows::<R>(t, rows.clone(), done)?;
-    for ((path, slab), array) in slabs.iter().zip(arrays(t.scene, &obs)?) {
-        slab.write_rows(rows.start as u64, &array.bytes, path)?;
-    }
-    for (path, slab) in slabs {
-        slab.sync(path)?;
-    }
+fn chunk<R: Flows>(t: &Target, k: usize, sink: &Sink, done: &AtomicU64) -> Result<()> {
+    let (obs, seconds) = integrate_rows::<R>(t, t.chunks.range(k), done)?;
+    sink.write(t, k, &arrays(t.scene, &obs)?)?;
     let mark = Done {
         ok: obs.count_ok() as u64,
         traj_steps: traj_steps(t, k),
@@ -184,7 +207,12 @@ pub fn finished(dir: &Path, chunks: &Chunks) -> Result<Vec<Done>> {
 /// The run's arrays read back from `dir`, for the pictures: every
 /// per-trajectory value, and the frames and section points if they take at
 /// most [`PICTURE_BUDGET`] bytes.
-pub fn read_back<R: Flows>(scene: &Scene, subs: &[SubRun], dir: &Path) -> Result<Observations<R>> {
+pub fn read_back<R: Flows>(
+    scene: &Scene,
+    subs: &[SubRun],
+    dir: &Path,
+    format: Format,
+) -> Result<Observations<R>> {
     let mut plan = longest(subs, scene.ensemble_size());
     let lengths = Observations::<R>::lengths(&plan).map_err(anyhow::Error::msg)?;
     let values = lengths.trajectory * plan.trajectory_vars.len()
@@ -202,69 +230,80 @@ pub fn read_back<R: Flows>(scene: &Scene, subs: &[SubRun], dir: &Path) -> Result
         plan.poincare_vars.clear();
     }
     let mut obs = Observations::<R>::for_plan(&plan);
-    load(scene, dir, &mut obs)?;
+    load(scene, &Source { dir, format }, &mut obs)?;
     Ok(obs)
 }
 
-/// Fills `obs` from the arrays in `dir` (the inverse of [`arrays`]).
-fn load<R: Real>(scene: &Scene, dir: &Path, obs: &mut Observations<R>) -> Result<()> {
+/// The finished arrays of a run.
+struct Source<'a> {
+    dir: &'a Path,
+    format: Format,
+}
+
+impl Source<'_> {
+    /// The data of array `file` (`n` rows of `row_bytes`) as values.
+    fn values<T: bytemuck::Pod>(&self, file: &str, n: u64, row_bytes: u64) -> Result<Vec<T>> {
+        let raw = match self.format {
+            Format::Npy => read_rows(&self.dir.join(file), 0, n, row_bytes)?,
+            Format::Zarr => zarr::read(self.dir, file.trim_end_matches(".npy"))?,
+        };
+        Ok(bytemuck::pod_collect_to_vec(&raw))
+    }
+
+    /// Spreads the interleaved components of `file` into the arrays `dst`
+    /// of their names.
+    fn components<R: Real>(
+        &self,
+        file: &str,
+        n: u64,
+        names: &[String],
+        dst: &mut [(String, Vec<R>)],
+    ) -> Result<()> {
+        let Some(len) = dst.first().map(|(_, d)| d.len() as u64) else {
+            return Ok(());
+        };
+        let per_row = len / n.max(1) * names.len() as u64 * std::mem::size_of::<R>() as u64;
+        let all: Vec<R> = self.values(file, n, per_row)?;
+        for (c, name) in names.iter().enumerate() {
+            let (_, d) = dst
+                .iter_mut()
+                .find(|(v, _)| v == name)
+                .with_context(|| format!("{file}: component {name}"))?;
+            for (i, x) in d.iter_mut().enumerate() {
+                *x = all[i * names.len() + c];
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Fills `obs` from the finished arrays (the inverse of [`arrays`]).
+fn load<R: Real>(scene: &Scene, src: &Source, obs: &mut Observations<R>) -> Result<()> {
     let n = obs.n as u64;
     for v in &scene.final_vars {
         let file = format!("final_{}.npy", v.name);
-        components(dir, &file, n, &v.components, &mut obs.final_values)?;
+        src.components(&file, n, &v.components, &mut obs.final_values)?;
     }
     if let (Some((_, vars)), true) = (&scene.trajectory, obs.frames > 0) {
         for v in vars {
             let file = format!("trajectory_{}.npy", v.name);
-            components(dir, &file, n, &v.components, &mut obs.trajectory)?;
+            src.components(&file, n, &v.components, &mut obs.trajectory)?;
         }
     }
     if let (Some((_, vars, _)), true) = (&scene.poincare, obs.max_points > 0) {
         for v in vars {
             let file = format!("poincare_{}.npy", v.name);
-            components(dir, &file, n, &v.components, &mut obs.poincare)?;
+            src.components(&file, n, &v.components, &mut obs.poincare)?;
         }
-        obs.poincare_count = values(dir, "poincare_count.npy", n, 4)?;
+        obs.poincare_count = src.values("poincare_count.npy", n, 4)?;
     }
     if scene.cycle.is_some() {
         let size = std::mem::size_of::<R>() as u64;
-        obs.cycle_amplitude = values(dir, "cycle_amplitude.npy", n, size)?;
-        obs.cycle_period = values(dir, "cycle_period.npy", n, size)?;
+        obs.cycle_amplitude = src.values("cycle_amplitude.npy", n, size)?;
+        obs.cycle_period = src.values("cycle_period.npy", n, size)?;
     }
-    let steps: Vec<i64> = values(dir, "status_step.npy", n, 8)?;
+    let steps: Vec<i64> = src.values("status_step.npy", n, 8)?;
     obs.nonfinite_step = steps.iter().map(|s| (*s).max(0) as u32).collect();
-    Ok(())
-}
-
-/// The data of `file` ( `n` rows of `row_bytes`) as values.
-fn values<T: bytemuck::Pod>(dir: &Path, file: &str, n: u64, row_bytes: u64) -> Result<Vec<T>> {
-    let raw = read_rows(&dir.join(file), 0, n, row_bytes)?;
-    Ok(bytemuck::pod_collect_to_vec(&raw))
-}
-
-/// Spreads the interleaved components of `file` into the arrays `dst` of
-/// their names.
-fn components<R: Real>(
-    dir: &Path,
-    file: &str,
-    n: u64,
-    names: &[String],
-    dst: &mut [(String, Vec<R>)],
-) -> Result<()> {
-    let Some(len) = dst.first().map(|(_, d)| d.len() as u64) else {
-        return Ok(());
-    };
-    let per_row = len / n.max(1) * names.len() as u64 * std::mem::size_of::<R>() as u64;
-    let all: Vec<R> = values(dir, file, n, per_row)?;
-    for (c, name) in names.iter().enumerate() {
-        let (_, d) = dst
-            .iter_mut()
-            .find(|(v, _)| v == name)
-            .with_context(|| format!("{file}: component {name}"))?;
-        for (i, x) in d.iter_mut().enumerate() {
-            *x = all[i * names.len() + c];
-        }
-    }
     Ok(())
 }
 

@@ -71,6 +71,34 @@ pub struct OutVar {
     pub components: Vec<String>,
 }
 
+/// The format of a run's arrays: `.npy` files, or one Zarr v3 store.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    Npy,
+    Zarr,
+}
+
+impl std::str::FromStr for Format {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Format, String> {
+        match s {
+            "npy" => Ok(Format::Npy),
+            "zarr" => Ok(Format::Zarr),
+            _ => Err(format!("`{s}` is not an output format (npy, zarr)")),
+        }
+    }
+}
+
+impl Format {
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Npy => "npy",
+            Format::Zarr => "zarr",
+        }
+    }
+}
+
 /// Settings of the quick-look pictures.
 #[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct PlotSettings {
@@ -140,6 +168,8 @@ pub struct Scene {
     pub trajectory: Option<(u64, Vec<OutVar>)>,
     pub poincare: Option<(Section, Vec<OutVar>, usize)>,
     pub cycle: Option<CycleObs>,
+    /// How the arrays are written (`output.format`).
+    pub format: Format,
     pub backend: BackendChoice,
     pub precision: Precision,
     pub plot: PlotSettings,

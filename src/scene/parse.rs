@@ -22,7 +22,7 @@ use crate::plan::size;
 use super::tables::{self, Cycle, Period, Str, Strs, Table};
 use super::values::{integ_span, suggest, AxisValues, Entry, Parser};
 use super::{
-    BackendChoice, Horizon, Input, OutVar, PlotSettings, ReportSettings, Scene, SceneAxis,
+    BackendChoice, Format, Horizon, Input, OutVar, PlotSettings, ReportSettings, Scene, SceneAxis,
     SceneError,
 };
 
@@ -40,7 +40,7 @@ const TOP_KEYS: &[&str] = &[
     "plot",
 ];
 const INTEGRATOR_KEYS: &[&str] = &["scheme", "order", "dt", "t_end", "steps"];
-const OUTPUT_KEYS: &[&str] = &["final", "trajectory", "poincare", "cycle"];
+const OUTPUT_KEYS: &[&str] = &["final", "trajectory", "poincare", "cycle", "format"];
 const TRAJECTORY_KEYS: &[&str] = &["every", "vars"];
 const POINCARE_KEYS: &[&str] = &[
     "period",
@@ -301,6 +301,7 @@ impl Scene {
             trajectory: out.trajectory,
             poincare: out.poincare,
             cycle: out.cycle,
+            format: out.format,
             backend,
             precision,
             plot,
@@ -568,6 +569,7 @@ struct Out {
     trajectory: Option<(u64, Vec<OutVar>)>,
     poincare: Option<(Section, Vec<OutVar>, usize)>,
     cycle: Option<CycleObs>,
+    format: Format,
 }
 
 /// Resolves output variable names against the model: a variable, `t`, or a
@@ -697,11 +699,13 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model) -> Result<Out, SceneError> {
             })
         }
     };
+    let format = parsed(p, "output.format", &o.format)?.unwrap_or(Format::Npy);
     Ok(Out {
         final_vars,
         trajectory,
         poincare,
         cycle,
+        format,
     })
 }
 

@@ -224,6 +224,7 @@ pub struct Output {
     pub trajectory: Field<Table<Trajectory>>,
     pub poincare: Field<Table<Poincare>>,
     pub cycle: Field<Cycle>,
+    pub format: Field<Str>,
 }
 
 /// `output.trajectory = { every = k, vars = [...] }`.
