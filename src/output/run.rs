@@ -170,32 +170,8 @@ fn run_typed<R: Flows>(
     made: &Made,
 ) -> Result<RunReport> {
     let engine = made.engine.context("an engine")?;
-    let mut record = Record {
-        reeb_version: env!("CARGO_PKG_VERSION").into(),
-        scene_path: scene.path.display().to_string(),
-        scene_text: scene.text.clone(),
-        preview: scene.preview,
-        precision: made.precision.name().into(),
-        backend: engine.name().into(),
-        adapter: engine.describe(),
-        format: opts.format.unwrap_or(scene.format).name().into(),
-        chunks: chunks_of(scene, subs, opts.chunk_trajectories, made.precision),
-    };
     let dir = claim.dir().to_path_buf();
-    let fresh = Record::read(&dir)?.is_none();
-    if fresh && opts.resume {
-        eprintln!(
-            "note: {} holds no earlier run to resume; starting from the beginning",
-            dir.display()
-        );
-    }
-    // A run continued keeps its chunks unless asked for others (shards on
-    // machines of different memory agree on the first shard's).
-    let old = record.establish(&dir)?;
-    if opts.chunk_trajectories.is_none() && old.chunks.shape == record.chunks.shape {
-        record.chunks = old.chunks.clone();
-    }
-    record.check_same(&old, &dir)?;
+    let record = record_of(scene, subs, opts, made, engine, &dir)?;
     // From here on a failure keeps the finished chunks for --resume.
     claim.keep();
     let all = 0..record.chunks.count();
@@ -211,27 +187,64 @@ fn run_typed<R: Flows>(
         format: format_of(&record)?,
     };
     stream::integrate::<R>(&target, mine.clone(), opts.progress)?;
-    if let Some(s) = opts.shard {
-        let line = format!(
-            "{}: shard {}/{} (chunks {}..{} of {}) done → {}; when every shard has finished: reeb merge {}",
-            scene.name,
-            s.index,
-            s.count,
-            mine.start,
-            mine.end,
-            record.chunks.count(),
-            dir.display(),
-            claim.out().display()
+    let Some(s) = opts.shard else {
+        return finish::<R>(scene, subs, claim, &record, made);
+    };
+    let line = format!(
+        "{}: shard {}/{} (chunks {}..{} of {}) done → {}; when every shard has finished: reeb merge {}",
+        scene.name,
+        s.index,
+        s.count,
+        mine.start,
+        mine.end,
+        record.chunks.count(),
+        dir.display(),
+        claim.out().display()
+    );
+    let summary =
+        serde_json::json!({"shard": [s.index, s.count], "chunks": [mine.start, mine.end]});
+    Ok(RunReport {
+        out: dir,
+        summary,
+        line,
+    })
+}
+
+/// The record of this run in `dir`: this run's, or the one a killed run or
+/// an earlier shard left there if it is the same run (refused otherwise).
+fn record_of(
+    scene: &Scene,
+    subs: &[SubRun],
+    opts: &RunOptions,
+    made: &Made,
+    engine: &Engine,
+    dir: &Path,
+) -> Result<Record> {
+    let mut record = Record {
+        reeb_version: env!("CARGO_PKG_VERSION").into(),
+        scene_path: scene.path.display().to_string(),
+        scene_text: scene.text.clone(),
+        preview: scene.preview,
+        precision: made.precision.name().into(),
+        backend: engine.name().into(),
+        adapter: engine.describe(),
+        format: opts.format.unwrap_or(scene.format).name().into(),
+        chunks: chunks_of(scene, subs, opts.chunk_trajectories, made.precision),
+    };
+    if opts.resume && Record::read(dir)?.is_none() {
+        eprintln!(
+            "note: {} holds no earlier run to resume; starting from the beginning",
+            dir.display()
         );
-        let summary =
-            serde_json::json!({"shard": [s.index, s.count], "chunks": [mine.start, mine.end]});
-        return Ok(RunReport {
-            out: dir,
-            summary,
-            line,
-        });
     }
-    finish::<R>(scene, subs, claim, &record, made)
+    // A run continued keeps its chunks unless asked for others (shards on
+    // machines of different memory agree on the first shard's).
+    let old = record.establish(dir)?;
+    if opts.chunk_trajectories.is_none() && old.chunks.shape == record.chunks.shape {
+        record.chunks = old.chunks.clone();
+    }
+    record.check_same(&old, dir)?;
+    Ok(record)
 }
 
 /// The format a record names.
