@@ -74,6 +74,42 @@ enum Command {
         #[command(flatten)]
         stream: StreamArgs,
     },
+    /// Run a scene on a Slurm cluster: a job array of N shards (each
+    /// `reeb run --shard K/N --resume`) and a merge job after it.
+    Slurm {
+        /// The scene file (TOML).
+        scene: PathBuf,
+        /// Number of shards (array tasks).
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+        shards: u64,
+        /// Output directory (default: runs/<scene name>); the scripts and logs go to DIR.slurm.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Slurm partition of the jobs.
+        #[arg(long)]
+        partition: Option<String>,
+        /// GPUs per array task.
+        #[arg(long)]
+        gpus_per_task: Option<u32>,
+        /// Wall-time limit per task (Slurm's format, e.g. 2:00:00).
+        #[arg(long)]
+        time: Option<String>,
+        /// Write the batch scripts without submitting them.
+        #[arg(long)]
+        dry_run: bool,
+        /// Override the scene's backend in every task: auto, cpu or gpu.
+        #[arg(long)]
+        backend: Option<BackendChoice>,
+        /// Override the scene's precision in every task.
+        #[arg(long)]
+        precision: Option<Precision>,
+        /// Override the scene's output.format: npy or zarr.
+        #[arg(long)]
+        format: Option<reeb::scene::Format>,
+        /// Trajectories per chunk.
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+        chunk_trajectories: Option<u64>,
+    },
     /// Finish a run integrated in shards (`reeb run --shard K/N`): check that
     /// every shard finished, then write summary.json and the pictures.
     Merge {
@@ -194,6 +230,46 @@ fn main() -> ExitCode {
             stream,
         } => run(scene, out, backend, precision, preview, force, stream),
         Command::Merge { dir, force } => merge(&dir, force),
+        Command::Slurm {
+            scene,
+            shards,
+            out,
+            partition,
+            gpus_per_task,
+            time,
+            dry_run,
+            backend,
+            precision,
+            format,
+            chunk_trajectories,
+        } => {
+            let mut run_args: Vec<String> = vec![];
+            let mut pass = |flag: &str, v: Option<String>| {
+                if let Some(v) = v {
+                    run_args.extend([flag.to_string(), v]);
+                }
+            };
+            pass(
+                "--backend",
+                backend.map(|b| format!("{b:?}").to_lowercase()),
+            );
+            pass("--precision", precision.map(|p| p.name().to_string()));
+            pass("--format", format.map(|f| f.name().to_string()));
+            pass(
+                "--chunk-trajectories",
+                chunk_trajectories.map(|n| n.to_string()),
+            );
+            let opts = reeb::output::slurm::SlurmOptions {
+                shards: usize::try_from(shards).unwrap_or(usize::MAX),
+                out: PathBuf::new(),
+                partition,
+                gpus_per_task,
+                time,
+                dry_run,
+                run_args,
+            };
+            slurm(&scene, out, precision, opts)
+        }
         Command::Check {
             scene,
             precision,
@@ -268,6 +344,22 @@ fn run(
     };
     let report = run_scene(&scene, &opts)?;
     println!("{}", report.line);
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `reeb slurm`: the scene checked as `reeb check` does, then its jobs.
+fn slurm(
+    scene: &Path,
+    out: Option<PathBuf>,
+    precision: Option<Precision>,
+    mut opts: reeb::output::slurm::SlurmOptions,
+) -> Result<ExitCode> {
+    let s = Scene::load(scene)?;
+    let Gated { out, .. } = gates(&s, precision.unwrap_or(s.precision), out.as_deref(), None)?;
+    reeb::output::directory::check(&out, &[&s.path], false)?;
+    opts.out = out;
+    let jobs = reeb::output::slurm::submit(scene, &s.name, &opts)?;
+    println!("{}", jobs.line);
     Ok(ExitCode::SUCCESS)
 }
 

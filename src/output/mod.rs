@@ -9,5 +9,6 @@ pub mod npy;
 pub mod pictures;
 pub mod plot;
 pub mod run;
+pub mod slurm;
 pub mod stream;
 pub mod zarr;

@@ -83,6 +83,19 @@ impl Sink {
 pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Result<()> {
     let sink = Sink::open::<R>(t)?;
     let total: u64 = mine.clone().map(|k| traj_steps(t, k)).sum();
+    let already = mine
+        .clone()
+        .filter(|k| journal::done(t.dir, *k).is_some())
+        .count();
+    if already > 0 {
+        eprintln!(
+            "resuming: {already} of the {} chunks {}..{} already finished in {}",
+            mine.len(),
+            mine.start,
+            mine.end,
+            t.dir.display()
+        );
+    }
     let done = AtomicU64::new(0);
     let bar = (progress && total > 0)
         .then(|| progress_bar(total, format!("{} on {}", t.scene.name, t.engine.name())));

@@ -1,0 +1,203 @@
+//! `reeb slurm` on a real Slurm (issue 12, point 6): a 4-shard job array of
+//! a real scene, merged by its dependent job, bitwise identical to one run;
+//! and a task killed mid-way and requeued (`scontrol requeue`), which
+//! resumes its finished chunks.
+//!
+//! Needs a Slurm this process can submit to (`sinfo` answers; `.ci/slurm-up`
+//! starts a one-node cluster); without one the tests print SKIP, unless
+//! `REEB_REQUIRE_SLURM=1` (CI).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+const REEB: &str = env!("CARGO_BIN_EXE_reeb");
+
+fn slurm() -> bool {
+    let up = Command::new("sinfo")
+        .arg("-h")
+        .output()
+        .is_ok_and(|o| o.status.success() && !o.stdout.is_empty());
+    if !up {
+        assert!(
+            std::env::var_os("REEB_REQUIRE_SLURM").is_none(),
+            "REEB_REQUIRE_SLURM is set but sinfo does not answer (is SLURM_CONF set? .ci/slurm-up starts a cluster)"
+        );
+        eprintln!("SKIP: no Slurm (sinfo does not answer)");
+    }
+    up
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("slurm-{name}"));
+    let _ = std::fs::remove_dir_all(&d);
+    let _ = std::fs::remove_dir_all(d.with_extension("slurm"));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> String {
+    p.to_str().unwrap().to_string()
+}
+
+fn ok(args: &[&str]) -> String {
+    let o = Command::new(REEB).args(args).output().unwrap();
+    assert!(
+        o.status.success(),
+        "reeb {args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// A van der Pol grid with a `dt` axis, frames, cycle statistics and a
+/// section; `t_end` sets its length.
+fn scene(dir: &Path, t_end: f64) -> PathBuf {
+    let text = format!(
+        r#"model = "van_der_pol"
+[params]
+epsilon = {{ linspace = [0.5, 2.0, 6] }}
+[initial]
+q = {{ linspace = [0.5, 2.5, 7] }}
+[integrator]
+scheme = "s2"
+dt = [0.01, 0.02]
+t_end = {t_end}
+[output]
+final = ["q", "s"]
+trajectory = {{ every = 500, vars = ["q"] }}
+cycle = true
+poincare = {{ period = 1.0, max_points = 20, vars = ["q", "p"] }}
+[run]
+backend = "cpu"
+precision = "f64"
+"#
+    );
+    let path = dir.join("grid.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn same_arrays(a: &Path, b: &Path) {
+    let mut names: Vec<String> = std::fs::read_dir(a)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".npy"))
+        .collect();
+    names.sort();
+    assert!(names.len() >= 8, "{names:?}");
+    for f in &names {
+        let (x, y) = (
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+        );
+        assert!(
+            x == y,
+            "{f} differs between {} and {}",
+            a.display(),
+            b.display()
+        );
+    }
+}
+
+/// Waits for `out/summary.json` (the merge job's last file).
+fn wait_for_merge(out: &Path, logs: &Path) {
+    let start = Instant::now();
+    while !out.join("summary.json").exists() {
+        if start.elapsed() > Duration::from_secs(600) {
+            let log = std::fs::read_to_string(logs.join("merge.out")).unwrap_or_default();
+            let q = Command::new("squeue")
+                .output()
+                .map(|o| o.stdout)
+                .unwrap_or_default();
+            panic!(
+                "no merge after 600 s; merge log: {log}; squeue: {}",
+                String::from_utf8_lossy(&q)
+            );
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+/// The job array's id from `reeb slurm`'s line.
+fn array_id(line: &str) -> String {
+    let after = line.split("job array ").nth(1).expect(line);
+    after.split_whitespace().next().unwrap().to_string()
+}
+
+#[test]
+fn four_shards_through_slurm_merge_to_the_bits_of_one_run() {
+    if !slurm() {
+        return;
+    }
+    let d = tmp("four");
+    let scene = scene(&d, 40.0);
+    let one = d.join("one");
+    ok(&["run", &s(&scene), "--out", &s(&one)]);
+    let out = d.join("sharded");
+    let args = [
+        "slurm",
+        &s(&scene),
+        "--shards",
+        "4",
+        "--out",
+        &s(&out),
+        "--chunk-trajectories",
+        "5",
+    ];
+    let line = ok(&args);
+    assert!(line.contains("merge job"), "{line}");
+    wait_for_merge(&out, &d.join("sharded.slurm/logs"));
+    same_arrays(&one, &out);
+    let log = std::fs::read_to_string(d.join("sharded.slurm/logs/shard-3.out")).unwrap();
+    assert!(log.contains("shard 3/4"), "{log}");
+}
+
+#[test]
+fn a_task_killed_and_requeued_resumes_its_chunks() {
+    if !slurm() {
+        return;
+    }
+    let d = tmp("requeue");
+    let scene = scene(&d, 12_000.0);
+    let out = d.join("run");
+    let line = ok(&[
+        "slurm",
+        &s(&scene),
+        "--shards",
+        "2",
+        "--out",
+        &s(&out),
+        "--chunk-trajectories",
+        "6",
+    ]);
+    let task = format!("{}_0", array_id(&line));
+    // Shard 0 holds chunks 0..7: wait for its first, then kill and requeue it.
+    let marker = d.join("run.partial/.reeb-chunks/0.json");
+    let start = Instant::now();
+    while !marker.exists() {
+        assert!(
+            start.elapsed() < Duration::from_secs(300),
+            "no chunk finished"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let rq = Command::new("scontrol")
+        .args(["requeue", &task])
+        .output()
+        .unwrap();
+    assert!(
+        rq.status.success(),
+        "scontrol requeue {task}: {}",
+        String::from_utf8_lossy(&rq.stderr)
+    );
+    wait_for_merge(&out, &d.join("run.slurm/logs"));
+    let log = std::fs::read_to_string(d.join("run.slurm/logs/shard-0.out")).unwrap();
+    assert!(
+        log.contains("attempt 1") && log.contains("resuming:"),
+        "{log}"
+    );
+    let one = d.join("one");
+    ok(&["run", &s(&scene), "--out", &s(&one)]);
+    same_arrays(&one, &out);
+}
