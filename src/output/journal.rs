@@ -35,12 +35,14 @@ pub struct Record {
 }
 
 /// A finished chunk: what the summary adds up.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Done {
     /// Trajectories that finished with a finite state.
     pub ok: u64,
     pub traj_steps: u64,
     pub seconds: f64,
+    /// How `seconds` was measured (GPU timestamps or the wall clock).
+    pub timing: String,
 }
 
 impl Record {

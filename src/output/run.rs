@@ -186,7 +186,12 @@ fn run_typed<R: Flows>(
         dir: &dir,
         format: format_of(&record)?,
     };
-    stream::integrate::<R>(&target, mine.clone(), opts.progress)?;
+    stream::integrate::<R>(&target, mine.clone(), opts.progress).map_err(|e| {
+        anyhow::anyhow!(
+            "{e:#}\n(the chunks that finished are kept in {}: run it again with --resume to continue)",
+            dir.display()
+        )
+    })?;
     let Some(s) = opts.shard else {
         return finish::<R>(scene, subs, claim, &record, made);
     };
@@ -338,6 +343,7 @@ fn finish<R: Flows>(
         seconds: done.iter().map(|d| d.seconds).sum(),
         traj_steps: done.iter().map(|d| d.traj_steps).sum(),
         ok: done.iter().map(|d| d.ok).sum(),
+        timing: done.first().map_or("none".into(), |d| d.timing.clone()),
         max_steps,
         chunks: done.len(),
     };
@@ -370,6 +376,7 @@ struct Ran {
     seconds: f64,
     traj_steps: u64,
     ok: u64,
+    timing: String,
     max_steps: u64,
     chunks: usize,
 }
@@ -445,7 +452,7 @@ fn summary(
         "steps_per_run": subs.iter().map(|s| s.plan.steps).collect::<Vec<_>>(),
         "traj_steps": ran.traj_steps,
         "integration_seconds": ran.seconds,
-        "timing": if record.backend == "gpu" { "gpu timestamps or wall clock" } else { "wall clock" },
+        "timing": ran.timing,
         "traj_steps_per_s": ran.rate(),
         "evaluations_per_step": Some(scene.scheme.evaluations()),
         "status": {"ok": ran.ok, "non_finite": n - ran.ok},

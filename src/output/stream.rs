@@ -128,12 +128,13 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
 
 /// Integrates chunk `k`, writes its rows, makes them durable, marks it.
 fn chunk<R: Flows>(t: &Target, k: usize, sink: &Sink, done: &AtomicU64) -> Result<()> {
-    let (obs, seconds) = integrate_rows::<R>(t, t.chunks.range(k), done)?;
+    let (obs, seconds, timing) = integrate_rows::<R>(t, t.chunks.range(k), done)?;
     sink.write(t, k, &arrays(t.scene, &obs)?)?;
     let mark = Done {
         ok: obs.count_ok() as u64,
         traj_steps: traj_steps(t, k),
         seconds,
+        timing: timing.into(),
     };
     journal::mark_done(t.dir, k, &mark)
 }
@@ -144,14 +145,14 @@ fn integrate_rows<R: Flows>(
     t: &Target,
     rows: Range<usize>,
     progress: &AtomicU64,
-) -> Result<(Observations<R>, f64)> {
+) -> Result<(Observations<R>, f64, &'static str)> {
     if let [sub] = t.subs {
         let run = t.engine.run::<R>(&sub.plan.rows(rows), Some(progress))?;
-        return Ok((run.observations, run.seconds));
+        return Ok((run.observations, run.seconds, run.timing));
     }
     let (shape, strides) = (t.scene.shape(), t.scene.strides());
     let mut whole = Observations::<R>::for_plan(&longest(t.subs, rows.len()));
-    let mut seconds = 0.0;
+    let (mut seconds, mut timing) = (0.0, "wall clock");
     for sub in t.subs {
         let own = sub.rows_within(&rows, &shape, &strides);
         if own.is_empty() {
@@ -161,10 +162,11 @@ fn integrate_rows<R: Flows>(
             .engine
             .run::<R>(&sub.plan.rows(own.clone()), Some(progress))?;
         seconds += run.seconds;
+        timing = run.timing;
         let at = own.map(|j| sub.scene_row(j, &shape, &strides) - rows.start);
         whole.place_rows(&run.observations, at);
     }
-    Ok((whole, seconds))
+    Ok((whole, seconds, timing))
 }
 
 /// Trajectory-steps of chunk `k`.
