@@ -689,13 +689,7 @@ impl Builder<'_> {
             vel2 = self.dag.add(vel2, sq);
         }
         let kin = self.dag.mul(half, vel2);
-        let vv = self.dag.add(v, v1);
-        let vmean = self.dag.mul(half, vv);
-        let l = self.dag.sub(kin, vmean);
-        let tl = self.dag.mul(tau, l);
-        let sc = self.dag.mul(s, c);
-        let top = self.dag.add(sc, tl);
-        let s1 = self.dag.div(top, d);
+        let s1 = self.action(s, c, tau, kin, (v, v1), d);
         let mut out = qn;
         for ((pk, d0), d1) in p.iter().zip(grad_v).zip(&dv1) {
             let cp = self.dag.mul(c, *pk);
@@ -707,6 +701,20 @@ impl Builder<'_> {
         }
         out.push(s1);
         out
+    }
+
+    /// The action step of the variational and leapfrog methods:
+    /// `s' = (c s + τ (kinetic − (V + V')/2)) / d`, the Lagrangian by the
+    /// trapezoidal rule in V.
+    fn action(&mut self, s: Id, c: Id, tau: Id, kinetic: Id, (v, v1): (Id, Id), d: Id) -> Id {
+        let half = self.dag.num(0.5);
+        let vv = self.dag.add(v, v1);
+        let vmean = self.dag.mul(half, vv);
+        let l = self.dag.sub(kinetic, vmean);
+        let tl = self.dag.mul(tau, l);
+        let sc = self.dag.mul(s, c);
+        let top = self.dag.add(sc, tl);
+        self.dag.div(top, d)
     }
 
     /// The comparison integrators on (q, p, s), `field` their vector field;
@@ -812,13 +820,7 @@ impl Builder<'_> {
             lag = self.dag.add(lag, ab);
         }
         let v1 = self.at(&[v], qs, &qn, t1)[0];
-        let vv = self.dag.add(v, v1);
-        let vmean = self.dag.mul(half, vv);
-        let l = self.dag.sub(lag, vmean);
-        let sn = self.dag.mul(s, num);
-        let tl = self.dag.mul(tau, l);
-        let top = self.dag.add(sn, tl);
-        let s1 = self.dag.div(top, den);
+        let s1 = self.action(s, num, tau, lag, (v, v1), den);
         let dv1 = self.at(grad_v, qs, &qn, t1);
         let mut out = qn;
         for (d, x) in dv1.iter().zip(&ph) {

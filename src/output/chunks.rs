@@ -82,6 +82,34 @@ impl Chunks {
         start * inner..end * inner
     }
 
+    /// Chunk `k`'s index in the grid of chunks over the scene's axes (its
+    /// Zarr chunk key): the index of the axes before `axis`, its run of
+    /// `axis`, 0 after.
+    pub fn grid_index(&self, k: usize) -> Vec<u64> {
+        let (mut outer, j) = (k / self.per_run(), k % self.per_run());
+        let mut index = vec![0u64; self.shape.len()];
+        for a in (0..self.axis.min(self.shape.len())).rev() {
+            index[a] = (outer % self.shape[a]) as u64;
+            outer /= self.shape[a];
+        }
+        if let Some(x) = index.get_mut(self.axis) {
+            *x = j as u64;
+        }
+        index
+    }
+
+    /// The shape of a whole chunk over the scene's axes: 1 before `axis`,
+    /// `along`, the axes after it whole.
+    pub fn chunk_shape(&self) -> Vec<u64> {
+        (0..self.shape.len())
+            .map(|k| match k.cmp(&self.axis) {
+                std::cmp::Ordering::Less => 1,
+                std::cmp::Ordering::Equal => self.along as u64,
+                std::cmp::Ordering::Greater => self.shape[k] as u64,
+            })
+            .collect()
+    }
+
     /// The chunks of shard `k` of `n`: contiguous, as even as can be.
     pub fn shard(&self, k: usize, n: usize) -> Range<usize> {
         let c = self.count();
@@ -134,6 +162,28 @@ mod tests {
         let c = Chunks::with_rows(&[256, 256], 1000);
         assert_eq!((c.axis, c.along, c.count()), (0, 3, 86));
         assert_eq!(c.range(85), 85 * 3 * 256..256 * 256);
+    }
+
+    #[test]
+    fn the_grid_index_is_where_the_chunk_starts() {
+        for (shape, rows) in [
+            (vec![6, 7, 2], 5),
+            (vec![4, 9], 4),
+            (vec![5], 2),
+            (vec![3, 4, 5], 60),
+        ] {
+            let c = Chunks::with_rows(&shape, rows);
+            let whole = c.chunk_shape();
+            for k in 0..c.count() {
+                let mut start = c.range(k).start;
+                let mut at = vec![0u64; shape.len()];
+                for a in (0..shape.len()).rev() {
+                    at[a] = (start % shape[a]) as u64 / whole[a];
+                    start /= shape[a];
+                }
+                assert_eq!(c.grid_index(k), at, "{c:?} chunk {k}");
+            }
+        }
     }
 
     #[test]

@@ -342,14 +342,11 @@ fn lock_partial(partial: &Path, mode: Mode) -> Result<File> {
     let tmp = partial.with_file_name(tmp_name);
     let _ = std::fs::remove_dir_all(&tmp);
     std::fs::create_dir(&tmp).with_context(|| format!("creating {}", partial.display()))?;
-    let lock = open_locked(&tmp)?.context("a folder of our own is locked")?;
+    // A shard's lock is shared from the start: a shard starting beside it
+    // never finds the folder locked exclusively.
+    let lock = open_locked(&tmp, mode == Mode::Shared)?.context("a folder of our own is locked")?;
     write_owner(&tmp)?;
     match rename_no_replace(&tmp, partial) {
-        Ok(()) if mode == Mode::Shared => {
-            lock.lock_shared()
-                .with_context(|| format!("locking {}", partial.display()))?;
-            Ok(lock)
-        }
         Ok(()) => Ok(lock),
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
             drop(lock);
@@ -396,29 +393,16 @@ fn take_over(partial: &Path, empty: bool) -> Result<File> {
 /// Joins the shards writing an existing `partial` (a shared lock); refuses
 /// one a run alone holds, and one reeb did not make.
 fn join_shared(partial: &Path) -> Result<File> {
-    if !std::fs::symlink_metadata(partial).is_ok_and(|m| m.is_dir()) {
+    must_be_folder(partial)?;
+    let Some(f) = open_locked(partial, true)? else {
         bail!(
-            "{} exists and is not a folder reeb left; remove it or choose another --out",
-            partial.display()
-        );
-    }
-    let f = File::open(partial).with_context(|| format!("opening {}", partial.display()))?;
-    match f.try_lock_shared() {
-        Ok(()) => {}
-        Err(std::fs::TryLockError::WouldBlock) => bail!(
             "{} is being written by a reeb run that is not a shard ({}); wait for it to finish, or choose another --out",
             partial.display(),
             std::fs::read_to_string(partial.join(OWNER_FILE)).unwrap_or_default().trim()
-        ),
-        Err(std::fs::TryLockError::Error(e)) => {
-            return Err(e).with_context(|| format!("locking {}", partial.display()))
-        }
-    }
-    if !partial.join(OWNER_FILE).exists() {
-        bail!(
-            "{} exists but was not made by reeb (no {OWNER_FILE}); remove it or choose another --out",
-            partial.display()
         );
+    };
+    if !partial.join(OWNER_FILE).exists() {
+        return Err(not_reeb(partial));
     }
     Ok(f)
 }
@@ -427,34 +411,48 @@ fn join_shared(partial: &Path) -> Result<File> {
 /// now ours, and its owner's line. Refuses anything else: not a folder, a
 /// live owner, no owner file (not reeb's).
 fn stale_partial(partial: &Path) -> Result<(File, String)> {
-    if !std::fs::symlink_metadata(partial).is_ok_and(|m| m.is_dir()) {
-        bail!(
-            "{} exists and is not a folder reeb left; remove it or choose another --out",
-            partial.display()
-        );
-    }
+    must_be_folder(partial)?;
     let owner = std::fs::read_to_string(partial.join(OWNER_FILE)).ok();
-    let Some(lock) = open_locked(partial)? else {
+    let Some(lock) = open_locked(partial, false)? else {
         bail!(
             "{} is being written by another reeb run ({}); wait for it to finish, or choose another --out",
             partial.display(),
             owner.as_deref().map(str::trim).unwrap_or("owner unknown")
         );
     };
-    let Some(owner) = owner else {
-        bail!(
-            "{} exists but was not made by reeb (no {OWNER_FILE}); remove it or choose another --out",
-            partial.display()
-        );
-    };
+    let owner = owner.ok_or_else(|| not_reeb(partial))?;
     Ok((lock, owner))
 }
 
-/// The folder opened and locked exclusively, or `None` if another process
-/// holds its lock.
-fn open_locked(dir: &Path) -> Result<Option<File>> {
+/// Refuses a `partial` that is not a folder.
+fn must_be_folder(partial: &Path) -> Result<()> {
+    if !std::fs::symlink_metadata(partial).is_ok_and(|m| m.is_dir()) {
+        bail!(
+            "{} exists and is not a folder reeb left; remove it or choose another --out",
+            partial.display()
+        );
+    }
+    Ok(())
+}
+
+/// The refusal of a `partial` without reeb's owner file.
+fn not_reeb(partial: &Path) -> anyhow::Error {
+    anyhow::anyhow!(
+        "{} exists but was not made by reeb (no {OWNER_FILE}); remove it or choose another --out",
+        partial.display()
+    )
+}
+
+/// The folder opened and locked (`shared`: beside other shared holders;
+/// else exclusively), or `None` if another process's lock excludes it.
+fn open_locked(dir: &Path, shared: bool) -> Result<Option<File>> {
     let f = File::open(dir).with_context(|| format!("opening {}", dir.display()))?;
-    match f.try_lock() {
+    let locked = if shared {
+        f.try_lock_shared()
+    } else {
+        f.try_lock()
+    };
+    match locked {
         Ok(()) => Ok(Some(f)),
         Err(std::fs::TryLockError::WouldBlock) => Ok(None),
         Err(std::fs::TryLockError::Error(e)) => {

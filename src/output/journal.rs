@@ -59,26 +59,23 @@ impl Record {
     }
 
     /// The record of `dir`: the one there, or this one written if there is
-    /// none. Shards starting together agree on the first one written (a
-    /// hard link creates it or fails, atomically).
-    pub fn establish(&self, dir: &Path) -> Result<Record> {
+    /// none (then `true`). Shards starting together agree on the first one
+    /// written (a hard link creates it or fails, atomically).
+    pub fn establish(&self, dir: &Path) -> Result<(Record, bool)> {
         std::fs::create_dir_all(dir.join(CHUNKS_DIR))
             .with_context(|| format!("creating {}", dir.join(CHUNKS_DIR).display()))?;
         let path = dir.join(RECORD_FILE);
-        let tmp = dir.join(format!("{RECORD_FILE}.{}.tmp", std::process::id()));
-        let text = serde_json::to_string_pretty(self)?;
-        let write = || -> std::io::Result<()> {
-            let f = std::fs::File::create(&tmp)?;
-            std::io::Write::write_all(&mut &f, text.as_bytes())?;
-            f.sync_all()
-        };
-        write().with_context(|| format!("writing {}", tmp.display()))?;
+        let tmp = write_temporary(&path, serde_json::to_string_pretty(self)?.as_bytes())?;
         let linked = std::fs::hard_link(&tmp, &path);
         let _ = std::fs::remove_file(&tmp);
         match linked {
-            Ok(()) => Ok(self.clone()),
+            Ok(()) => Ok((self.clone(), true)),
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                Record::read(dir)?.with_context(|| format!("reading {}", path.display()))
+                let old = Record::read(dir)?;
+                Ok((
+                    old.with_context(|| format!("reading {}", path.display()))?,
+                    false,
+                ))
             }
             Err(e) => Err(e).with_context(|| format!("writing {}", path.display())),
         }
@@ -163,16 +160,23 @@ pub fn done(dir: &Path, k: usize) -> Option<Done> {
 
 /// Writes `path` through a temporary file and a rename, durably.
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = write_temporary(path, bytes)?;
+    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Writes `bytes` durably to a file of this process beside `path`; returns
+/// its path.
+fn write_temporary(path: &Path, bytes: &[u8]) -> Result<PathBuf> {
     let mut name = path.file_name().unwrap_or_default().to_os_string();
     name.push(format!(".{}.tmp", std::process::id()));
     let tmp = path.with_file_name(name);
     let write = || -> std::io::Result<()> {
         let f = std::fs::File::create(&tmp)?;
         std::io::Write::write_all(&mut &f, bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
+        f.sync_all()
     };
-    write().with_context(|| format!("writing {}", path.display()))
+    write().with_context(|| format!("writing {}", tmp.display()))?;
+    Ok(tmp)
 }
 
 /// Removes the journal from a finished run's folder (before it is

@@ -236,15 +236,15 @@ fn record_of(
         format: opts.format.unwrap_or(scene.format).name().into(),
         chunks: chunks_of(scene, subs, opts.chunk_trajectories, made.precision),
     };
-    if opts.resume && Record::read(dir)?.is_none() {
+    // A run continued keeps its chunks unless asked for others (shards on
+    // machines of different memory agree on the first shard's).
+    let (old, created) = record.establish(dir)?;
+    if created && opts.resume {
         eprintln!(
             "note: {} holds no earlier run to resume; starting from the beginning",
             dir.display()
         );
     }
-    // A run continued keeps its chunks unless asked for others (shards on
-    // machines of different memory agree on the first shard's).
-    let old = record.establish(dir)?;
     if opts.chunk_trajectories.is_none() && old.chunks.shape == record.chunks.shape {
         record.chunks = old.chunks.clone();
     }

@@ -83,20 +83,23 @@ impl Sink {
 pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Result<()> {
     let sink = Sink::open::<R>(t)?;
     let total: u64 = mine.clone().map(|k| traj_steps(t, k)).sum();
-    let already = mine
+    let todo: Vec<usize> = mine
         .clone()
-        .filter(|k| journal::done(t.dir, *k).is_some())
-        .count();
-    if already > 0 {
+        .filter(|k| journal::done(t.dir, *k).is_none())
+        .collect();
+    if todo.len() < mine.len() {
         eprintln!(
-            "resuming: {already} of the {} chunks {}..{} already finished in {}",
+            "resuming: {} of the {} chunks {}..{} already finished in {}",
+            mine.len() - todo.len(),
             mine.len(),
             mine.start,
             mine.end,
             t.dir.display()
         );
     }
-    let done = AtomicU64::new(0);
+    // The bar counts the chunks already finished as done.
+    let left: u64 = todo.iter().map(|k| traj_steps(t, *k)).sum();
+    let done = AtomicU64::new(total - left);
     let bar = (progress && total > 0)
         .then(|| progress_bar(total, format!("{} on {}", t.scene.name, t.engine.name())));
     let finished = AtomicBool::new(false);
@@ -110,13 +113,9 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
                 }
             });
         }
-        let result = mine.clone().try_for_each(|k| {
-            if journal::done(t.dir, k).is_some() {
-                done.fetch_add(traj_steps(t, k), Ordering::Relaxed);
-                return Ok(());
-            }
-            chunk::<R>(t, k, &sink, &done)
-        });
+        let result = todo
+            .iter()
+            .try_for_each(|k| chunk::<R>(t, *k, &sink, &done));
         finished.store(true, Ordering::Relaxed);
         result
     })?;

@@ -7,11 +7,11 @@
 //! them; the resolved scene and the summary as the group's attributes. This
 //! is what `xarray.open_zarr` reads as a labelled Dataset.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use anyhow::{Context, Result};
-use zarrs::array::{data_type, ArrayBuilder, ArrayBytes, DataType};
+use zarrs::array::{data_type, ArrayBuilder, ArrayBytes, DataType, FillValue};
 use zarrs::filesystem::FilesystemStore;
 use zarrs::group::GroupBuilder;
 
@@ -25,51 +25,47 @@ pub const STORE: &str = "run.zarr";
 /// The arrays of a store, open for writing chunks.
 pub struct Store {
     arrays: Vec<zarrs::array::Array<FilesystemStore>>,
-    path: std::path::PathBuf,
+    path: PathBuf,
 }
 
-/// The Zarr type and fill value of a numpy type string.
-fn zarr_type(descr: &str) -> (DataType, f64) {
+/// The Zarr type and fill value (NaN, or 0 and −1 for "never") of a
+/// numpy type string.
+fn zarr_type(descr: &str) -> (DataType, FillValue) {
     match descr {
-        "<f4" => (data_type::float32(), f64::NAN),
-        "<f8" => (data_type::float64(), f64::NAN),
-        "|u1" => (data_type::uint8(), 0.0),
-        "<u4" => (data_type::uint32(), 0.0),
-        _ => (data_type::int64(), -1.0),
+        "<f4" => (data_type::float32(), f32::NAN.into()),
+        "<f8" => (data_type::float64(), f64::NAN.into()),
+        "|u1" => (data_type::uint8(), 0u8.into()),
+        "<u4" => (data_type::uint32(), 0u32.into()),
+        _ => (data_type::int64(), (-1i64).into()),
     }
 }
 
-fn fill(descr: &str, v: f64) -> zarrs::array::FillValue {
-    match descr {
-        "<f4" => (v as f32).into(),
-        "<f8" => v.into(),
-        "|u1" => (v as u8).into(),
-        "<u4" => (v as u32).into(),
-        _ => (v as i64).into(),
-    }
+/// The store of `dir` (`DIR/run.zarr`) and its path.
+fn filesystem(dir: &Path) -> Result<(PathBuf, Arc<FilesystemStore>)> {
+    let path = dir.join(STORE);
+    let fs = FilesystemStore::new(&path).with_context(|| format!("opening {}", path.display()))?;
+    Ok((path, Arc::new(fs)))
 }
 
 impl Store {
     /// Opens the store in `dir`, creating its group and arrays (metadata
     /// only) when absent; every shard creates the same metadata.
     pub fn open(dir: &Path, scene: &Scene, list: &[Array], chunks: &Chunks) -> Result<Store> {
-        let path = dir.join(STORE);
-        std::fs::create_dir_all(&path).with_context(|| format!("creating {}", path.display()))?;
-        let fs = Arc::new(
-            FilesystemStore::new(&path).with_context(|| format!("opening {}", path.display()))?,
-        );
+        let store = dir.join(STORE);
+        std::fs::create_dir_all(&store).with_context(|| format!("creating {}", store.display()))?;
+        let (path, fs) = filesystem(dir)?;
         let shape = scene.shape();
         let axis_names: Vec<String> = scene.axes.iter().map(|a| a.name.clone()).collect();
         let mut arrays = vec![];
         for a in list {
             let full: Vec<u64> = a.shape(&shape);
-            let mut chunk: Vec<u64> = chunk_shape(chunks);
+            let mut chunk = chunks.chunk_shape();
             chunk.extend(&a.inner);
-            let (dtype, f) = zarr_type(a.descr);
+            let (dtype, fill) = zarr_type(a.descr);
             let mut dims: Vec<String> = axis_names.clone();
             dims.extend(a.inner_names.iter().map(|s| s.to_string()));
             let name = a.file.trim_end_matches(".npy");
-            let array = ArrayBuilder::new(full, chunk, dtype, fill(a.descr, f))
+            let array = ArrayBuilder::new(full, chunk, dtype, fill)
                 .dimension_names(Some(dims))
                 .build(fs.clone(), &format!("/{name}"))
                 .with_context(|| format!("{}: array {name}", path.display()))?;
@@ -85,7 +81,7 @@ impl Store {
 
     /// Writes chunk `k` of the run (`list` holds its rows) into every array.
     pub fn write_chunk(&self, chunks: &Chunks, k: usize, list: &[Array]) -> Result<()> {
-        let mut index = chunk_index(chunks, k);
+        let mut index = chunks.grid_index(k);
         for (array, a) in self.arrays.iter().zip(list) {
             index.truncate(chunks.shape.len().max(1));
             index.resize(array.dimensionality(), 0);
@@ -100,39 +96,10 @@ impl Store {
     }
 }
 
-/// The chunk shape over the scene's axes (one axis of no values: `[1]`).
-fn chunk_shape(c: &Chunks) -> Vec<u64> {
-    (0..c.shape.len())
-        .map(|k| match k.cmp(&c.axis) {
-            std::cmp::Ordering::Less => 1,
-            std::cmp::Ordering::Equal => c.along as u64,
-            std::cmp::Ordering::Greater => c.shape[k] as u64,
-        })
-        .collect()
-}
-
-/// The Zarr chunk index of run chunk `k` over the scene's axes.
-fn chunk_index(c: &Chunks, k: usize) -> Vec<u64> {
-    let per_run = c.shape.get(c.axis).map_or(1, |n| n.div_ceil(c.along));
-    let (mut outer, j) = (k / per_run, k % per_run);
-    let mut index = vec![0u64; c.shape.len()];
-    for a in (0..c.axis.min(c.shape.len())).rev() {
-        index[a] = (outer % c.shape[a]) as u64;
-        outer /= c.shape[a];
-    }
-    if let Some(x) = index.get_mut(c.axis) {
-        *x = j as u64;
-    }
-    index
-}
-
 /// Writes the axes as coordinate arrays and the group with `attributes`
 /// (the resolved scene and the summary): the last step of a run.
 pub fn finish(dir: &Path, scene: &Scene, attributes: serde_json::Value) -> Result<()> {
-    let path = dir.join(STORE);
-    let fs = Arc::new(
-        FilesystemStore::new(&path).with_context(|| format!("opening {}", path.display()))?,
-    );
+    let (path, fs) = filesystem(dir)?;
     for ax in &scene.axes {
         let n = ax.values.len() as u64;
         let array = ArrayBuilder::new(vec![n], vec![n.max(1)], data_type::float64(), f64::NAN)
@@ -158,10 +125,7 @@ pub fn finish(dir: &Path, scene: &Scene, attributes: serde_json::Value) -> Resul
 
 /// The whole data of array `name` of the store in `dir`, as stored bytes.
 pub fn read(dir: &Path, name: &str) -> Result<Vec<u8>> {
-    let path = dir.join(STORE);
-    let fs = Arc::new(
-        FilesystemStore::new(&path).with_context(|| format!("opening {}", path.display()))?,
-    );
+    let (path, fs) = filesystem(dir)?;
     let array = zarrs::array::Array::open(fs, &format!("/{name}"))
         .with_context(|| format!("opening {}/{name}", path.display()))?;
     let bytes: ArrayBytes<'static> = array
