@@ -14,36 +14,25 @@ fn tmp(name: &str) -> std::path::PathBuf {
     d
 }
 
-#[test]
-fn work_precision_measures_the_orders() {
-    // The damped-oscillator scene of scenes/, on the four schemes the issue names.
-    let mut scene = Scene::load(
-        &Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/damped_oscillator_work_precision.toml"),
-    )
-    .unwrap();
-    let r = scene.report.as_mut().unwrap();
-    r.schemes = ["s2", "triple_jump4", "yoshida6a", "yoshida8a"]
-        .map(|s| Scheme::by_name(s).unwrap())
-        .to_vec();
-    r.precisions = vec![reeb::num::precision::Precision::F64];
-    let out = tmp("wp");
+/// The work–precision report of `scene` on the CPU into `out`: its text.
+fn work_precision_on_cpu(scene: &Scene, out: &Path) -> String {
     let md = work_precision(
-        &scene,
+        scene,
         &ReportOptions {
-            out: Some(out.clone()),
+            out: Some(out.to_path_buf()),
             backend: Some(BackendChoice::Cpu),
             precision: None,
             force: false,
         },
     )
     .unwrap();
-    let text = std::fs::read_to_string(&md).unwrap();
-    for (scheme, order) in [
-        ("s2", 2.0),
-        ("triple_jump4", 4.0),
-        ("yoshida6a", 6.0),
-        ("yoshida8a", 8.0),
-    ] {
+    std::fs::read_to_string(&md).unwrap()
+}
+
+/// Each scheme's measured order (the report's f64 CPU row) within 0.2 of
+/// its nominal order.
+fn assert_orders(text: &str, orders: &[(&str, f64)]) {
+    for (scheme, order) in orders {
         let line = text
             .lines()
             .find(|l| l.starts_with(&format!("| {scheme} cpu f64 |")))
@@ -57,6 +46,31 @@ fn work_precision_measures_the_orders() {
             .unwrap_or_else(|_| panic!("{line}"));
         assert!((measured - order).abs() <= 0.2, "{scheme}: {measured}");
     }
+}
+
+#[test]
+fn work_precision_measures_the_orders() {
+    // The damped-oscillator scene of scenes/, on the four schemes the issue names.
+    let mut scene = Scene::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/damped_oscillator_work_precision.toml"),
+    )
+    .unwrap();
+    let r = scene.report.as_mut().unwrap();
+    r.schemes = ["s2", "triple_jump4", "yoshida6a", "yoshida8a"]
+        .map(|s| Scheme::by_name(s).unwrap())
+        .to_vec();
+    r.precisions = vec![reeb::num::precision::Precision::F64];
+    let out = tmp("wp");
+    let text = work_precision_on_cpu(&scene, &out);
+    assert_orders(
+        &text,
+        &[
+            ("s2", 2.0),
+            ("triple_jump4", 4.0),
+            ("yoshida6a", 6.0),
+            ("yoshida8a", 8.0),
+        ],
+    );
     let csv = std::fs::read_to_string(out.join("work_precision.csv")).unwrap();
     assert!(csv.starts_with("scheme,backend,precision,dt,steps,evaluations,error_max,error_rel,seconds,traj_steps_per_s"));
     assert_eq!(
@@ -151,30 +165,16 @@ fn work_precision_takes_a_formula_model() {
     assert!(scene.model.formula().is_some());
     scene.report.as_mut().unwrap().precisions = vec![reeb::num::precision::Precision::F64];
     let out = tmp("wp-formula");
-    let md = work_precision(
-        &scene,
-        &ReportOptions {
-            out: Some(out.clone()),
-            backend: Some(BackendChoice::Cpu),
-            precision: None,
-            force: false,
-        },
-    )
-    .unwrap();
-    let text = std::fs::read_to_string(&md).unwrap();
-    for (scheme, order) in [
-        ("s2", 2.0),
-        ("yoshida6a", 6.0),
-        ("rk4", 4.0),
-        ("leapfrog", 2.0),
-    ] {
-        let line = text
-            .lines()
-            .find(|l| l.starts_with(&format!("| {scheme} cpu f64 |")))
-            .unwrap_or_else(|| panic!("{scheme} missing:\n{text}"));
-        let measured: f64 = line.split('|').nth(3).unwrap().trim().parse().unwrap();
-        assert!((measured - order).abs() <= 0.2, "{scheme}: {measured}");
-    }
+    let text = work_precision_on_cpu(&scene, &out);
+    assert_orders(
+        &text,
+        &[
+            ("s2", 2.0),
+            ("yoshida6a", 6.0),
+            ("rk4", 4.0),
+            ("leapfrog", 2.0),
+        ],
+    );
 }
 
 /// The stability report takes a formula model: van der Pol written as

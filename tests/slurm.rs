@@ -11,7 +11,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-const REEB: &str = env!("CARGO_BIN_EXE_reeb");
+mod common;
+
+use common::runs::{grid_scene, ok, s, same_arrays};
 
 fn slurm() -> bool {
     let up = Command::new("sinfo")
@@ -29,75 +31,7 @@ fn slurm() -> bool {
 }
 
 fn tmp(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("slurm-{name}"));
-    let _ = std::fs::remove_dir_all(&d);
-    let _ = std::fs::remove_dir_all(d.with_extension("slurm"));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> String {
-    p.to_str().unwrap().to_string()
-}
-
-fn ok(args: &[&str]) -> String {
-    let o = Command::new(REEB).args(args).output().unwrap();
-    assert!(
-        o.status.success(),
-        "reeb {args:?}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// A van der Pol grid with a `dt` axis, frames, cycle statistics and a
-/// section; `t_end` sets its length.
-fn scene(dir: &Path, t_end: f64) -> PathBuf {
-    let text = format!(
-        r#"model = "van_der_pol"
-[params]
-epsilon = {{ linspace = [0.5, 2.0, 6] }}
-[initial]
-q = {{ linspace = [0.5, 2.5, 7] }}
-[integrator]
-scheme = "s2"
-dt = [0.01, 0.02]
-t_end = {t_end}
-[output]
-final = ["q", "s"]
-trajectory = {{ every = 500, vars = ["q"] }}
-cycle = true
-poincare = {{ period = 1.0, max_points = 20, vars = ["q", "p"] }}
-[run]
-backend = "cpu"
-precision = "f64"
-"#
-    );
-    let path = dir.join("grid.toml");
-    std::fs::write(&path, text).unwrap();
-    path
-}
-
-fn same_arrays(a: &Path, b: &Path) {
-    let mut names: Vec<String> = std::fs::read_dir(a)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .filter(|n| n.ends_with(".npy"))
-        .collect();
-    names.sort();
-    assert!(names.len() >= 8, "{names:?}");
-    for f in &names {
-        let (x, y) = (
-            std::fs::read(a.join(f)).unwrap(),
-            std::fs::read(b.join(f)).unwrap(),
-        );
-        assert!(
-            x == y,
-            "{f} differs between {} and {}",
-            a.display(),
-            b.display()
-        );
-    }
+    common::runs::tmp("slurm", name)
 }
 
 /// Waits for `out/summary.json` (the merge job's last file).
@@ -131,17 +65,17 @@ fn four_shards_through_slurm_merge_to_the_bits_of_one_run() {
         return;
     }
     let d = tmp("four");
-    let scene = scene(&d, 40.0);
+    let scene = grid_scene(&d, 40.0, 500, "cpu");
     let one = d.join("one");
-    ok(&["run", &s(&scene), "--out", &s(&one)]);
+    ok(&["run", s(&scene), "--out", s(&one)]);
     let out = d.join("sharded");
     let args = [
         "slurm",
-        &s(&scene),
+        s(&scene),
         "--shards",
         "4",
         "--out",
-        &s(&out),
+        s(&out),
         "--chunk-trajectories",
         "5",
     ];
@@ -159,15 +93,15 @@ fn a_task_killed_and_requeued_resumes_its_chunks() {
         return;
     }
     let d = tmp("requeue");
-    let scene = scene(&d, 12_000.0);
+    let scene = grid_scene(&d, 12_000.0, 500, "cpu");
     let out = d.join("run");
     let line = ok(&[
         "slurm",
-        &s(&scene),
+        s(&scene),
         "--shards",
         "2",
         "--out",
-        &s(&out),
+        s(&out),
         "--chunk-trajectories",
         "6",
     ]);
@@ -198,6 +132,6 @@ fn a_task_killed_and_requeued_resumes_its_chunks() {
         "{log}"
     );
     let one = d.join("one");
-    ok(&["run", &s(&scene), "--out", &s(&one)]);
+    ok(&["run", s(&scene), "--out", s(&one)]);
     same_arrays(&one, &out);
 }

@@ -4,97 +4,21 @@
 //! run whose shards have not all finished.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 mod common;
 
-const REEB: &str = env!("CARGO_BIN_EXE_reeb");
+use common::runs::{grid_scene, ok, reeb, s, same_arrays, REEB};
 
-/// A fresh folder under the target directory.
 fn tmp(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("stream-{name}"));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn reeb(args: &[&str]) -> Output {
-    Command::new(REEB).args(args).output().unwrap()
-}
-
-fn ok(args: &[&str]) -> String {
-    let o = reeb(args);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "reeb {args:?}: {err}");
-    String::from_utf8_lossy(&o.stdout).into_owned() + &err
-}
-
-/// Every `.npy` of `a` and `b`, byte for byte.
-fn same_arrays(a: &Path, b: &Path) {
-    let list = |d: &Path| {
-        let mut v: Vec<String> = std::fs::read_dir(d)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .filter(|n| n.ends_with(".npy"))
-            .collect();
-        v.sort();
-        v
-    };
-    let (la, lb) = (list(a), list(b));
-    assert_eq!(la, lb, "{} vs {}", a.display(), b.display());
-    assert!(la.len() >= 5, "{la:?}");
-    for f in &la {
-        let (x, y) = (
-            std::fs::read(a.join(f)).unwrap(),
-            std::fs::read(b.join(f)).unwrap(),
-        );
-        assert!(
-            x == y,
-            "{f} differs between {} and {}",
-            a.display(),
-            b.display()
-        );
-    }
-}
-
-/// A van der Pol grid with a `dt` axis (two plans interleaved in the
-/// rows), frames, cycle statistics and a stroboscopic section.
-fn grid_scene(dir: &Path, steps: u64, every: u64, backend: &str) -> PathBuf {
-    let text = format!(
-        r#"model = "van_der_pol"
-[params]
-epsilon = {{ linspace = [0.5, 2.0, 6] }}
-[initial]
-q = {{ linspace = [0.5, 2.5, 7] }}
-[integrator]
-scheme = "s2"
-dt = [0.01, 0.02]
-t_end = {t}
-[output]
-final = ["q", "s"]
-trajectory = {{ every = {every}, vars = ["q"] }}
-cycle = true
-poincare = {{ period = 1.0, max_points = 20, vars = ["q", "p"] }}
-[run]
-backend = "{backend}"
-precision = "f64"
-"#,
-        t = steps as f64 * 0.01
-    );
-    let path = dir.join("grid.toml");
-    std::fs::write(&path, text).unwrap();
-    path
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
+    common::runs::tmp("stream", name)
 }
 
 #[test]
 fn chunks_of_any_size_give_the_same_bits_as_one() {
     let d = tmp("chunks");
-    let scene = grid_scene(&d, 400, 50, "cpu");
+    let scene = grid_scene(&d, 4.0, 50, "cpu");
     let one = d.join("one");
     ok(&[
         "run",
@@ -126,7 +50,7 @@ fn chunks_on_the_gpu_give_the_same_bits_as_one() {
         return;
     }
     let d = tmp("gpu-chunks");
-    let scene = grid_scene(&d, 400, 50, "gpu");
+    let scene = grid_scene(&d, 4.0, 50, "gpu");
     let one = d.join("one");
     ok(&["run", s(&scene), "--out", s(&one)]);
     let out = d.join("c7");
@@ -160,7 +84,7 @@ fn wait_for_a_chunk(partial: &Path, child: &mut std::process::Child) {
 #[test]
 fn a_run_killed_with_sigkill_resumes_to_the_same_bits() {
     let d = tmp("resume");
-    let scene = grid_scene(&d, 400_000, 5000, "cpu");
+    let scene = grid_scene(&d, 4000.0, 5000, "cpu");
     let one = d.join("one");
     ok(&["run", s(&scene), "--out", s(&one)]);
     let out = d.join("killed");
@@ -207,7 +131,7 @@ fn a_run_killed_with_sigkill_resumes_to_the_same_bits() {
 #[test]
 fn shards_run_together_and_merged_give_the_same_bits_as_one_run() {
     let d = tmp("shards");
-    let scene = grid_scene(&d, 2000, 50, "cpu");
+    let scene = grid_scene(&d, 20.0, 50, "cpu");
     let one = d.join("one");
     ok(&["run", s(&scene), "--out", s(&one)]);
     let out = d.join("sharded");
@@ -252,7 +176,7 @@ fn shards_run_together_and_merged_give_the_same_bits_as_one_run() {
 #[test]
 fn bad_shards_are_refused_naming_the_flag() {
     let d = tmp("bad-shard");
-    let scene = grid_scene(&d, 100, 50, "cpu");
+    let scene = grid_scene(&d, 1.0, 50, "cpu");
     for bad in ["4/4", "1/0", "a/b", "3"] {
         let o = reeb(&["run", s(&scene), "--out", s(&d.join("o")), "--shard", bad]);
         let err = String::from_utf8_lossy(&o.stderr);

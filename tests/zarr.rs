@@ -11,7 +11,9 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-const REEB: &str = env!("CARGO_BIN_EXE_reeb");
+mod common;
+
+use common::runs::{grid_scene, ok, s, REEB};
 
 /// A Python that imports zarr and xarray, or `None` (SKIP).
 fn python() -> Option<String> {
@@ -32,19 +34,7 @@ fn python() -> Option<String> {
 }
 
 fn tmp(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("zarr-{name}"));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn ok(args: &[&str]) {
-    let o = Command::new(REEB).args(args).output().unwrap();
-    assert!(
-        o.status.success(),
-        "reeb {args:?}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    common::runs::tmp("zarr", name)
 }
 
 /// Opens `zarr_dir/run.zarr` with xarray and compares it with the `.npy`
@@ -91,34 +81,13 @@ fn compare(py: &str, npy: &Path, zarr_dir: &Path, want: &str) {
     );
 }
 
-const GRID: &str = r#"model = "van_der_pol"
-[params]
-epsilon = { linspace = [0.5, 2.0, 6] }
-[initial]
-q = { linspace = [0.5, 2.5, 7] }
-[integrator]
-scheme = "s2"
-dt = [0.01, 0.02]
-t_end = 20.0
-[output]
-final = ["q", "s"]
-trajectory = { every = 100, vars = ["q"] }
-cycle = true
-poincare = { period = 1.0, max_points = 8, vars = ["q", "p"] }
-[run]
-backend = "cpu"
-precision = "f64"
-"#;
-
 #[test]
 fn xarray_reads_the_store_as_the_npy_run_in_chunks_and_shards() {
     let Some(py) = python() else { return };
     let d = tmp("grid");
-    let scene = d.join("grid.toml");
-    std::fs::write(&scene, GRID).unwrap();
-    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let scene = grid_scene(&d, 20.0, 100, "cpu");
     let npy = d.join("npy");
-    ok(&["run", &s(&scene), "--out", &s(&npy)]);
+    ok(&["run", s(&scene), "--out", s(&npy)]);
     let with = |extra: &str| -> String {
         let mut v = vec!["epsilon", "q", "dt"];
         v.extend((!extra.is_empty()).then_some(extra));
@@ -134,9 +103,9 @@ fn xarray_reads_the_store_as_the_npy_run_in_chunks_and_shards() {
     let chunked = d.join("chunked");
     ok(&[
         "run",
-        &s(&scene),
+        s(&scene),
         "--out",
-        &s(&chunked),
+        s(&chunked),
         "--format",
         "zarr",
         "--chunk-trajectories",
@@ -148,7 +117,7 @@ fn xarray_reads_the_store_as_the_npy_run_in_chunks_and_shards() {
     let children: Vec<_> = (0..3)
         .map(|k| {
             Command::new(REEB)
-                .args(["run", &s(&scene), "--out", &s(&sharded), "--format", "zarr"])
+                .args(["run", s(&scene), "--out", s(&sharded), "--format", "zarr"])
                 .args(["--chunk-trajectories", "4", "--shard", &format!("{k}/3")])
                 .spawn()
                 .unwrap()
@@ -157,7 +126,7 @@ fn xarray_reads_the_store_as_the_npy_run_in_chunks_and_shards() {
     for mut c in children {
         assert!(c.wait().unwrap().success());
     }
-    ok(&["merge", &s(&sharded)]);
+    ok(&["merge", s(&sharded)]);
     compare(&py, &npy, &sharded, &want);
 }
 
@@ -189,15 +158,14 @@ precision = "f64"
 "#,
     )
     .unwrap();
-    let s = |p: &Path| p.to_str().unwrap().to_string();
     let npy = d.join("npy");
-    ok(&["run", &s(&scene), "--out", &s(&npy)]);
+    ok(&["run", s(&scene), "--out", s(&npy)]);
     let z = d.join("z");
     ok(&[
         "run",
-        &s(&scene),
+        s(&scene),
         "--out",
-        &s(&z),
+        s(&z),
         "--format",
         "zarr",
         "--chunk-trajectories",

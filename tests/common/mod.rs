@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod runs;
+
 use std::sync::OnceLock;
 
 use reeb::backend::gpu::GpuContext;
