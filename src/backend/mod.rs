@@ -3,16 +3,18 @@
 //! of backend ([`BackendChoice`] → [`Engine`]) and the one dispatch path
 //! ([`Engine::run`]) that `reeb run`, reports, `verify` and `bench` all use.
 
+pub mod checkpoint;
 pub mod cpu;
 pub mod gpu;
 
 use std::sync::atomic::AtomicU64;
-use std::time::Instant;
 
 use crate::models::Flows;
 use crate::num::precision::Precision;
 use crate::plan::observations::Observations;
+use crate::plan::snapshot::Header;
 use crate::plan::Plan;
+use checkpoint::Checkpoints;
 use gpu::{GpuContext, GpuError};
 
 /// Which backend a run asks for.
@@ -111,20 +113,30 @@ impl Engine {
         plan: &Plan,
         progress: Option<&AtomicU64>,
     ) -> Result<Integration<R>, GpuError> {
+        self.run_resumable(plan, progress, None)
+    }
+
+    /// [`Engine::run`] with checkpoints: continues from `cp`'s snapshot if
+    /// it has one, and takes one whenever it is due.
+    pub fn run_resumable<R: Flows>(
+        &self,
+        plan: &Plan,
+        progress: Option<&AtomicU64>,
+        cp: Option<&mut Checkpoints>,
+    ) -> Result<Integration<R>, GpuError> {
         Ok(match self {
             Engine::Cpu => {
                 // Arrays whose lengths overflow are refused, not allocated.
                 Observations::<R>::lengths(plan).map_err(GpuError::TooLarge)?;
-                let t = Instant::now();
-                let observations = cpu::run::<R>(plan, progress);
+                let (observations, seconds) = cpu::resumable::<R>(plan, progress, cpu::isa(), cp)?;
                 Integration {
                     observations,
-                    seconds: t.elapsed().as_secs_f64(),
+                    seconds,
                     timing: "wall clock",
                 }
             }
             Engine::Gpu(ctx) => {
-                let r = gpu::run::<R>(ctx, plan, progress)?;
+                let r = gpu::run_resumable::<R>(ctx, plan, progress, &Default::default(), cp)?;
                 Integration {
                     observations: r.observations,
                     seconds: r.seconds,
@@ -132,6 +144,16 @@ impl Engine {
                 }
             }
         })
+    }
+
+    /// The header a snapshot of `plan` taken by this engine has (a
+    /// snapshot continues only on the engine that computes the same bits).
+    pub fn snapshot_header<R: Flows>(&self, plan: &Plan) -> Result<Header, GpuError> {
+        let engine = match self {
+            Engine::Cpu => cpu::fingerprint(cpu::isa()),
+            Engine::Gpu(ctx) => gpu::fingerprint::<R>(ctx, plan, &Default::default())?,
+        };
+        Ok(Header::of::<R>(plan, engine))
     }
 
     /// [`Engine::run`] in a precision chosen at run time, widened to f64 for

@@ -120,6 +120,16 @@ macro_rules! define_lanes {
                 // SAFETY: as in `at`; the &mut self borrow covers the whole struct.
                 unsafe { &mut *(self as *mut Self as *mut [R; LANES]).add(k) }
             }
+            /// Every lane array, one after the other (a snapshot's view).
+            pub fn as_slice(&self) -> &[R] {
+                // SAFETY: as in `at`: COUNT arrays of LANES values, no padding.
+                unsafe { std::slice::from_raw_parts(self as *const Self as *const R, COUNT * LANES) }
+            }
+            /// [`Self::as_slice`], mutable.
+            pub fn as_mut_slice(&mut self) -> &mut [R] {
+                // SAFETY: as in `as_slice`; the &mut self borrow covers the whole struct.
+                unsafe { std::slice::from_raw_parts_mut(self as *mut Self as *mut R, COUNT * LANES) }
+            }
             /// The lane array called `name`.
             pub fn field(&self, name: &str) -> Option<&[R; LANES]> {
                 match name {

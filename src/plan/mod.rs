@@ -16,6 +16,7 @@ pub mod precision;
 pub mod problem;
 pub mod scheme;
 pub mod size;
+pub mod snapshot;
 pub mod step;
 
 use crate::models::spec::{ModelSpec, TimeDependence};

@@ -13,13 +13,19 @@ pub mod observe;
 pub mod program;
 pub mod sink;
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::io::{self, Read, Write};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Instant;
 
 use rayon::prelude::*;
+
+use super::checkpoint::{unreadable, Checkpoints};
+use super::gpu::GpuError;
 
 use crate::models::lanes::{Lanes, LANES};
 use crate::models::Flows;
 use crate::plan::observations::Observations;
+use crate::plan::snapshot::{get, get_array, get_one, get_vec, invalid, put, put_slice, Header};
 use crate::plan::Plan;
 use formula::StepMemory;
 pub use kernels::{isa, Isa};
@@ -36,20 +42,64 @@ pub fn run<R: Flows>(plan: &Plan, progress: Option<&AtomicU64>) -> Observations<
 /// [`run`] with the fused kernels of a given instruction-set level (which
 /// must not exceed the CPU's, see [`isa`]).
 pub fn run_isa<R: Flows>(plan: &Plan, progress: Option<&AtomicU64>, isa: Isa) -> Observations<R> {
+    match resumable(plan, progress, isa, None) {
+        Ok((out, _)) => out,
+        Err(e) => unreachable!("a run without checkpoints failed: {e}"),
+    }
+}
+
+/// What a snapshot of a CPU run names its engine: the kernels' level
+/// decides the bits.
+pub fn fingerprint(isa: Isa) -> String {
+    format!("cpu {isa:?}")
+}
+
+/// [`run_isa`] with checkpoints: continues from `cp`'s snapshot if it has
+/// one, and pauses every block between two steps when a snapshot is due.
+/// Also returns the integration's seconds (those before the snapshot it
+/// continues included).
+pub fn resumable<R: Flows>(
+    plan: &Plan,
+    progress: Option<&AtomicU64>,
+    isa: Isa,
+    mut cp: Option<&mut Checkpoints>,
+) -> Result<(Observations<R>, f64), GpuError> {
     assert!(
         isa_rank(isa) <= isa_rank(self::isa()),
         "the CPU lacks {isa:?}"
     );
     let mut out = Observations::<R>::for_plan(plan);
     let program = Program::<R>::new(plan, isa);
-    let sink = Sink::new(&mut out);
-    (0..plan.n.div_ceil(LANES))
-        .into_par_iter()
-        .for_each_init(Lanes::<R>::boxed, |lanes, b| {
-            run_block(&program, b, lanes, &sink, progress);
-        });
-    drop(sink);
-    out
+    let mut blocks: Vec<Block<R>> = (0..plan.n.div_ceil(LANES)).map(|_| Block::Unstarted).collect();
+    let mut header = Header::of::<R>(plan, fingerprint(isa));
+    if let Some(c) = cp.as_deref_mut() {
+        if let Some((h, r)) = c.restore(&mut out)? {
+            read_blocks(&program, r, &mut blocks).map_err(unreadable)?;
+            (header.seconds, header.traj_steps) = (h.seconds, h.traj_steps);
+            if let Some(pr) = progress {
+                pr.fetch_add(h.traj_steps, Ordering::Relaxed);
+            }
+        }
+    }
+    loop {
+        let pause = Pause::new(cp.as_deref().and_then(|c| c.deadline()));
+        let started = Instant::now();
+        let sink = Sink::new(&mut out);
+        blocks
+            .par_iter_mut()
+            .enumerate()
+            .for_each_init(Lanes::<R>::boxed, |lanes, (b, slot)| {
+                run_block(&program, b, slot, lanes, &sink, progress, &pause);
+            });
+        drop(sink);
+        header.seconds += started.elapsed().as_secs_f64();
+        if blocks.iter().all(|b| matches!(b, Block::Done)) {
+            return Ok((out, header.seconds));
+        }
+        let c = cp.as_deref_mut().expect("blocks pause only for a checkpoint");
+        header.traj_steps = traj_steps_done(plan, &blocks);
+        c.take(&header, &out, &|w| write_blocks(w, &blocks))?;
+    }
 }
 
 fn isa_rank(i: Isa) -> u8 {
@@ -60,22 +110,177 @@ fn isa_rank(i: Isa) -> u8 {
     }
 }
 
-/// Integrates block `block` (trajectories `block·LANES …`) and stores its rows.
+/// Where a block of trajectories stands.
+enum Block<R> {
+    Unstarted,
+    /// Paused between two steps for a checkpoint.
+    Suspended(Box<BlockState<R>>),
+    Done,
+}
+
+/// A block paused before step `n`: what continuing it needs. The formula
+/// interpreter's memory is not kept: its fixed values follow from the
+/// lanes, and a block pauses only at a multiple of [`LANES`] steps, where
+/// the window of its shared values starts anyway.
+struct BlockState<R> {
+    n: u64,
+    lanes: Box<Lanes<R>>,
+    status: [u64; LANES],
+    obs: BlockObservers<R>,
+}
+
+/// Asks the blocks to pause for a checkpoint once its deadline passes.
+struct Pause {
+    deadline: Option<Instant>,
+    requested: AtomicBool,
+    /// Some block finished or paused since the run (re)started: only then
+    /// may a block that has not started wait, so every round gets on.
+    progressed: AtomicBool,
+}
+
+impl Pause {
+    fn new(deadline: Option<Instant>) -> Pause {
+        Pause {
+            deadline,
+            requested: AtomicBool::new(false),
+            progressed: AtomicBool::new(false),
+        }
+    }
+
+    /// Whether a running block pauses now; `clock`: also read the clock
+    /// (not at every check: reading it costs more than a step of a block).
+    fn due(&self, clock: bool) -> bool {
+        if self.requested.load(Ordering::Relaxed) {
+            return true;
+        }
+        let late = clock && self.deadline.is_some_and(|d| Instant::now() >= d);
+        if late {
+            self.requested.store(true, Ordering::Relaxed);
+        }
+        late
+    }
+
+    /// Whether a block that has not started waits for the checkpoint.
+    fn holds_back(&self) -> bool {
+        self.progressed.load(Ordering::Relaxed) && self.due(true)
+    }
+
+    fn progressed(&self) {
+        self.progressed.store(true, Ordering::Relaxed);
+    }
+}
+
+/// Trajectory-steps of the blocks done or paused (as the progress counts them).
+fn traj_steps_done<R>(plan: &Plan, blocks: &[Block<R>]) -> u64 {
+    let count = |b: usize| LANES.min(plan.n - b * LANES) as u64;
+    blocks
+        .iter()
+        .enumerate()
+        .map(|(b, s)| match s {
+            Block::Unstarted => 0,
+            Block::Suspended(st) => count(b) * st.n,
+            Block::Done => count(b) * plan.steps,
+        })
+        .sum()
+}
+
+/// The blocks of a snapshot: where each stands, then each paused block's state.
+fn write_blocks<R: Flows>(w: &mut dyn Write, blocks: &[Block<R>]) -> io::Result<()> {
+    let tags: Vec<u8> = blocks
+        .iter()
+        .map(|b| match b {
+            Block::Unstarted => 0,
+            Block::Suspended(_) => 1,
+            Block::Done => 2,
+        })
+        .collect();
+    put_slice(w, &tags)?;
+    for b in blocks {
+        if let Block::Suspended(st) = b {
+            put(w, &[st.n])?;
+            put(w, st.lanes.as_slice())?;
+            put(w, &st.status)?;
+            st.obs.write(w)?;
+        }
+    }
+    Ok(())
+}
+
+/// Reads what [`write_blocks`] wrote.
+fn read_blocks<R: Flows>(p: &Program<R>, r: &mut dyn Read, blocks: &mut [Block<R>]) -> io::Result<()> {
+    let tags: Vec<u8> = get_vec(r, blocks.len())?;
+    if tags.len() != blocks.len() {
+        return Err(invalid("a snapshot of another number of blocks"));
+    }
+    for (b, tag) in blocks.iter_mut().zip(tags) {
+        *b = match tag {
+            0 => Block::Unstarted,
+            2 => Block::Done,
+            1 => {
+                let n: u64 = get_one(r)?;
+                if n == 0 || n >= p.plan.steps {
+                    return Err(invalid(&format!("a block paused at step {n}")));
+                }
+                let mut lanes = Lanes::<R>::boxed();
+                get(r, lanes.as_mut_slice())?;
+                let status = get_array(r)?;
+                let mut obs = BlockObservers::new(p, &lanes);
+                obs.read(r)?;
+                Block::Suspended(Box::new(BlockState { n, lanes, status, obs }))
+            }
+            _ => return Err(invalid("a block of no known kind")),
+        };
+    }
+    Ok(())
+}
+
+/// Where block `block` starts or continues: `(step, status, observers)`
+/// with its lanes in `l`; `None` if it is done or waits for a checkpoint.
+fn enter<R: Flows>(
+    p: &Program<R>,
+    block: usize,
+    slot: &mut Block<R>,
+    l: &mut Box<Lanes<R>>,
+    pause: &Pause,
+) -> Option<(u64, [u64; LANES], BlockObservers<R>)> {
+    match std::mem::replace(slot, Block::Done) {
+        Block::Done => None,
+        Block::Unstarted if pause.holds_back() => {
+            *slot = Block::Unstarted;
+            None
+        }
+        Block::Unstarted => {
+            let base = block * LANES;
+            load_inputs(p, l, base, LANES.min(p.plan.n - base));
+            Some((0, [0; LANES], BlockObservers::new(p, l)))
+        }
+        Block::Suspended(st) => {
+            let BlockState { n, lanes, status, obs } = *st;
+            *l = lanes;
+            Some((n, status, obs))
+        }
+    }
+}
+
+/// Integrates block `block` (trajectories `block·LANES …`) from where it
+/// stands and stores its rows, or pauses it when `pause` asks.
 fn run_block<R: Flows>(
     p: &Program<R>,
     block: usize,
-    l: &mut Lanes<R>,
+    slot: &mut Block<R>,
+    l: &mut Box<Lanes<R>>,
     sink: &Sink<R>,
     progress: Option<&AtomicU64>,
+    pause: &Pause,
 ) {
+    let Some((n0, mut status, mut obs)) = enter(p, block, slot, l, pause) else {
+        return;
+    };
     let plan = p.plan;
     let base = block * LANES;
     let count = LANES.min(plan.n - base);
-    load_inputs(p, l, base, count);
     let nv = p.var.len();
-    let mut status = [0u64; LANES];
-    let mut alive = count;
-    let mut obs = BlockObservers::new(p, l);
+    let mut alive = count - status[..count].iter().filter(|s| **s != 0).count();
     // Registers of the formula interpreter, one set per block.
     let mut regs = vec![[R::default(); LANES]; p.registers];
     let mut memory = p.formula_step.as_ref().map(|f| {
@@ -86,15 +291,12 @@ fn run_block<R: Flows>(
     // State (and slopes) at the start of the current step, for interpolation.
     let mut prev = vec![[R::default(); LANES]; nv];
     let mut dprev = vec![[R::default(); LANES]; nv];
-    if p.needs_field {
-        eval_field(p, l, &mut regs, 0);
-    }
     // The observers' view of the block after step n1.
     macro_rules! after {
         ($n1:expr) => {
             BlockStep {
                 p,
-                l: &*l,
+                l: &**l,
                 sink,
                 base,
                 count,
@@ -105,10 +307,28 @@ fn run_block<R: Flows>(
             }
         };
     }
-    obs.observe(&after!(0));
+    if n0 == 0 {
+        if p.needs_field {
+            eval_field(p, l, &mut regs, 0);
+        }
+        obs.observe(&after!(0));
+    }
 
-    let mut reported = 0u64;
-    for n in 0..plan.steps {
+    let mut reported = n0;
+    let report = |reported: &mut u64, n: u64| {
+        if let Some(pr) = progress {
+            pr.fetch_add(count as u64 * (n - *reported), Ordering::Relaxed);
+            *reported = n;
+        }
+    };
+    for n in n0..plan.steps {
+        if n > n0 && n % LANES as u64 == 0 && pause.due(n % 1024 == 0) {
+            report(&mut reported, n);
+            let lanes = std::mem::replace(l, Lanes::boxed());
+            *slot = Block::Suspended(Box::new(BlockState { n, lanes, status, obs }));
+            pause.progressed();
+            return;
+        }
         if p.needs_field || plan.cycle_var.is_some() {
             for k in 0..nv {
                 prev[k] = *l.at(p.var[k]);
@@ -126,19 +346,15 @@ fn run_block<R: Flows>(
         obs.observe(&view);
         obs.cycle(&view);
         if (n + 1) % 1024 == 0 {
-            if let Some(pr) = progress {
-                pr.fetch_add(count as u64 * (n + 1 - reported), Ordering::Relaxed);
-                reported = n + 1;
-            }
+            report(&mut reported, n + 1);
         }
         if alive == 0 {
             break;
         }
     }
-    if let Some(pr) = progress {
-        pr.fetch_add(count as u64 * (plan.steps - reported), Ordering::Relaxed);
-    }
+    report(&mut reported, plan.steps);
     obs.finish(p, l, sink, base, count, &status);
+    pause.progressed();
 }
 
 /// Loads the block's inputs (parameters, initial state, dt, t0, …); padding

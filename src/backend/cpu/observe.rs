@@ -7,9 +7,12 @@
 // Lane loops index several arrays by lane; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
+use std::io::{self, Read, Write};
+
 use crate::models::lanes::{Lanes, LANES};
 use crate::models::Flows;
 use crate::plan::observers::{Direction, Section};
+use crate::plan::snapshot::{get, put};
 use crate::plan::ObsVar;
 
 use super::program::Program;
@@ -89,6 +92,41 @@ impl<R: Flows> BlockObservers<R> {
                 .as_ref()
                 .map_or(u64::MAX, |cy| (cy.skip * plan.steps as f64).floor() as u64),
         }
+    }
+
+    /// Writes the state that changes as the block steps (the rest follows
+    /// from its inputs, as [`Self::new`] computes it).
+    pub fn write(&self, w: &mut dyn Write) -> io::Result<()> {
+        put(w, &self.strobe_next)?;
+        put(w, &self.points)?;
+        for v in [
+            &self.cycle_max,
+            &self.cycle_min,
+            &self.cycle_count,
+            &self.cycle_first,
+            &self.cycle_mean_t,
+            &self.cycle_comoment,
+        ] {
+            put(w, v)?;
+        }
+        put(w, &[self.cycle_start])
+    }
+
+    /// Reads what [`Self::write`] wrote into observers made by [`Self::new`].
+    pub fn read(&mut self, r: &mut dyn Read) -> io::Result<()> {
+        get(r, &mut self.strobe_next)?;
+        get(r, &mut self.points)?;
+        for v in [
+            &mut self.cycle_max,
+            &mut self.cycle_min,
+            &mut self.cycle_count,
+            &mut self.cycle_first,
+            &mut self.cycle_mean_t,
+            &mut self.cycle_comoment,
+        ] {
+            get(r, v)?;
+        }
+        get(r, std::slice::from_mut(&mut self.cycle_start))
     }
 
     /// Trajectory frames and Poincaré points after step `n1` (0: the initial

@@ -27,6 +27,8 @@ pub enum GpuError {
     Runtime(String),
     #[error("{0}")]
     TooLarge(String),
+    #[error("checkpoint: {0}")]
+    Checkpoint(String),
 }
 
 /// What `reeb info` shows about an adapter.

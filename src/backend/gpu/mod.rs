@@ -7,4 +7,4 @@ pub mod context;
 pub mod run;
 
 pub use context::{is_software, list_adapters, validate, AdapterSummary, GpuContext, GpuError};
-pub use run::{run, run_with, GpuOptions, GpuRun};
+pub use run::{fingerprint, run, run_resumable, run_with, GpuOptions, GpuRun};

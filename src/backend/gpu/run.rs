@@ -4,6 +4,7 @@
 //! adapts so each dispatch takes about [`TARGET_DISPATCH_SECONDS`] (no
 //! multi-second kernels, and progress to report).
 
+use std::io::Read;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
@@ -11,9 +12,11 @@ use wgpu::util::DeviceExt;
 
 use super::codegen::{generate, AUX_R, AUX_U};
 use super::context::{GpuContext, GpuError};
+use crate::backend::checkpoint::{unreadable, Checkpoints};
 use crate::models::Flows;
 use crate::num::precision::Precision;
 use crate::plan::observations::Observations;
+use crate::plan::snapshot::{get_array, get_into, invalid, put, put_slice, Header};
 use crate::plan::{ObsVar, Plan};
 
 /// Wall time one dispatch aims at.
@@ -128,6 +131,33 @@ pub fn run_with<R: Flows>(
     progress: Option<&AtomicU64>,
     opts: &GpuOptions,
 ) -> Result<GpuRun<R>, GpuError> {
+    run_resumable(ctx, plan, progress, opts, None)
+}
+
+/// What a snapshot of a GPU run names its engine: the adapter and driver
+/// decide the bits, the chunk capacity where the snapshot's buffers belong.
+pub fn fingerprint<R: Flows>(
+    ctx: &GpuContext,
+    plan: &Plan,
+    opts: &GpuOptions,
+) -> Result<String, GpuError> {
+    let cap = Sizes::new::<R>(ctx, plan, opts)?.cap;
+    let i = &ctx.info;
+    Ok(format!(
+        "gpu {} ({:?}, {} {}, chunks of {cap})",
+        i.name, i.backend, i.driver, i.driver_info
+    ))
+}
+
+/// [`run_with`] with checkpoints: continues from `cp`'s snapshot if it has
+/// one, and takes one between two windows whenever it is due.
+pub fn run_resumable<R: Flows>(
+    ctx: &GpuContext,
+    plan: &Plan,
+    progress: Option<&AtomicU64>,
+    opts: &GpuOptions,
+    mut cp: Option<&mut Checkpoints>,
+) -> Result<GpuRun<R>, GpuError> {
     let precision = if R::NAME == "f64" {
         Precision::F64
     } else {
@@ -151,28 +181,46 @@ pub fn run_with<R: Flows>(
     let bufs = Buffers::new(ctx, &sizes, bytemuck::cast_slice(&table));
     let run = Dispatcher {
         ctx,
+        plan,
+        sizes: &sizes,
+        bufs: &bufs,
         pipeline: &pipeline,
         bind: bind_group(ctx, &bufs),
         timestamps: Timestamps::new(ctx),
     };
+    let mut header = Header::of::<R>(plan, fingerprint::<R>(ctx, plan, opts)?);
+    // Where the first chunk starts: (its first trajectory, its first step).
+    let mut start = (0u64, 0u64);
+    if let Some(c) = cp.as_deref_mut() {
+        if let Some((h, r)) = c.restore(&mut out)? {
+            start = run.restore(r).map_err(unreadable)?;
+            header.seconds = h.seconds;
+            if let Some(p) = progress {
+                p.fetch_add(h.traj_steps, Ordering::Relaxed);
+            }
+        }
+    }
     let mut chunks = 0;
-    let mut base = 0u64;
-    let mut totals = (0.0, 0u64);
+    let mut base = start.0;
+    let mut totals = (header.seconds, 0u64);
     // Trajectory-steps per dispatch, adapted to the measured speed.
     let mut budget: f64 = 1e6;
     while base < plan.n as u64 {
         let count = sizes.cap.min(plan.n as u64 - base);
+        let from = if base == start.0 { start.1 } else { 0 };
         chunks += 1;
-        let (s, d) = run.chunk(
-            plan,
-            &sizes,
-            &bufs,
-            &mut out,
-            base,
-            count,
-            &mut budget,
-            progress,
-        )?;
+        let mut between = |out: &Observations<R>, step0: u64, seconds: f64| match cp.as_deref_mut() {
+            Some(c) if c.due() => {
+                let h = Header {
+                    seconds: totals.0 + seconds,
+                    traj_steps: base * plan.steps + count * step0,
+                    ..header.clone()
+                };
+                run.checkpoint(c, &h, out, base, step0)
+            }
+            _ => Ok(()),
+        };
+        let (s, d) = run.chunk(&mut out, base, count, from, &mut budget, progress, &mut between)?;
         totals = (totals.0 + s, totals.1 + d);
         collect(ctx, plan, &bufs, &mut out, base, count, sizes.cap, sizes.b)?;
         base += count;
@@ -437,34 +485,46 @@ impl Timestamps {
 /// Runs windows of the kernel over a chunk.
 struct Dispatcher<'a> {
     ctx: &'a GpuContext,
+    plan: &'a Plan,
+    sizes: &'a Sizes,
+    bufs: &'a Buffers,
     pipeline: &'a wgpu::ComputePipeline,
     bind: wgpu::BindGroup,
     timestamps: Option<Timestamps>,
 }
 
+/// Called between two windows of a chunk with the observations, the next
+/// window's first step and the chunk's integration seconds so far.
+type Between<'b, R> = &'b mut dyn FnMut(&Observations<R>, u64, f64) -> Result<(), GpuError>;
+
 impl Dispatcher<'_> {
-    /// Integrates trajectories `base..base+count` over the whole horizon,
-    /// window by window, reading the trajectory frames back as they come;
-    /// returns the integration seconds and the number of dispatches.
+    /// Integrates trajectories `base..base+count` from step `from` (0, or
+    /// where a snapshot left them) to the horizon, window by window, reading
+    /// the trajectory frames back as they come; returns the integration
+    /// seconds and the number of dispatches.
     #[allow(clippy::too_many_arguments)]
     fn chunk<R: Flows>(
         &self,
-        plan: &Plan,
-        sizes: &Sizes,
-        bufs: &Buffers,
         out: &mut Observations<R>,
         base: u64,
         count: u64,
+        from: u64,
         budget: &mut f64,
         progress: Option<&AtomicU64>,
+        between: Between<R>,
     ) -> Result<(f64, u64), GpuError> {
-        let ctx = self.ctx;
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
-        enc.clear_buffer(&bufs.status, 0, None);
-        ctx.queue.submit([enc.finish()]);
+        let (ctx, plan, sizes, bufs) = (self.ctx, self.plan, self.sizes, self.bufs);
+        if from == 0 {
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            enc.clear_buffer(&bufs.status, 0, None);
+            ctx.queue.submit([enc.finish()]);
+        }
         let (mut seconds, mut dispatches) = (0.0, 0);
-        let mut step0 = 0u64;
+        let mut step0 = from;
         while step0 < plan.steps {
+            if step0 > from {
+                between(out, step0, seconds)?;
+            }
             let (nsteps, frame0, nframes) = sizes.window(step0, plan.steps, count, *budget);
             let u = Uniforms {
                 base: (plan.first as u64 + base) as u32,
@@ -476,7 +536,7 @@ impl Dispatcher<'_> {
                 nframes: nframes as u32,
                 _pad: 0,
             };
-            let (wall, took) = self.dispatch(bufs, &u, count)?;
+            let (wall, took) = self.dispatch(&u, count)?;
             seconds += took;
             dispatches += 1;
             if nframes > 0 {
@@ -495,10 +555,63 @@ impl Dispatcher<'_> {
         Ok((seconds, dispatches))
     }
 
+    /// The buffers that carry a chunk from one window to the next, in the
+    /// order a snapshot holds them, with their sizes in bytes.
+    fn carried(&self) -> [(&wgpu::Buffer, u64); 5] {
+        let (s, b) = (self.sizes, self.bufs);
+        [
+            (&b.state, s.nv * s.cap * s.b),
+            (&b.status, 4 * s.cap),
+            (&b.aux_r, AUX_R.len() as u64 * s.cap * s.b),
+            (&b.aux_u, AUX_U.len() as u64 * s.cap * 4),
+            (&b.points, s.max_points * s.pv * s.cap * s.b),
+        ]
+    }
+
+    /// Saves a snapshot of the chunk at `base` before step `step0`.
+    fn checkpoint<R: Flows>(
+        &self,
+        cp: &mut Checkpoints,
+        header: &Header,
+        out: &Observations<R>,
+        base: u64,
+        step0: u64,
+    ) -> Result<(), GpuError> {
+        let carried = self
+            .carried()
+            .into_iter()
+            .map(|(buf, bytes)| read::<u8>(self.ctx, buf, &self.bufs.staging, bytes))
+            .collect::<Result<Vec<_>, _>>()?;
+        cp.take(header, out, &|w| {
+            put(w, &[base, step0])?;
+            carried.iter().try_for_each(|c| put_slice(w, c))
+        })
+    }
+
+    /// Loads the buffers of a snapshot's chunk; returns its first trajectory
+    /// and the step it continues from.
+    fn restore(&self, r: &mut dyn Read) -> std::io::Result<(u64, u64)> {
+        let [base, step0]: [u64; 2] = get_array(r)?;
+        let (n, steps) = (self.plan.n as u64, self.plan.steps);
+        if base >= n || base % self.sizes.cap != 0 || step0 == 0 || step0 >= steps {
+            return Err(invalid(&format!(
+                "a chunk at trajectory {base}, step {step0}"
+            )));
+        }
+        for (buf, bytes) in self.carried() {
+            let mut v = vec![0u8; bytes as usize];
+            get_into(r, &mut v)?;
+            if bytes > 0 {
+                self.ctx.queue.write_buffer(buf, 0, &v);
+            }
+        }
+        Ok((base, step0))
+    }
+
     /// One dispatch with uniforms `u`; returns (wall seconds, integration
     /// seconds by timestamps where available).
-    fn dispatch(&self, bufs: &Buffers, u: &Uniforms, count: u64) -> Result<(f64, f64), GpuError> {
-        let ctx = self.ctx;
+    fn dispatch(&self, u: &Uniforms, count: u64) -> Result<(f64, f64), GpuError> {
+        let (ctx, bufs) = (self.ctx, self.bufs);
         ctx.queue
             .write_buffer(&bufs.uniform, 0, bytemuck::bytes_of(u));
         let groups = count.div_ceil(WORKGROUP);

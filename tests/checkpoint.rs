@@ -1,0 +1,223 @@
+//! Mid-run checkpoints (issue 12, point 3, `--checkpoint-every`): an
+//! integration paused for a snapshot at every moment it can, and one
+//! continued from a snapshot in a fresh engine (as after a kill), end with
+//! observations bitwise identical to an uninterrupted run, on the CPU (f32
+//! and f64, fused kernels, the op interpreter, formula models) and on the
+//! GPU (across chunks and windows), with every observer.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use reeb::backend::checkpoint::{Checkpoints, Contents};
+use reeb::backend::gpu::{self, GpuError};
+use reeb::backend::Engine;
+use reeb::models::Flows;
+use reeb::plan::observations::Observations;
+use reeb::plan::snapshot::Header;
+use reeb::plan::Plan;
+use reeb::scene::Scene;
+
+mod common;
+
+/// The single plan of a scene text.
+fn plan(text: &str) -> Plan {
+    let s = Scene::parse(Path::new("test.toml"), text).unwrap_or_else(|e| panic!("{e}"));
+    let mut subs = s.sub_runs().unwrap();
+    assert_eq!(subs.len(), 1);
+    subs.remove(0).plan
+}
+
+/// Van der Pol with every observer, and trajectories that diverge.
+const VAN_DER_POL: &str = r#"
+model = "van_der_pol"
+[params]
+epsilon = { linspace = [0.5, 3.0, 149] }
+forcing_amplitude = 0.3
+forcing_frequency = 1.1
+[initial]
+q = 2.0
+[integrator]
+scheme = "yoshida6a"
+dt = 0.02
+steps = 1500
+[output]
+final = ["q", "p", "s", "t"]
+trajectory = { every = 7, vars = ["q", "s"] }
+poincare = { crossing = "q", value = 1.0, direction = "down", vars = ["s", "p"], max_points = 5 }
+cycle = { var = "q", skip = 0.3 }
+"#;
+
+/// Spin–orbit with an interpolated stroboscopic section (fused S2 kernels).
+const SPIN_ORBIT: &str = r#"
+model = "spin_orbit"
+[params]
+eccentricity = 0.1
+epsilon = 0.05
+[initial]
+q = { linspace = [0.0, 6.0, 9] }
+p = { linspace = [0.5, 1.5, 11] }
+[integrator]
+scheme = "s2"
+dt = 0.1
+steps = 5000
+[output]
+final = ["q", "p"]
+poincare = { period = 6.283185307179586, vars = ["q", "p"], max_points = 90 }
+"#;
+
+/// A formula model (the interpreter) with an exactly sampled section.
+const DUFFING: &str = r#"
+model = "mechanical"
+[formula]
+potential = "alpha*q^2/2 + beta*q^4/4 - gamma*q*cos(omega*t)"
+damping = "delta"
+forcing_frequency = "omega"
+[params]
+alpha = -1.0
+beta = 1.0
+gamma = 0.5
+delta = 0.3
+omega = 1.2
+[initial]
+q = { linspace = [-2.0, 2.0, 13] }
+p = { linspace = [-2.0, 2.0, 7] }
+[integrator]
+scheme = "s2"
+dt = 0.08181230868723419
+steps = 1300
+[output]
+final = ["q", "p"]
+trajectory = { every = 10, vars = ["q"] }
+poincare = { period = "forcing", vars = ["q", "p"], max_points = 30 }
+"#;
+
+/// Every array of two observations, bit for bit.
+fn same<R: Flows>(label: &str, a: &Observations<R>, b: &Observations<R>) {
+    let bits = |v: &[R]| bytemuck::cast_slice::<R, u8>(v).to_vec();
+    let named = |o: &Observations<R>| -> Vec<(String, Vec<u8>)> {
+        let groups = [&o.final_values, &o.trajectory, &o.poincare];
+        let mut all: Vec<(String, Vec<u8>)> = groups
+            .iter()
+            .flat_map(|g| g.iter().map(|(n, v)| (n.clone(), bits(v))))
+            .collect();
+        all.push(("cycle_amplitude".into(), bits(&o.cycle_amplitude)));
+        all.push(("cycle_period".into(), bits(&o.cycle_period)));
+        all
+    };
+    for ((name, x), (_, y)) in named(a).iter().zip(&named(b)) {
+        assert!(x == y, "{label}: {name} differs");
+    }
+    assert_eq!(a.nonfinite_step, b.nonfinite_step, "{label}: status");
+    assert_eq!(a.poincare_count, b.poincare_count, "{label}: point counts");
+}
+
+type Run<'r, R> = &'r dyn Fn(Option<&mut Checkpoints>) -> Result<Observations<R>, GpuError>;
+
+/// Runs `run` uninterrupted, paused for a snapshot at every chance, and
+/// continued from its first, middle and last snapshots: all bitwise equal.
+fn resumes<R: Flows>(label: &str, run: Run<R>, header: &Header) {
+    let plain = run(None).unwrap();
+    let mut saved: Vec<Vec<u8>> = vec![];
+    let mut keep = |contents: Contents| {
+        let mut bytes = vec![];
+        contents(&mut bytes)?;
+        saved.push(bytes);
+        Ok(())
+    };
+    let mut cp = Checkpoints {
+        every: Some(Duration::ZERO),
+        since: Instant::now(),
+        resume: None,
+        save: &mut keep,
+        taken: 0,
+    };
+    let paused = run(Some(&mut cp)).unwrap();
+    let taken = cp.taken;
+    assert!(taken >= 3, "{label}: only {taken} snapshots");
+    assert_eq!(saved.len(), taken);
+    same(&format!("{label}, paused {taken} times"), &paused, &plain);
+    let total = header.n * header.steps;
+    for k in [0, taken / 2, taken - 1] {
+        let mut r = saved[k].as_slice();
+        let h = Header::read(&mut r).unwrap();
+        h.continues(header).unwrap();
+        assert!(
+            h.traj_steps > 0 && h.traj_steps < total,
+            "{label}: snapshot {k} after {} of {total} trajectory-steps",
+            h.traj_steps
+        );
+        let mut ignore = |_: Contents| Ok(());
+        let mut cp = Checkpoints {
+            every: None,
+            since: Instant::now(),
+            resume: Some((h, &mut r)),
+            save: &mut ignore,
+            taken: 0,
+        };
+        let resumed = run(Some(&mut cp)).unwrap();
+        same(&format!("{label}, from snapshot {k}"), &resumed, &plain);
+    }
+}
+
+fn on_cpu<R: Flows>(label: &str, plan: &Plan) {
+    let engine = Engine::Cpu;
+    let run = |cp: Option<&mut Checkpoints>| {
+        engine
+            .run_resumable::<R>(plan, None, cp)
+            .map(|r| r.observations)
+    };
+    let header = engine.snapshot_header::<R>(plan).unwrap();
+    resumes::<R>(&format!("{label} cpu {}", R::NAME), &run, &header);
+}
+
+#[test]
+fn cpu_runs_continue_bitwise_from_any_snapshot() {
+    for (label, text) in [
+        ("van der Pol", VAN_DER_POL),
+        ("spin–orbit", SPIN_ORBIT),
+        ("formula Duffing", DUFFING),
+    ] {
+        let plan = plan(text);
+        on_cpu::<f64>(label, &plan);
+        on_cpu::<f32>(label, &plan);
+    }
+}
+
+#[test]
+fn gpu_runs_continue_bitwise_from_any_snapshot() {
+    let Some(ctx) = common::gpu() else { return };
+    // Small chunks and windows: snapshots fall in every chunk, at many steps.
+    let opts = gpu::GpuOptions {
+        max_chunk: Some(64),
+        max_steps_per_dispatch: Some(97),
+    };
+    for (label, text) in [("van der Pol", VAN_DER_POL), ("spin–orbit", SPIN_ORBIT)] {
+        let plan = plan(text);
+        let run = |cp: Option<&mut Checkpoints>| {
+            gpu::run_resumable::<f32>(ctx, &plan, None, &opts, cp).map(|r| r.observations)
+        };
+        let engine = gpu::fingerprint::<f32>(ctx, &plan, &opts).unwrap();
+        let header = Header::of::<f32>(&plan, engine);
+        resumes::<f32>(&format!("{label} gpu"), &run, &header);
+    }
+}
+
+#[test]
+fn a_snapshot_of_another_engine_or_plan_is_not_continued() {
+    let (a, b) = (plan(VAN_DER_POL), plan(SPIN_ORBIT));
+    let cpu = Engine::Cpu.snapshot_header::<f64>(&a).unwrap();
+    let why = cpu
+        .continues(&Engine::Cpu.snapshot_header::<f32>(&a).unwrap())
+        .unwrap_err();
+    assert!(why.contains("in f64, this run is in f32"), "{why}");
+    let why = cpu
+        .continues(&Engine::Cpu.snapshot_header::<f64>(&b).unwrap())
+        .unwrap_err();
+    assert!(why.contains("149") && why.contains("over 1500 steps"), "{why}");
+    let gpu = Header {
+        engine: "gpu llvmpipe".into(),
+        ..cpu.clone()
+    };
+    let why = gpu.continues(&cpu).unwrap_err();
+    assert!(why.contains("taken on gpu llvmpipe, this run is on cpu"), "{why}");
+}
