@@ -3,6 +3,7 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Duration;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -48,6 +49,21 @@ struct StreamArgs {
     /// (one Zarr v3 store, DIR/run.zarr, for xarray and dask).
     #[arg(long)]
     format: Option<reeb::scene::Format>,
+    /// Save the integrator's state inside a chunk every SECONDS (long
+    /// horizons: a kill then loses at most that much; every finished chunk
+    /// is kept too); 0: only finished chunks.
+    #[arg(long, value_name = "SECONDS", default_value = "300", value_parser = seconds)]
+    checkpoint_every: Duration,
+}
+
+/// A number of seconds, 0 or more (fractions allowed).
+fn seconds(s: &str) -> Result<Duration, String> {
+    let x: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number of seconds"))?;
+    Duration::try_from_secs_f64(x)
+        .map_err(|_| format!("`{s}`: seconds must be 0 or more, and finite"))
 }
 
 #[derive(Subcommand)]
@@ -109,6 +125,10 @@ enum Command {
         /// Trajectories per chunk.
         #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
         chunk_trajectories: Option<u64>,
+        /// Seconds between checkpoints inside a chunk, in every task
+        /// (default 300; 0: only finished chunks).
+        #[arg(long, value_name = "SECONDS", value_parser = seconds)]
+        checkpoint_every: Option<Duration>,
     },
     /// Finish a run integrated in shards (`reeb run --shard K/N`): check that
     /// every shard finished, then write summary.json and the pictures.
@@ -242,6 +262,7 @@ fn main() -> ExitCode {
             precision,
             format,
             chunk_trajectories,
+            checkpoint_every,
         } => {
             let mut run_args: Vec<String> = vec![];
             let mut pass = |flag: &str, v: Option<String>| {
@@ -258,6 +279,10 @@ fn main() -> ExitCode {
             pass(
                 "--chunk-trajectories",
                 chunk_trajectories.map(|n| n.to_string()),
+            );
+            pass(
+                "--checkpoint-every",
+                checkpoint_every.map(|d| d.as_secs_f64().to_string()),
             );
             let opts = reeb::output::slurm::SlurmOptions {
                 shards: usize::try_from(shards).unwrap_or(usize::MAX),
@@ -341,6 +366,7 @@ fn run(
             .map(|n| usize::try_from(n).unwrap_or(usize::MAX)),
         adapter: stream.adapter,
         format: stream.format,
+        checkpoint_every: Some(stream.checkpoint_every),
     };
     let report = run_scene(&scene, &opts)?;
     println!("{}", report.line);

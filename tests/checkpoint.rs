@@ -213,11 +213,17 @@ fn a_snapshot_of_another_engine_or_plan_is_not_continued() {
     let why = cpu
         .continues(&Engine::Cpu.snapshot_header::<f64>(&b).unwrap())
         .unwrap_err();
-    assert!(why.contains("149") && why.contains("over 1500 steps"), "{why}");
+    assert!(
+        why.contains("149") && why.contains("over 1500 steps"),
+        "{why}"
+    );
     let gpu = Header {
         engine: "gpu llvmpipe".into(),
         ..cpu.clone()
     };
     let why = gpu.continues(&cpu).unwrap_err();
-    assert!(why.contains("taken on gpu llvmpipe, this run is on cpu"), "{why}");
+    assert!(
+        why.contains("taken on gpu llvmpipe, this run is on cpu"),
+        "{why}"
+    );
 }

@@ -128,6 +128,95 @@ fn a_run_killed_with_sigkill_resumes_to_the_same_bits() {
     same_arrays(&one, &out);
 }
 
+/// Runs `scene` as one chunk with a checkpoint every 0.2 s, kills it
+/// (SIGKILL) after its second checkpoint, before the chunk finished, and
+/// resumes it: the arrays are those of the uninterrupted run `one`.
+fn killed_inside_a_chunk(d: &Path, scene: &Path, one: &Path) {
+    let out = d.join("killed");
+    let partial = d.join("killed.partial");
+    let args = [
+        "run",
+        s(scene),
+        "--out",
+        s(&out),
+        "--checkpoint-every",
+        "0.2",
+    ];
+    let mut child = Command::new(REEB).args(args).spawn().unwrap();
+    let state = partial.join(".reeb-chunks/0.state");
+    let start = Instant::now();
+    let mut seen = None;
+    // The second checkpoint: a new file replaces the first.
+    while seen.is_none_or(|first| {
+        std::fs::metadata(&state).and_then(|m| m.modified()).ok() == Some(first)
+    }) {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the run ended before it was killed"
+        );
+        assert!(start.elapsed() < Duration::from_secs(120), "no checkpoint");
+        if seen.is_none() {
+            seen = std::fs::metadata(&state).and_then(|m| m.modified()).ok();
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    assert!(
+        !partial.join(".reeb-chunks/0.json").exists(),
+        "the chunk finished before the kill"
+    );
+    let said = ok(&["run", s(scene), "--out", s(&out), "--resume"]);
+    let share: f64 = said
+        .split("chunk 0: continuing from its checkpoint (")
+        .nth(1)
+        .and_then(|rest| rest.split(" %").next())
+        .and_then(|x| x.parse().ok())
+        .unwrap_or_else(|| panic!("the resumed run did not continue the checkpoint: {said}"));
+    assert!(share > 0.0 && share < 100.0, "{said}");
+    same_arrays(one, &out);
+    assert!(!out.join(".reeb-chunks").exists());
+}
+
+#[test]
+fn a_run_killed_inside_a_chunk_continues_from_its_checkpoint() {
+    let d = tmp("checkpoint");
+    // Two sub-runs (a dt axis) in one chunk, 4·10⁵ steps for the longest.
+    let scene = grid_scene(&d, 4_000.0, 10_000, "cpu");
+    let one = d.join("one");
+    ok(&["run", s(&scene), "--out", s(&one)]);
+    killed_inside_a_chunk(&d, &scene, &one);
+}
+
+#[test]
+fn a_gpu_run_killed_inside_a_chunk_continues_from_its_checkpoint() {
+    if common::gpu().is_none() {
+        return;
+    }
+    let d = tmp("checkpoint-gpu");
+    let scene = grid_scene(&d, 4_000.0, 10_000, "gpu");
+    let one = d.join("one");
+    ok(&["run", s(&scene), "--out", s(&one)]);
+    killed_inside_a_chunk(&d, &scene, &one);
+}
+
+#[test]
+fn checkpoint_every_is_validated_naming_the_flag() {
+    for bad in ["-1", "soon", "inf"] {
+        let o = reeb(&[
+            "run",
+            "scenes/duffing.toml",
+            &format!("--checkpoint-every={bad}"),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success());
+        assert!(
+            err.contains("--checkpoint-every") && err.contains("seconds"),
+            "{err}"
+        );
+    }
+}
+
 #[test]
 fn shards_run_together_and_merged_give_the_same_bits_as_one_run() {
     let d = tmp("shards");

@@ -3,9 +3,11 @@
 //! the run's record (`.reeb-run.json`: the scene's text, precision,
 //! backend, chunks) and one marker per finished chunk (`.reeb-chunks/K`),
 //! written after the chunk's rows are durable. A chunk without its marker
-//! is integrated again, so a kill at any moment loses at most the chunks in
-//! flight.
+//! is integrated again, from its checkpoint (`.reeb-chunks/K.state`, the
+//! integrator's state inside the chunk, `--checkpoint-every`) if it has
+//! one, so a kill at any moment loses at most the work since then.
 
+use std::io::{BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
@@ -158,6 +160,56 @@ pub fn done(dir: &Path, k: usize) -> Option<Done> {
     serde_json::from_str(&text).ok()
 }
 
+fn state(dir: &Path, k: usize) -> PathBuf {
+    dir.join(CHUNKS_DIR).join(format!("{k}.state"))
+}
+
+/// Replaces chunk `k`'s checkpoint (the integrator's state inside the
+/// chunk) with what `write` writes, durably and atomically: a kill while
+/// writing leaves the previous one.
+pub fn save_state(
+    dir: &Path,
+    k: usize,
+    write: &dyn Fn(&mut dyn Write) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    let path = state(dir, k);
+    let tmp = temporary_name(&path);
+    let written = || -> std::io::Result<()> {
+        let f = std::fs::File::create(&tmp)?;
+        let mut w = BufWriter::with_capacity(1 << 20, &f);
+        write(&mut w)?;
+        w.flush()?;
+        drop(w);
+        f.sync_all()?;
+        std::fs::rename(&tmp, &path)
+    };
+    written().map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        std::io::Error::new(e.kind(), format!("writing {}: {e}", path.display()))
+    })
+}
+
+/// Chunk `k`'s checkpoint, if it has one.
+pub fn open_state(dir: &Path, k: usize) -> Result<Option<BufReader<std::fs::File>>> {
+    let path = state(dir, k);
+    match std::fs::File::open(&path) {
+        Ok(f) => Ok(Some(BufReader::with_capacity(1 << 20, f))),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
+    }
+}
+
+/// Removes chunk `k`'s checkpoint (once the chunk is marked finished).
+pub fn remove_state(dir: &Path, k: usize) -> Result<()> {
+    let path = state(dir, k);
+    match std::fs::remove_file(&path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+            Err(e).with_context(|| format!("removing {}", path.display()))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// Writes `path` through a temporary file and a rename, durably.
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = write_temporary(path, bytes)?;
@@ -167,9 +219,7 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 /// Writes `bytes` durably to a file of this process beside `path`; returns
 /// its path.
 fn write_temporary(path: &Path, bytes: &[u8]) -> Result<PathBuf> {
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(format!(".{}.tmp", std::process::id()));
-    let tmp = path.with_file_name(name);
+    let tmp = temporary_name(path);
     let write = || -> std::io::Result<()> {
         let f = std::fs::File::create(&tmp)?;
         std::io::Write::write_all(&mut &f, bytes)?;
@@ -177,6 +227,13 @@ fn write_temporary(path: &Path, bytes: &[u8]) -> Result<PathBuf> {
     };
     write().with_context(|| format!("writing {}", tmp.display()))?;
     Ok(tmp)
+}
+
+/// A file of this process beside `path`.
+fn temporary_name(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".{}.tmp", std::process::id()));
+    path.with_file_name(name)
 }
 
 /// Removes the journal from a finished run's folder (before it is

@@ -11,6 +11,7 @@
 
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 
@@ -58,6 +59,21 @@ pub struct RunOptions {
     pub adapter: Option<usize>,
     /// Override the scene's `output.format` (`--format`).
     pub format: Option<Format>,
+    /// Time between checkpoints of the integrator's state inside a chunk
+    /// (`--checkpoint-every`): `None` for [`CHECKPOINT_EVERY`], zero for
+    /// none (then only finished chunks are kept).
+    pub checkpoint_every: Option<Duration>,
+}
+
+/// The default time between checkpoints inside a chunk.
+pub const CHECKPOINT_EVERY: Duration = Duration::from_secs(300);
+
+fn checkpoint_every(opts: &RunOptions) -> Option<Duration> {
+    match opts.checkpoint_every {
+        None => Some(CHECKPOINT_EVERY),
+        Some(d) if d.is_zero() => None,
+        d => d,
+    }
 }
 
 /// Part `index` of `count` contiguous parts of a run's chunks.
@@ -185,6 +201,7 @@ fn run_typed<R: Flows>(
         chunks: &record.chunks,
         dir: &dir,
         format: format_of(&record)?,
+        checkpoint_every: checkpoint_every(opts),
     };
     stream::integrate::<R>(&target, mine.clone(), opts.progress).map_err(|e| {
         anyhow::anyhow!(

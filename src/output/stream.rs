@@ -3,13 +3,15 @@
 //! marked finished (`journal.rs`), so that memory holds one chunk whatever
 //! the size of the run; and the finished arrays read back for the pictures.
 
+use std::io::Read;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 
+use crate::backend::checkpoint::{Checkpoints, Contents};
 use crate::backend::Engine;
 use crate::models::Flows;
 use crate::num::precision::Real;
@@ -20,6 +22,7 @@ use crate::output::npy::{read_rows, Slabs};
 use crate::output::zarr;
 use crate::plan::observations::Observations;
 use crate::plan::size::bytes;
+use crate::plan::snapshot::{get_one, put, read_observations, write_observations, Header};
 use crate::plan::Plan;
 use crate::scene::{Format, Scene, SubRun};
 
@@ -36,6 +39,8 @@ pub struct Target<'a> {
     /// `DIR.partial`.
     pub dir: &'a Path,
     pub format: Format,
+    /// Time between checkpoints inside a chunk (`None`: only finished chunks).
+    pub checkpoint_every: Option<Duration>,
 }
 
 /// Where a run's chunks go: `.npy` files written in slabs, or a Zarr store.
@@ -127,7 +132,7 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
 
 /// Integrates chunk `k`, writes its rows, makes them durable, marks it.
 fn chunk<R: Flows>(t: &Target, k: usize, sink: &Sink, done: &AtomicU64) -> Result<()> {
-    let (obs, seconds, timing) = integrate_rows::<R>(t, t.chunks.range(k), done)?;
+    let (obs, seconds, timing) = integrate_rows::<R>(t, k, done)?;
     sink.write(t, k, &arrays(t.scene, &obs)?)?;
     let mark = Done {
         ok: obs.count_ok() as u64,
@@ -135,37 +140,142 @@ fn chunk<R: Flows>(t: &Target, k: usize, sink: &Sink, done: &AtomicU64) -> Resul
         seconds,
         timing: timing.into(),
     };
-    journal::mark_done(t.dir, k, &mark)
+    journal::mark_done(t.dir, k, &mark)?;
+    journal::remove_state(t.dir, k)
 }
 
-/// The observations of the scene's `rows`, from every sub-run that has
-/// some of them; and the seconds the integration took.
+/// A sub-run with rows in a chunk, and those rows (of the sub-run's grid).
+type Part<'a> = (&'a SubRun, Range<usize>);
+
+/// The observations of chunk `k`'s rows, from every sub-run that has some
+/// of them, continued from the chunk's checkpoint if it has one (and
+/// checkpointed every `t.checkpoint_every`); and the seconds the
+/// integration took.
 fn integrate_rows<R: Flows>(
     t: &Target,
-    rows: Range<usize>,
+    k: usize,
     progress: &AtomicU64,
 ) -> Result<(Observations<R>, f64, &'static str)> {
-    if let [sub] = t.subs {
-        let run = t.engine.run::<R>(&sub.plan.rows(rows), Some(progress))?;
-        return Ok((run.observations, run.seconds, run.timing));
-    }
+    let rows = t.chunks.range(k);
     let (shape, strides) = (t.scene.shape(), t.scene.strides());
-    let mut whole = Observations::<R>::for_plan(&longest(t.subs, rows.len()));
-    let (mut seconds, mut timing) = (0.0, "wall clock");
-    for sub in t.subs {
-        let own = sub.rows_within(&rows, &shape, &strides);
-        if own.is_empty() {
+    let parts: Vec<Part> = t
+        .subs
+        .iter()
+        .map(|sub| (sub, sub.rows_within(&rows, &shape, &strides)))
+        .filter(|(_, own)| !own.is_empty())
+        .collect();
+    // Sub-runs fill one set of arrays shaped by the longest; a scene of one
+    // sub-run takes its arrays as they come.
+    let mut whole =
+        (t.subs.len() > 1).then(|| Observations::<R>::for_plan(&longest(t.subs, rows.len())));
+    let mut saved = journal::open_state(t.dir, k)?;
+    let mut from = None;
+    if let Some(r) = saved.as_mut() {
+        from = continued(t, k, &parts, r, whole.as_mut());
+        if from.is_none() && whole.is_some() {
+            whole = Some(Observations::for_plan(&longest(t.subs, rows.len())));
+        }
+    }
+    let (first, mut seconds, mut header) = match from {
+        Some((i, s, h)) => (i, s, Some(h)),
+        None => (0, 0.0, None),
+    };
+    let (mut since, mut timing, mut single) = (Instant::now(), "wall clock", None);
+    for (i, (sub, own)) in parts.iter().enumerate() {
+        if i < first {
+            progress.fetch_add(own.len() as u64 * sub.plan.steps, Ordering::Relaxed);
             continue;
         }
-        let run = t
-            .engine
-            .run::<R>(&sub.plan.rows(own.clone()), Some(progress))?;
+        let before = (whole.as_ref(), seconds);
+        let mut save = |contents: Contents| {
+            journal::save_state(t.dir, k, &|w| {
+                put(w, &[i as u64])?;
+                put(w, &[before.1])?;
+                if let Some(o) = before.0 {
+                    write_observations(w, o)?;
+                }
+                contents(w)
+            })
+        };
+        let mut cp = Checkpoints {
+            every: t.checkpoint_every,
+            since,
+            resume: header
+                .take()
+                .zip(saved.as_mut().map(|r| r as &mut dyn Read)),
+            save: &mut save,
+            taken: 0,
+        };
+        let run = t.engine.run_resumable::<R>(
+            &sub.plan.rows(own.clone()),
+            Some(progress),
+            Some(&mut cp),
+        )?;
+        since = cp.since;
         seconds += run.seconds;
         timing = run.timing;
-        let at = own.map(|j| sub.scene_row(j, &shape, &strides) - rows.start);
-        whole.place_rows(&run.observations, at);
+        match whole.as_mut() {
+            Some(w) => {
+                let at = own
+                    .clone()
+                    .map(|j| sub.scene_row(j, &shape, &strides) - rows.start);
+                w.place_rows(&run.observations, at);
+            }
+            None => single = Some(run.observations),
+        }
     }
-    Ok((whole, seconds, timing))
+    Ok((
+        whole.or(single).context("a chunk has rows")?,
+        seconds,
+        timing,
+    ))
+}
+
+/// Reads chunk `k`'s checkpoint up to its engine's body: `(sub-run, seconds
+/// before it, the engine snapshot's header)`, the finished sub-runs'
+/// observations into `whole`. `None` (and a note) when it does not continue
+/// this run: the chunk then starts over.
+fn continued<R: Flows>(
+    t: &Target,
+    k: usize,
+    parts: &[Part],
+    r: &mut dyn Read,
+    whole: Option<&mut Observations<R>>,
+) -> Option<(usize, f64, Header)> {
+    let read = || -> Result<(usize, f64, Header)> {
+        let i = get_one::<u64>(r)? as usize;
+        let seconds: f64 = get_one(r)?;
+        if let Some(w) = whole {
+            read_observations(r, w)?;
+        }
+        let (sub, own) = parts
+            .get(i)
+            .with_context(|| format!("a sub-run {i} of {}", parts.len()))?;
+        let h = Header::read(r)?;
+        let expected = t.engine.snapshot_header::<R>(&sub.plan.rows(own.clone()))?;
+        h.continues(&expected).map_err(anyhow::Error::msg)?;
+        Ok((i, seconds, h))
+    };
+    match read() {
+        Ok((i, seconds, h)) => {
+            let before: u64 = parts[..i]
+                .iter()
+                .map(|(s, own)| own.len() as u64 * s.plan.steps)
+                .sum();
+            let share = (before + h.traj_steps) as f64 / traj_steps(t, k).max(1) as f64;
+            eprintln!(
+                "chunk {k}: continuing from its checkpoint ({:.0} % of its trajectory-steps done)",
+                100.0 * share
+            );
+            Some((i, seconds, h))
+        }
+        Err(e) => {
+            eprintln!(
+                "note: chunk {k}'s checkpoint is not continued ({e:#}); the chunk starts over"
+            );
+            None
+        }
+    }
 }
 
 /// Trajectory-steps of chunk `k`.

@@ -119,7 +119,12 @@ impl Header {
 
 /// The arrays of `obs`, in a fixed order, each with its length.
 pub fn write_observations<R: Real>(w: &mut dyn Write, obs: &Observations<R>) -> io::Result<()> {
-    for (_, v) in obs.final_values.iter().chain(&obs.trajectory).chain(&obs.poincare) {
+    for (_, v) in obs
+        .final_values
+        .iter()
+        .chain(&obs.trajectory)
+        .chain(&obs.poincare)
+    {
         put_slice(w, v)?;
     }
     put_slice(w, &obs.poincare_count)?;
@@ -234,7 +239,10 @@ mod tests {
             ..h.clone()
         };
         let why = h.continues(&other).unwrap_err();
-        assert!(why.contains("taken on cpu v3, this run is on gpu X"), "{why}");
+        assert!(
+            why.contains("taken on cpu v3, this run is on gpu X"),
+            "{why}"
+        );
         assert!(why.contains("over 1000 steps"), "{why}");
         assert!(Header::read(&mut &b"REEBSNAX...."[..]).is_err());
     }

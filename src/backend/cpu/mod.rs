@@ -70,7 +70,9 @@ pub fn resumable<R: Flows>(
     );
     let mut out = Observations::<R>::for_plan(plan);
     let program = Program::<R>::new(plan, isa);
-    let mut blocks: Vec<Block<R>> = (0..plan.n.div_ceil(LANES)).map(|_| Block::Unstarted).collect();
+    let mut blocks: Vec<Block<R>> = (0..plan.n.div_ceil(LANES))
+        .map(|_| Block::Unstarted)
+        .collect();
     let mut header = Header::of::<R>(plan, fingerprint(isa));
     if let Some(c) = cp.as_deref_mut() {
         if let Some((h, r)) = c.restore(&mut out)? {
@@ -96,7 +98,9 @@ pub fn resumable<R: Flows>(
         if blocks.iter().all(|b| matches!(b, Block::Done)) {
             return Ok((out, header.seconds));
         }
-        let c = cp.as_deref_mut().expect("blocks pause only for a checkpoint");
+        let c = cp
+            .as_deref_mut()
+            .expect("blocks pause only for a checkpoint");
         header.traj_steps = traj_steps_done(plan, &blocks);
         c.take(&header, &out, &|w| write_blocks(w, &blocks))?;
     }
@@ -207,7 +211,11 @@ fn write_blocks<R: Flows>(w: &mut dyn Write, blocks: &[Block<R>]) -> io::Result<
 }
 
 /// Reads what [`write_blocks`] wrote.
-fn read_blocks<R: Flows>(p: &Program<R>, r: &mut dyn Read, blocks: &mut [Block<R>]) -> io::Result<()> {
+fn read_blocks<R: Flows>(
+    p: &Program<R>,
+    r: &mut dyn Read,
+    blocks: &mut [Block<R>],
+) -> io::Result<()> {
     let tags: Vec<u8> = get_vec(r, blocks.len())?;
     if tags.len() != blocks.len() {
         return Err(invalid("a snapshot of another number of blocks"));
@@ -226,7 +234,12 @@ fn read_blocks<R: Flows>(p: &Program<R>, r: &mut dyn Read, blocks: &mut [Block<R
                 let status = get_array(r)?;
                 let mut obs = BlockObservers::new(p, &lanes);
                 obs.read(r)?;
-                Block::Suspended(Box::new(BlockState { n, lanes, status, obs }))
+                Block::Suspended(Box::new(BlockState {
+                    n,
+                    lanes,
+                    status,
+                    obs,
+                }))
             }
             _ => return Err(invalid("a block of no known kind")),
         };
@@ -255,7 +268,12 @@ fn enter<R: Flows>(
             Some((0, [0; LANES], BlockObservers::new(p, l)))
         }
         Block::Suspended(st) => {
-            let BlockState { n, lanes, status, obs } = *st;
+            let BlockState {
+                n,
+                lanes,
+                status,
+                obs,
+            } = *st;
             *l = lanes;
             Some((n, status, obs))
         }
@@ -325,7 +343,12 @@ fn run_block<R: Flows>(
         if n > n0 && n % LANES as u64 == 0 && pause.due(n % 1024 == 0) {
             report(&mut reported, n);
             let lanes = std::mem::replace(l, Lanes::boxed());
-            *slot = Block::Suspended(Box::new(BlockState { n, lanes, status, obs }));
+            *slot = Block::Suspended(Box::new(BlockState {
+                n,
+                lanes,
+                status,
+                obs,
+            }));
             pause.progressed();
             return;
         }

@@ -209,7 +209,8 @@ pub fn run_resumable<R: Flows>(
         let count = sizes.cap.min(plan.n as u64 - base);
         let from = if base == start.0 { start.1 } else { 0 };
         chunks += 1;
-        let mut between = |out: &Observations<R>, step0: u64, seconds: f64| match cp.as_deref_mut() {
+        let mut between = |out: &Observations<R>, step0: u64, seconds: f64| match cp.as_deref_mut()
+        {
             Some(c) if c.due() => {
                 let h = Header {
                     seconds: totals.0 + seconds,
@@ -220,7 +221,15 @@ pub fn run_resumable<R: Flows>(
             }
             _ => Ok(()),
         };
-        let (s, d) = run.chunk(&mut out, base, count, from, &mut budget, progress, &mut between)?;
+        let (s, d) = run.chunk(
+            &mut out,
+            base,
+            count,
+            from,
+            &mut budget,
+            progress,
+            &mut between,
+        )?;
         totals = (totals.0 + s, totals.1 + d);
         collect(ctx, plan, &bufs, &mut out, base, count, sizes.cap, sizes.b)?;
         base += count;
