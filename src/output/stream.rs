@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 
 use crate::backend::checkpoint::{Checkpoints, Contents};
-use crate::backend::Engine;
+use crate::backend::{Engine, Integration};
 use crate::models::Flows;
 use crate::num::precision::Real;
 use crate::output::arrays::{arrays, Array};
@@ -186,32 +186,11 @@ fn integrate_rows<R: Flows>(
             progress.fetch_add(own.len() as u64 * sub.plan.steps, Ordering::Relaxed);
             continue;
         }
-        let before = (whole.as_ref(), seconds);
-        let mut save = |contents: Contents| {
-            journal::save_state(t.dir, k, &|w| {
-                put(w, &[i as u64])?;
-                put(w, &[before.1])?;
-                if let Some(o) = before.0 {
-                    write_observations(w, o)?;
-                }
-                contents(w)
-            })
-        };
-        let mut cp = Checkpoints {
-            every: t.checkpoint_every,
-            since,
-            resume: header
-                .take()
-                .zip(saved.as_mut().map(|r| r as &mut dyn Read)),
-            save: &mut save,
-            taken: 0,
-        };
-        let run = t.engine.run_resumable::<R>(
-            &sub.plan.rows(own.clone()),
-            Some(progress),
-            Some(&mut cp),
-        )?;
-        since = cp.since;
+        let resume = header
+            .take()
+            .zip(saved.as_mut().map(|r| r as &mut dyn Read));
+        let done = (whole.as_ref(), seconds);
+        let run = integrate_part(t, k, (i, sub, own), done, &mut since, resume, progress)?;
         seconds += run.seconds;
         timing = run.timing;
         match whole.as_mut() {
@@ -229,6 +208,45 @@ fn integrate_rows<R: Flows>(
         seconds,
         timing,
     ))
+}
+
+/// Integrates sub-run `i` of chunk `k` (its rows `own`), continued from
+/// `resume` if given, with checkpoints that also hold what is `done`: the
+/// sub-runs before it (their rows in the chunk's arrays, their seconds).
+/// `since` is when the last checkpoint was taken, and moves on.
+fn integrate_part<R: Flows>(
+    t: &Target,
+    k: usize,
+    (i, sub, own): (usize, &SubRun, &Range<usize>),
+    done: (Option<&Observations<R>>, f64),
+    since: &mut Instant,
+    resume: Option<(Header, &mut dyn Read)>,
+    progress: &AtomicU64,
+) -> Result<Integration<R>> {
+    let mut save = |contents: Contents| {
+        journal::save_state(t.dir, k, &|w| {
+            put(w, &[i as u64])?;
+            put(w, &[done.1])?;
+            if let Some(o) = done.0 {
+                write_observations(w, o)?;
+            }
+            contents(w)
+        })
+    };
+    let mut cp = Checkpoints {
+        every: t.checkpoint_every,
+        since: *since,
+        // (A shorter-lived reader: coercions do not reach inside the Option.)
+        resume: resume.map(|(h, r)| (h, r as &mut dyn Read)),
+        save: &mut save,
+        taken: 0,
+    };
+    let plan = sub.plan.rows(own.clone());
+    let run = t
+        .engine
+        .run_resumable::<R>(&plan, Some(progress), Some(&mut cp))?;
+    *since = cp.since;
+    Ok(run)
 }
 
 /// Reads chunk `k`'s checkpoint up to its engine's body: `(sub-run, seconds
