@@ -367,6 +367,7 @@ fn run(
         adapter: stream.adapter,
         format: stream.format,
         checkpoint_every: Some(stream.checkpoint_every),
+        watch: None,
     };
     let report = run_scene(&scene, &opts)?;
     println!("{}", report.line);

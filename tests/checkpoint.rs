@@ -132,6 +132,7 @@ fn resumes<R: Flows>(label: &str, run: Run<R>, header: &Header) {
         resume: None,
         save: &mut keep,
         taken: 0,
+        stop: None,
     };
     let paused = run(Some(&mut cp)).unwrap();
     let taken = cp.taken;
@@ -155,6 +156,7 @@ fn resumes<R: Flows>(label: &str, run: Run<R>, header: &Header) {
             resume: Some((h, &mut r)),
             save: &mut ignore,
             taken: 0,
+            stop: None,
         };
         let resumed = run(Some(&mut cp)).unwrap();
         same(&format!("{label}, from snapshot {k}"), &resumed, &plain);

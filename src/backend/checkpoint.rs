@@ -5,9 +5,9 @@
 //! between windows), so a snapshot is exactly what continuing needs.
 
 use std::io::{self, Read, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use super::gpu::GpuError;
 use crate::num::precision::Real;
 use crate::plan::observations::Observations;
 use crate::plan::snapshot::{read_observations, write_observations, Header};
@@ -29,6 +29,10 @@ pub struct Checkpoints<'a> {
     pub save: &'a mut dyn FnMut(Contents) -> io::Result<()>,
     /// Snapshots taken.
     pub taken: usize,
+    /// Set from another thread to stop the integration (Ctrl-C in Python):
+    /// the backends stop where they would take a snapshot and return
+    /// `GpuError::Stopped`.
+    pub stop: Option<&'a AtomicBool>,
 }
 
 impl Checkpoints<'_> {
@@ -41,6 +45,11 @@ impl Checkpoints<'_> {
         self.deadline().is_some_and(|d| Instant::now() >= d)
     }
 
+    /// Whether the integration was asked to stop.
+    pub fn stopped(&self) -> bool {
+        self.stop.is_some_and(|s| s.load(Ordering::Relaxed))
+    }
+
     /// Saves a snapshot: `header`, the observations so far, then the
     /// backend's `body`.
     pub fn take<R: Real>(
@@ -48,13 +57,12 @@ impl Checkpoints<'_> {
         header: &Header,
         obs: &Observations<R>,
         body: Contents,
-    ) -> Result<(), GpuError> {
+    ) -> io::Result<()> {
         (self.save)(&|w| {
             header.write(w)?;
             write_observations(w, obs)?;
             body(w)
-        })
-        .map_err(|e| GpuError::Checkpoint(e.to_string()))?;
+        })?;
         self.since = Instant::now();
         self.taken += 1;
         Ok(())
@@ -65,16 +73,11 @@ impl Checkpoints<'_> {
     pub fn restore<R: Real>(
         &mut self,
         obs: &mut Observations<R>,
-    ) -> Result<Option<(Header, &mut dyn Read)>, GpuError> {
+    ) -> io::Result<Option<(Header, &mut dyn Read)>> {
         let Some((header, r)) = self.resume.take() else {
             return Ok(None);
         };
-        read_observations(r, obs).map_err(unreadable)?;
+        read_observations(r, obs)?;
         Ok(Some((header, r)))
     }
-}
-
-/// A snapshot's body that cannot be read back.
-pub fn unreadable(e: io::Error) -> GpuError {
-    GpuError::Checkpoint(format!("reading the snapshot: {e}"))
 }

@@ -11,6 +11,7 @@
 
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
@@ -23,7 +24,7 @@ pub use crate::output::arrays::write_npy;
 use crate::output::chunks::{self, Chunks};
 use crate::output::directory::{self, Claim, Mode};
 use crate::output::journal::{self, Record};
-use crate::output::stream::{self, Target};
+use crate::output::stream::{self, Target, Watch};
 use crate::output::zarr;
 use crate::plan::observations::bytes_per_trajectory;
 use crate::plan::size::{available_memory, Estimate};
@@ -63,6 +64,8 @@ pub struct RunOptions {
     /// (`--checkpoint-every`): `None` for [`CHECKPOINT_EVERY`], zero for
     /// none (then only finished chunks are kept).
     pub checkpoint_every: Option<Duration>,
+    /// Followed from another thread (progress, a request to stop).
+    pub watch: Option<Arc<Watch>>,
 }
 
 /// The default time between checkpoints inside a chunk.
@@ -202,6 +205,7 @@ fn run_typed<R: Flows>(
         dir: &dir,
         format: format_of(&record)?,
         checkpoint_every: checkpoint_every(opts),
+        watch: opts.watch.as_deref(),
     };
     stream::integrate::<R>(&target, mine.clone(), opts.progress).map_err(|e| {
         anyhow::anyhow!(
@@ -364,7 +368,8 @@ fn finish<R: Flows>(
         max_steps,
         chunks: done.len(),
     };
-    let summary = summary(scene, subs, made, record, &ran, &files);
+    let mut summary = summary(scene, subs, made, record, &ran, &files);
+    summary["dims"] = dims_of::<R>(scene, subs)?;
     if format == Format::Zarr {
         zarr::finish(&dir, scene, summary.clone())?;
     }
@@ -386,6 +391,20 @@ fn finish<R: Flows>(
         out.display()
     );
     Ok(RunReport { out, summary, line })
+}
+
+/// Each array's dimension names (the scene's axes, then `frame`, `point`,
+/// `component`): what xarray and `reeb.open` label them with.
+fn dims_of<R: Flows>(scene: &Scene, subs: &[SubRun]) -> Result<serde_json::Value> {
+    let axes: Vec<&str> = scene.axes.iter().map(|a| a.name.as_str()).collect();
+    let dims: serde_json::Map<String, serde_json::Value> = stream::array_list::<R>(scene, subs)?
+        .into_iter()
+        .map(|a| {
+            let names: Vec<&str> = axes.iter().copied().chain(a.inner_names).collect();
+            (a.file.trim_end_matches(".npy").to_string(), names.into())
+        })
+        .collect();
+    Ok(dims.into())
 }
 
 /// The integration of a run, added up over its chunks.

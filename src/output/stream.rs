@@ -41,6 +41,18 @@ pub struct Target<'a> {
     pub format: Format,
     /// Time between checkpoints inside a chunk (`None`: only finished chunks).
     pub checkpoint_every: Option<Duration>,
+    /// Followed from another thread, if given.
+    pub watch: Option<&'a Watch>,
+}
+
+/// A run followed from another thread (the Python package polls it every
+/// 0.1 s): the trajectory-steps done and in all, and a request to stop,
+/// which the backends honour within a window or 64 steps of a block.
+#[derive(Debug, Default)]
+pub struct Watch {
+    pub done: AtomicU64,
+    pub total: AtomicU64,
+    pub stop: AtomicBool,
 }
 
 /// Where a run's chunks go: `.npy` files written in slabs, or a Zarr store.
@@ -104,13 +116,17 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
     }
     // The bar counts the chunks already finished as done.
     let left: u64 = todo.iter().map(|k| traj_steps(t, *k)).sum();
-    let done = AtomicU64::new(total - left);
+    let own = Watch::default();
+    let watch = t.watch.unwrap_or(&own);
+    watch.total.store(total, Ordering::Relaxed);
+    watch.done.store(total - left, Ordering::Relaxed);
+    let done = &watch.done;
     let bar = (progress && total > 0)
         .then(|| progress_bar(total, format!("{} on {}", t.scene.name, t.engine.name())));
     let finished = AtomicBool::new(false);
     std::thread::scope(|scope| -> Result<()> {
         if let Some(b) = &bar {
-            let (b, done, finished) = (b.clone(), &done, &finished);
+            let (b, finished) = (b.clone(), &finished);
             scope.spawn(move || {
                 while !finished.load(Ordering::Relaxed) {
                     b.set_position(done.load(Ordering::Relaxed));
@@ -118,9 +134,7 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
                 }
             });
         }
-        let result = todo
-            .iter()
-            .try_for_each(|k| chunk::<R>(t, *k, &sink, &done));
+        let result = todo.iter().try_for_each(|k| chunk::<R>(t, *k, &sink, done));
         finished.store(true, Ordering::Relaxed);
         result
     })?;
@@ -240,6 +254,7 @@ fn integrate_part<R: Flows>(
         resume: resume.map(|(h, r)| (h, r as &mut dyn Read)),
         save: &mut save,
         taken: 0,
+        stop: t.watch.map(|w| &w.stop),
     };
     let plan = sub.plan.rows(own.clone());
     let run = t

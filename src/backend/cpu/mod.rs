@@ -19,7 +19,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::checkpoint::{unreadable, Checkpoints};
+use super::checkpoint::Checkpoints;
 use super::gpu::GpuError;
 
 use crate::models::lanes::{Lanes, LANES};
@@ -75,8 +75,8 @@ pub fn resumable<R: Flows>(
         .collect();
     let mut header = Header::of::<R>(plan, fingerprint(isa));
     if let Some(c) = cp.as_deref_mut() {
-        if let Some((h, r)) = c.restore(&mut out)? {
-            read_blocks(&program, r, &mut blocks).map_err(unreadable)?;
+        if let Some((h, r)) = c.restore(&mut out).map_err(GpuError::checkpoint)? {
+            read_blocks(&program, r, &mut blocks).map_err(GpuError::checkpoint)?;
             (header.seconds, header.traj_steps) = (h.seconds, h.traj_steps);
             if let Some(pr) = progress {
                 pr.fetch_add(h.traj_steps, Ordering::Relaxed);
@@ -84,7 +84,8 @@ pub fn resumable<R: Flows>(
         }
     }
     loop {
-        let pause = Pause::new(cp.as_deref().and_then(|c| c.deadline()));
+        let c = cp.as_deref();
+        let pause = Pause::new(c.and_then(|c| c.deadline()), c.and_then(|c| c.stop));
         let started = Instant::now();
         let sink = Sink::new(&mut out);
         blocks
@@ -101,8 +102,12 @@ pub fn resumable<R: Flows>(
         let c = cp
             .as_deref_mut()
             .expect("blocks pause only for a checkpoint");
+        if c.stopped() {
+            return Err(GpuError::Stopped);
+        }
         header.traj_steps = traj_steps_done(plan, &blocks);
-        c.take(&header, &out, &|w| write_blocks(w, &blocks))?;
+        c.take(&header, &out, &|w| write_blocks(w, &blocks))
+            .map_err(GpuError::checkpoint)?;
     }
 }
 
@@ -133,19 +138,22 @@ struct BlockState<R> {
     obs: BlockObservers<R>,
 }
 
-/// Asks the blocks to pause for a checkpoint once its deadline passes.
-struct Pause {
+/// Asks the blocks to pause for a checkpoint once its deadline passes, or
+/// for good when `stop` is set.
+struct Pause<'s> {
     deadline: Option<Instant>,
+    stop: Option<&'s AtomicBool>,
     requested: AtomicBool,
     /// Some block finished or paused since the run (re)started: only then
     /// may a block that has not started wait, so every round gets on.
     progressed: AtomicBool,
 }
 
-impl Pause {
-    fn new(deadline: Option<Instant>) -> Pause {
+impl Pause<'_> {
+    fn new(deadline: Option<Instant>, stop: Option<&AtomicBool>) -> Pause<'_> {
         Pause {
             deadline,
+            stop,
             requested: AtomicBool::new(false),
             progressed: AtomicBool::new(false),
         }
@@ -157,6 +165,10 @@ impl Pause {
         if self.requested.load(Ordering::Relaxed) {
             return true;
         }
+        if self.stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
+            self.requested.store(true, Ordering::Relaxed);
+            return true;
+        }
         let late = clock && self.deadline.is_some_and(|d| Instant::now() >= d);
         if late {
             self.requested.store(true, Ordering::Relaxed);
@@ -166,7 +178,8 @@ impl Pause {
 
     /// Whether a block that has not started waits for the checkpoint.
     fn holds_back(&self) -> bool {
-        self.progressed.load(Ordering::Relaxed) && self.due(true)
+        let stop = self.stop.is_some_and(|s| s.load(Ordering::Relaxed));
+        stop || self.progressed.load(Ordering::Relaxed) && self.due(true)
     }
 
     fn progressed(&self) {

@@ -29,6 +29,15 @@ pub enum GpuError {
     TooLarge(String),
     #[error("checkpoint: {0}")]
     Checkpoint(String),
+    #[error("stopped before the end, as asked")]
+    Stopped,
+}
+
+impl GpuError {
+    /// A checkpoint that could not be written or read back.
+    pub fn checkpoint(e: std::io::Error) -> GpuError {
+        GpuError::Checkpoint(e.to_string())
+    }
 }
 
 /// What `reeb info` shows about an adapter.

@@ -12,7 +12,7 @@ use wgpu::util::DeviceExt;
 
 use super::codegen::{generate, AUX_R, AUX_U};
 use super::context::{GpuContext, GpuError};
-use crate::backend::checkpoint::{unreadable, Checkpoints};
+use crate::backend::checkpoint::Checkpoints;
 use crate::models::Flows;
 use crate::num::precision::Precision;
 use crate::plan::observations::Observations;
@@ -192,8 +192,8 @@ pub fn run_resumable<R: Flows>(
     // Where the first chunk starts: (its first trajectory, its first step).
     let mut start = (0u64, 0u64);
     if let Some(c) = cp.as_deref_mut() {
-        if let Some((h, r)) = c.restore(&mut out)? {
-            start = run.restore(r).map_err(unreadable)?;
+        if let Some((h, r)) = c.restore(&mut out).map_err(GpuError::checkpoint)? {
+            start = run.restore(r).map_err(GpuError::checkpoint)?;
             header.seconds = h.seconds;
             if let Some(p) = progress {
                 p.fetch_add(h.traj_steps, Ordering::Relaxed);
@@ -211,6 +211,7 @@ pub fn run_resumable<R: Flows>(
         chunks += 1;
         let mut between = |out: &Observations<R>, step0: u64, seconds: f64| match cp.as_deref_mut()
         {
+            Some(c) if c.stopped() => Err(GpuError::Stopped),
             Some(c) if c.due() => {
                 let h = Header {
                     seconds: totals.0 + seconds,
@@ -595,6 +596,7 @@ impl Dispatcher<'_> {
             put(w, &[base, step0])?;
             carried.iter().try_for_each(|c| put_slice(w, c))
         })
+        .map_err(GpuError::checkpoint)
     }
 
     /// Loads the buffers of a snapshot's chunk; returns its first trajectory

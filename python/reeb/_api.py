@@ -1,0 +1,175 @@
+"""``reeb.run``, ``reeb.open``, ``reeb.check``, ``reeb.verify``, ``reeb.info``."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Union
+
+from . import _reeb
+from ._scene import Scene, resolve
+from .errors import ReebError
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+class _Bar:
+    """A tqdm bar (it renders in Jupyter too) fed ``(done, total)``
+    trajectory-steps; nothing when ``enabled`` is false."""
+
+    def __init__(self, enabled: bool, desc: str) -> None:
+        self.enabled, self.desc, self.bar = enabled, desc, None
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.enabled or total == 0:
+            return
+        if self.bar is None:
+            from tqdm.auto import tqdm
+
+            self.bar = tqdm(total=total, desc=self.desc, unit="traj-step", unit_scale=True)
+        self.bar.update(done - self.bar.n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def run(
+    scene: Scene,
+    *,
+    backend: str = "auto",
+    precision: Optional[str] = None,
+    out: Optional[PathLike] = None,
+    progress: bool = True,
+    force: bool = False,
+    preview: bool = False,
+    checkpoint_every: Optional[float] = None,
+):
+    """Integrates ``scene`` and returns its outputs as an ``xarray.Dataset``.
+
+    ``scene`` is a path, a TOML string, or a dict with the TOML's structure
+    (numpy arrays wherever a list is). ``backend`` is ``"auto"`` (a hardware
+    GPU if there is one, else every CPU core), ``"cpu"`` or ``"gpu"``;
+    ``precision`` ``"f32"`` or ``"f64"`` overrides the scene's. With ``out``
+    the run is also written to that directory exactly as ``reeb run`` writes
+    it (``force`` replaces a directory holding files reeb did not write;
+    ``checkpoint_every`` seconds between checkpoints, as ``--checkpoint-every``)
+    and the Dataset reads it (lazily for a Zarr store); without ``out`` the
+    Dataset is in memory. ``preview``: at most 4 values per axis and 2000
+    steps. ``progress``: a tqdm bar over trajectory-steps.
+
+    The GIL is released while the engine runs; Ctrl-C stops the run within a
+    second and raises ``KeyboardInterrupt`` (a run into ``out`` then leaves
+    ``out.partial``, which ``reeb run --resume`` continues, never ``out``).
+    Errors raise ``reeb.SceneError`` (with ``.field``, ``.line``,
+    ``.message``) or ``reeb.ReebError``.
+    """
+    text, path = resolve(scene)
+    temporary = None
+    if out is None:
+        temporary = tempfile.mkdtemp(prefix="reeb-")
+        target = Path(temporary) / "run"
+    else:
+        target = Path(out)
+    bar = _Bar(progress, "reeb")
+    try:
+        _reeb.run(
+            text,
+            path,
+            str(target),
+            backend=backend,
+            precision=precision,
+            force=force,
+            preview=preview,
+            checkpoint_every=checkpoint_every,
+            progress=bar,
+        )
+        bar.close()
+        if temporary is None:
+            return open(target)
+        return open(target, memory_map=False).load()
+    finally:
+        bar.close()
+        if temporary is not None:
+            shutil.rmtree(temporary, ignore_errors=True)
+
+
+def open(path: PathLike, *, memory_map: bool = True):
+    """A run directory (``.npy`` files or a Zarr store) as the Dataset
+    ``reeb.run`` returns: a Zarr store lazily (dask arrays), ``.npy`` files
+    memory-mapped (``memory_map=False``: read into memory)."""
+    import numpy as np
+    import xarray as xr
+
+    d = Path(path)
+    summary_file = d / "summary.json"
+    if not summary_file.is_file():
+        partial = d.with_name(d.name + ".partial")
+        if partial.exists():
+            raise ReebError(
+                f"{d} is not a finished run: {partial} holds one in progress "
+                f"(continue it with reeb run SCENE --out {d} --resume, or reeb merge {d} after shards)"
+            )
+        raise ReebError(f"{d} is not a reeb run directory (no summary.json)")
+    summary = json.loads(summary_file.read_text())
+    attrs = _attributes(summary)
+    if (d / "run.zarr").exists():
+        ds = xr.open_zarr(d / "run.zarr", consolidated=False)
+        ds.attrs = attrs
+        return ds
+    axes = [a["name"] for a in summary["scene"]["axes"]]
+    mode = "r" if memory_map else None
+    coords = {a: np.load(d / f"axis_{a}.npy") for a in axes}
+    data = {}
+    for f in summary["files"]:
+        if not f.endswith(".npy") or f.startswith("axis_"):
+            continue
+        name = f[: -len(".npy")]
+        values = np.load(d / f, mmap_mode=mode)
+        data[name] = (_dims(summary, name, axes, values.ndim), values)
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def _dims(summary: Dict[str, Any], name: str, axes: List[str], ndim: int) -> List[str]:
+    """The dimension names of array ``name``: those summary.json lists, or
+    (runs written before it listed them) the scene's axes, then ``frame``
+    or ``point``, then ``component``."""
+    listed = summary.get("dims", {}).get(name)
+    if listed is not None:
+        return listed
+    inner = {"trajectory": ["frame"], "poincare": ["point"]}.get(name.split("_")[0], [])
+    if name == "poincare_count":
+        inner = []
+    extra = ndim - len(axes) - len(inner)
+    return axes + inner + ["component"] * extra
+
+
+def _attributes(summary: Dict[str, Any]) -> Dict[str, Any]:
+    """The Dataset's attributes: the summary, the resolved scene in it."""
+    return dict(summary)
+
+
+def check(scene: Scene, *, precision: Optional[str] = None, out: Optional[PathLike] = None) -> Dict[str, Any]:
+    """Every gate of ``reeb.run`` without running (the scene, its sizes, the
+    output directory's refusals): returns the model, scheme, precision,
+    trajectories, axes, plans, estimated output bytes and warnings; raises
+    ``reeb.SceneError`` or ``reeb.ReebError`` as ``run`` would."""
+    text, path = resolve(scene)
+    return json.loads(_reeb.check(text, path, precision=precision, out=None if out is None else str(out)))
+
+
+def verify(*, backend: str = "cpu", precision: str = "f64", progress: bool = False) -> List[Dict[str, Any]]:
+    """``reeb verify``: every model's oracle and every scheme's measured
+    order on ``backend`` in ``precision``; one dict per check (``check``,
+    ``pass``, ``expected``, ``measured``, ``tolerance``)."""
+    return json.loads(_reeb.verify(backend, precision, progress=None))
+
+
+def info() -> Dict[str, Any]:
+    """``reeb info``: the version, the CPU's kernels and threads, the GPU
+    adapters with their limits, and what ``--backend gpu`` would use."""
+    return json.loads(_reeb.info())
+

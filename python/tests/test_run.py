@@ -1,0 +1,105 @@
+"""reeb.run and reeb.open against the `reeb` command: the same arrays,
+dimensions, coordinates and attributes, whichever way the scene is given."""
+
+import json
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import reeb
+from conftest import VAN_DER_POL, VAN_DER_POL_TOML, cli
+
+
+def same_data(a: xr.Dataset, b: xr.Dataset) -> None:
+    assert sorted(a.data_vars) == sorted(b.data_vars)
+    for name in a.data_vars:
+        assert a[name].dims == b[name].dims, name
+        np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+    for name in a.coords:
+        np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+
+
+def test_dict_toml_and_path_give_the_datasets_of_reeb_run(tmp_path, reeb_cli):
+    path = tmp_path / "vdp.toml"
+    path.write_text(VAN_DER_POL_TOML)
+    cli(reeb_cli, "run", str(path), "--out", str(tmp_path / "cli"))
+    expected = reeb.open(tmp_path / "cli")
+    for scene in (VAN_DER_POL, VAN_DER_POL_TOML, path, str(path)):
+        same_data(reeb.run(scene, progress=False), expected)
+
+
+def test_the_dataset_is_labelled(tmp_path):
+    ds = reeb.run(VAN_DER_POL, progress=False)
+    assert ds.final_q.dims == ("epsilon", "q")
+    assert ds.trajectory_q.dims == ("epsilon", "q", "frame")
+    assert ds.poincare_p.dims == ("epsilon", "q", "point")
+    assert ds.sizes == {"epsilon": 5, "q": 3, "frame": 9, "point": 3}
+    np.testing.assert_allclose(ds.epsilon.values, np.linspace(0.5, 2.0, 5))
+    np.testing.assert_array_equal(ds.q.values, [0.5, 1.5, 2.5])
+    assert ds.final_q.dtype == np.float64
+    for v in ("cycle_amplitude", "cycle_period", "status", "status_step", "poincare_count"):
+        assert v in ds
+    assert ds.attrs["backend"] == "cpu"
+    assert ds.attrs["traj_steps"] == 15 * 400
+    assert ds.attrs["traj_steps_per_s"] > 0
+    assert ds.attrs["scene"]["model"] == "van_der_pol"
+    # Values a user can check: every trajectory finished, near the cycle.
+    assert int(ds.status.sum()) == 0
+    assert float(ds.cycle_amplitude.sel(epsilon=2.0, q=2.5)) == pytest.approx(2.0, rel=0.05)
+
+
+def test_numpy_arrays_are_accepted_where_lists_are():
+    scene = json.loads(json.dumps(VAN_DER_POL))
+    scene["initial"]["q"] = np.array([0.5, 1.5, 2.5])
+    scene["integrator"]["steps"] = np.int64(400)
+    same_data(reeb.run(scene, progress=False), reeb.run(VAN_DER_POL, progress=False))
+
+
+def test_out_writes_the_run_as_reeb_run_does(tmp_path, reeb_cli):
+    ds = reeb.run(VAN_DER_POL, out=tmp_path / "py", progress=False)
+    path = tmp_path / "vdp.toml"
+    path.write_text(VAN_DER_POL_TOML)
+    cli(reeb_cli, "run", str(path), "--out", str(tmp_path / "cli"))
+    files = lambda d: sorted(p.name for p in d.iterdir())
+    assert files(tmp_path / "py") == files(tmp_path / "cli")
+    for f in (tmp_path / "cli").glob("*.npy"):
+        assert (tmp_path / "py" / f.name).read_bytes() == f.read_bytes(), f.name
+    same_data(ds, reeb.open(tmp_path / "cli"))
+
+
+def test_a_zarr_run_opens_lazily_with_the_same_values(tmp_path):
+    scene = json.loads(json.dumps(VAN_DER_POL))
+    scene["output"]["format"] = "zarr"
+    ds = reeb.run(scene, out=tmp_path / "z", progress=False)
+    assert (tmp_path / "z" / "run.zarr").is_dir()
+    assert ds.final_q.chunks is not None  # dask-backed: read when asked
+    same_data(ds.load(), reeb.run(VAN_DER_POL, progress=False))
+
+
+def test_a_vector_output_has_a_component_dimension():
+    ds = reeb.run(
+        {
+            "model": "kepler",
+            "params": {"alpha": 0.01},
+            "initial": {"eccentricity": [0.1, 0.5]},
+            "integrator": {"scheme": "s2", "dt": 0.01, "steps": 100},
+            "output": {"final": ["q"]},
+            "run": {"backend": "cpu"},
+        },
+        progress=False,
+    )
+    assert ds.final_q.dims == ("eccentricity", "component")
+    assert ds.sizes["component"] == 2
+
+
+def test_check_info_and_verify():
+    c = reeb.check(VAN_DER_POL)
+    assert c["trajectories"] == 15 and c["axes"] == ["epsilon", "q"] and c["plans"] == 1
+    assert c["output_bytes"] > 0
+    i = reeb.info()
+    assert i["version"] == reeb.__version__ and i["cpu"]["threads"] >= 1
+    rows = reeb.verify(backend="cpu", precision="f64")
+    assert len(rows) > 20
+    failed = [r for r in rows if not r["pass"]]
+    assert not failed, failed
