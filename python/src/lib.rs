@@ -251,25 +251,12 @@ fn rayon_threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
-/// The TOML text of a scene given as JSON (a Python dict): tables become
-/// tables, lists arrays; `null` has no TOML form and is refused, naming
-/// the key.
-#[pyfunction]
-fn toml_of_json(py: Python, json: &str) -> PyResult<String> {
-    let v: serde_json::Value = serde_json::from_str(json)
-        .map_err(|e| raise(py, "SceneError", (format!("not a scene: {e}"),)))?;
-    reeb::scene::toml_text_of_json(&v).map_err(|(field, message)| {
-        raise(py, "SceneError", (message, field, None::<usize>, "<dict>"))
-    })
-}
-
 #[pymodule]
 fn _reeb(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(check, m)?)?;
     m.add_function(wrap_pyfunction!(verify, m)?)?;
     m.add_function(wrap_pyfunction!(info, m)?)?;
-    m.add_function(wrap_pyfunction!(toml_of_json, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

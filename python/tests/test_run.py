@@ -44,9 +44,25 @@ def test_the_dataset_is_labelled(tmp_path):
     assert ds.attrs["traj_steps"] == 15 * 400
     assert ds.attrs["traj_steps_per_s"] > 0
     assert ds.attrs["scene"]["model"] == "van_der_pol"
-    # Values a user can check: every trajectory finished, near the cycle.
     assert int(ds.status.sum()) == 0
-    assert float(ds.cycle_amplitude.sel(epsilon=2.0, q=2.5)) == pytest.approx(2.0, rel=0.05)
+
+
+def test_the_van_der_pol_limit_cycle_has_amplitude_two():
+    ds = reeb.run(
+        {
+            "model": "van_der_pol",
+            "params": {"epsilon": [0.5, 1.0, 2.0]},
+            "initial": {"q": 0.5},
+            "integrator": {"scheme": "triple_jump4", "dt": 0.01, "steps": 6000},
+            "output": {"final": ["q"], "cycle": True},
+            "run": {"backend": "cpu", "precision": "f64"},
+        },
+        progress=False,
+    )
+    np.testing.assert_allclose(ds.cycle_amplitude.values, 2.0, rtol=0.01)
+    # The period grows with epsilon (T ≈ 6.66 at epsilon = 1).
+    assert ds.cycle_period.sel(epsilon=1.0) == pytest.approx(6.66, rel=0.01)
+    assert bool((ds.cycle_period.diff("epsilon") > 0).all())
 
 
 def test_numpy_arrays_are_accepted_where_lists_are():

@@ -24,7 +24,6 @@
 
 mod error;
 mod formula;
-mod json;
 mod parse;
 mod plans;
 pub mod tables;
@@ -43,7 +42,6 @@ use crate::plan::size::{self, Estimate, SizeError};
 use crate::plan::Plan;
 pub use error::SceneError;
 pub use error::SceneWarning;
-pub use json::toml_text_of_json;
 pub use values::{splitmix64, AxisValues};
 
 /// An axis of the ensemble, as the scene names it.
