@@ -16,6 +16,7 @@ values as coordinates, one data variable per output, the resolved scene
 and the run's summary as attributes.
 """
 
+from . import dask, report
 from ._api import check, info, open, run, verify
 from ._scene import scene_toml
 from .errors import InternalError, ReebError, SceneError
@@ -26,6 +27,8 @@ __all__ = [
     "open",
     "check",
     "verify",
+    "report",
+    "dask",
     "info",
     "scene_toml",
     "ReebError",

@@ -122,8 +122,10 @@ fn watched<T: Send>(
 /// Runs the scene `text` (read from `path`) into the directory `out`, as
 /// `reeb run` does; returns `summary.json`'s text. `progress(done, total)`
 /// is called with trajectory-steps as the run goes.
+/// `shard` is `"K/N"` (as `--shard`), `resume` continues `out.partial`,
+/// `format` and `chunk_trajectories` override the scene's as the flags do.
 #[pyfunction]
-#[pyo3(signature = (text, path, out, backend=None, precision=None, force=false, preview=false, checkpoint_every=None, progress=None))]
+#[pyo3(signature = (text, path, out, backend=None, precision=None, force=false, preview=false, checkpoint_every=None, progress=None, shard=None, resume=false, format=None, chunk_trajectories=None))]
 #[allow(clippy::too_many_arguments)]
 fn run(
     py: Python,
@@ -136,6 +138,10 @@ fn run(
     preview: bool,
     checkpoint_every: Option<f64>,
     progress: Option<Bound<PyAny>>,
+    shard: Option<&str>,
+    resume: bool,
+    format: Option<&str>,
+    chunk_trajectories: Option<usize>,
 ) -> PyResult<String> {
     let mut scene = Scene::parse(Path::new(path), text).map_err(|e| scene_error(py, &e))?;
     if preview {
@@ -158,9 +164,25 @@ fn run(
         force,
         checkpoint_every,
         watch: Some(watch.clone()),
+        shard: parse("shard", shard)?,
+        resume,
+        format: parse("format", format)?,
+        chunk_trajectories,
         ..Default::default()
     };
     let report = watched(py, &watch, progress.as_ref(), || run_scene(&scene, &opts))?;
+    let report = report.map_err(|e| error(py, e))?;
+    Ok(serde_json::to_string_pretty(&report.summary).unwrap_or_default())
+}
+
+/// `reeb merge DIR`: checks that every shard of the run in `DIR.partial`
+/// finished, then writes `summary.json` and the pictures; returns the
+/// summary's text.
+#[pyfunction]
+#[pyo3(signature = (out, force=false))]
+fn merge(py: Python, out: PathBuf, force: bool) -> PyResult<String> {
+    let watch = Watch::default();
+    let report = watched(py, &watch, None, || reeb::output::run::merge(&out, force))?;
     let report = report.map_err(|e| error(py, e))?;
     Ok(serde_json::to_string_pretty(&report.summary).unwrap_or_default())
 }
@@ -251,12 +273,53 @@ fn rayon_threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
+/// `reeb report KIND`: the work–precision (`"work-precision"`) or
+/// stability (`"stability"`) report of the scene, into `out` (default as
+/// the command's); returns the path of its table (CSV).
+#[pyfunction]
+#[pyo3(signature = (kind, text, path, out=None, backend=None, precision=None, force=false))]
+#[allow(clippy::too_many_arguments)]
+fn report(
+    py: Python,
+    kind: &str,
+    text: &str,
+    path: &str,
+    out: Option<PathBuf>,
+    backend: Option<&str>,
+    precision: Option<&str>,
+    force: bool,
+) -> PyResult<String> {
+    use reeb::report::{stability, work_precision, ReportOptions};
+    let make: fn(&Scene, &ReportOptions) -> anyhow::Result<PathBuf> = match kind {
+        "work-precision" => work_precision,
+        "stability" => stability,
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "report: `{kind}` is not a report (work-precision, stability)"
+            )))
+        }
+    };
+    let scene = Scene::parse(Path::new(path), text).map_err(|e| scene_error(py, &e))?;
+    let opts = ReportOptions {
+        out,
+        backend: parse::<BackendChoice>("backend", backend)?,
+        precision: parse::<Precision>("precision", precision)?,
+        force,
+    };
+    let watch = Watch::default();
+    let written = watched(py, &watch, None, || make(&scene, &opts))?;
+    let written = written.map_err(|e| error(py, e))?;
+    Ok(written.display().to_string())
+}
+
 #[pymodule]
 fn _reeb(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(check, m)?)?;
+    m.add_function(wrap_pyfunction!(merge, m)?)?;
     m.add_function(wrap_pyfunction!(verify, m)?)?;
     m.add_function(wrap_pyfunction!(info, m)?)?;
+    m.add_function(wrap_pyfunction!(report, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -1,0 +1,49 @@
+"""Type stubs of the extension module `reeb._reeb` (the Rust engine)."""
+
+from os import PathLike
+from typing import Callable, Optional, Union
+
+__version__: str
+
+_Path = Union[str, PathLike[str]]
+
+def run(
+    text: str,
+    path: str,
+    out: _Path,
+    backend: Optional[str] = None,
+    precision: Optional[str] = None,
+    force: bool = False,
+    preview: bool = False,
+    checkpoint_every: Optional[float] = None,
+    progress: Optional[Callable[[int, int], None]] = None,
+    shard: Optional[str] = None,
+    resume: bool = False,
+    format: Optional[str] = None,
+    chunk_trajectories: Optional[int] = None,
+) -> str:
+    """Runs the scene `text` (read from `path`) into `out` as `reeb run`
+    does; returns summary.json's text."""
+
+def merge(out: _Path, force: bool = False) -> str:
+    """`reeb merge`: finishes a run made in shards; returns its summary."""
+
+def check(text: str, path: str, precision: Optional[str] = None, out: Optional[_Path] = None) -> str:
+    """Every gate of `run` without running; JSON."""
+
+def verify(backend: str = "cpu", precision: str = "f64", progress: Optional[Callable[[int, int], None]] = None) -> str:
+    """`reeb verify`'s rows as JSON."""
+
+def info() -> str:
+    """`reeb info` as JSON."""
+
+def report(
+    kind: str,
+    text: str,
+    path: str,
+    out: Optional[_Path] = None,
+    backend: Optional[str] = None,
+    precision: Optional[str] = None,
+    force: bool = False,
+) -> str:
+    """`reeb report KIND`; returns the path of the report's table (CSV)."""
