@@ -46,4 +46,4 @@ def report(
     precision: Optional[str] = None,
     force: bool = False,
 ) -> str:
-    """`reeb report KIND`; returns the path of the report's table (CSV)."""
+    """`reeb report KIND`; returns the path of the report's main file in its directory."""

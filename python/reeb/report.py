@@ -25,7 +25,7 @@ class Report(NamedTuple):
 
 def _report(kind: str, scene: Scene, out, backend, precision, force) -> Report:
     text, path = resolve(scene)
-    table = Path(
+    written = Path(
         _reeb.report(
             kind,
             text,
@@ -36,6 +36,8 @@ def _report(kind: str, scene: Scene, out, backend, precision, force) -> Report:
             force=force,
         )
     )
+    # Every point of the report, one line each.
+    table = written.parent / f"{kind.replace('-', '_')}.csv"
     try:
         import pandas
 

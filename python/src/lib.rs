@@ -275,7 +275,8 @@ fn rayon_threads() -> usize {
 
 /// `reeb report KIND`: the work–precision (`"work-precision"`) or
 /// stability (`"stability"`) report of the scene, into `out` (default as
-/// the command's); returns the path of its table (CSV).
+/// the command's); returns the path of its main file (`report.md` or
+/// `stability.csv`) in the report's directory.
 #[pyfunction]
 #[pyo3(signature = (kind, text, path, out=None, backend=None, precision=None, force=false))]
 #[allow(clippy::too_many_arguments)]
