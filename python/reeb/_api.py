@@ -58,7 +58,10 @@ def run(
     it (``force`` replaces a directory holding files reeb did not write;
     ``checkpoint_every`` seconds between checkpoints, as ``--checkpoint-every``)
     and the Dataset reads it (lazily for a Zarr store); without ``out`` the
-    Dataset is in memory. ``preview``: at most 4 values per axis and 2000
+    run goes to a temporary directory, removed before this returns, whose
+    arrays the Dataset keeps memory-mapped (copy-on-write: no copy; the
+    memory is freed with the Dataset; a Zarr-format scene is read into
+    memory instead). ``preview``: at most 4 values per axis and 2000
     steps. ``progress``: a tqdm bar over trajectory-steps.
 
     The GIL is released while the engine runs; Ctrl-C stops the run within a
@@ -88,9 +91,10 @@ def run(
             progress=bar,
         )
         bar.close()
-        if temporary is None:
-            return open(target)
-        return open(target, memory_map=False).load()
+        ds = open(target)
+        if temporary is not None and (target / "run.zarr").exists():
+            ds = ds.load()  # the store goes with the temporary directory
+        return ds
     finally:
         bar.close()
         if temporary is not None:
@@ -100,7 +104,8 @@ def run(
 def open(path: PathLike, *, memory_map: bool = True):
     """A run directory (``.npy`` files or a Zarr store) as the Dataset
     ``reeb.run`` returns: a Zarr store lazily (dask arrays), ``.npy`` files
-    memory-mapped (``memory_map=False``: read into memory)."""
+    memory-mapped copy-on-write (no copy; writable, never written back;
+    ``memory_map=False``: read into memory)."""
     import numpy as np
     import xarray as xr
 
@@ -121,7 +126,7 @@ def open(path: PathLike, *, memory_map: bool = True):
         ds.attrs = attrs
         return ds
     axes = [a["name"] for a in summary["scene"]["axes"]]
-    mode = "r" if memory_map else None
+    mode = "c" if memory_map else None
     coords = {a: np.load(d / f"axis_{a}.npy") for a in axes}
     data = {}
     for f in summary["files"]:

@@ -65,6 +65,19 @@ def test_the_van_der_pol_limit_cycle_has_amplitude_two():
     assert bool((ds.cycle_period.diff("epsilon") > 0).all())
 
 
+def test_results_reach_numpy_without_a_copy():
+    ds = reeb.run(VAN_DER_POL, progress=False)
+    q = ds.final_q.values
+    # The run's own array, memory-mapped (its directory is already gone).
+    base = q
+    while not isinstance(base, np.memmap) and getattr(base, "base", None) is not None:
+        base = base.base
+    assert isinstance(base, np.memmap), type(base)
+    assert q.flags.writeable
+    q[0, 0] = 42.0
+    assert ds.final_q.values[0, 0] == 42.0
+
+
 def test_numpy_arrays_are_accepted_where_lists_are():
     scene = json.loads(json.dumps(VAN_DER_POL))
     scene["initial"]["q"] = np.array([0.5, 1.5, 2.5])
