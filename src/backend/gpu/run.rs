@@ -192,13 +192,7 @@ pub fn run_resumable<R: Flows>(
     // Where the first chunk starts: (its first trajectory, its first step).
     let mut start = (0u64, 0u64);
     if let Some(c) = cp.as_deref_mut() {
-        if let Some((h, r)) = c.restore(&mut out).map_err(GpuError::checkpoint)? {
-            start = run.restore(r).map_err(GpuError::checkpoint)?;
-            header.seconds = h.seconds;
-            if let Some(p) = progress {
-                p.fetch_add(h.traj_steps, Ordering::Relaxed);
-            }
-        }
+        (start, header.seconds) = run.resume(c, &mut out, progress)?;
     }
     let mut chunks = 0;
     let mut base = start.0;
@@ -597,6 +591,25 @@ impl Dispatcher<'_> {
             carried.iter().try_for_each(|c| put_slice(w, c))
         })
         .map_err(GpuError::checkpoint)
+    }
+
+    /// Continues from `cp`'s snapshot, if it has one: its observations into
+    /// `out`, its buffers loaded, its trajectory-steps counted. Returns where
+    /// the first chunk starts (trajectory, step) and the seconds before.
+    fn resume<R: Flows>(
+        &self,
+        cp: &mut Checkpoints,
+        out: &mut Observations<R>,
+        progress: Option<&AtomicU64>,
+    ) -> Result<((u64, u64), f64), GpuError> {
+        let Some((h, r)) = cp.restore(out).map_err(GpuError::checkpoint)? else {
+            return Ok(((0, 0), 0.0));
+        };
+        let start = self.restore(r).map_err(GpuError::checkpoint)?;
+        if let Some(p) = progress {
+            p.fetch_add(h.traj_steps, Ordering::Relaxed);
+        }
+        Ok((start, h.seconds))
     }
 
     /// Loads the buffers of a snapshot's chunk; returns its first trajectory
