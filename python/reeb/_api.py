@@ -166,11 +166,11 @@ def check(scene: Scene, *, precision: Optional[str] = None, out: Optional[PathLi
     return json.loads(_reeb.check(text, path, precision=precision, out=None if out is None else str(out)))
 
 
-def verify(*, backend: str = "cpu", precision: str = "f64", progress: bool = False) -> List[Dict[str, Any]]:
+def verify(*, backend: str = "cpu", precision: str = "f64") -> List[Dict[str, Any]]:
     """``reeb verify``: every model's oracle and every scheme's measured
     order on ``backend`` in ``precision``; one dict per check (``check``,
     ``pass``, ``expected``, ``measured``, ``tolerance``)."""
-    return json.loads(_reeb.verify(backend, precision, progress=None))
+    return json.loads(_reeb.verify(backend, precision))
 
 
 def info() -> Dict[str, Any]:

@@ -31,7 +31,7 @@ def merge(out: _Path, force: bool = False) -> str:
 def check(text: str, path: str, precision: Optional[str] = None, out: Optional[_Path] = None) -> str:
     """Every gate of `run` without running; JSON."""
 
-def verify(backend: str = "cpu", precision: str = "f64", progress: Optional[Callable[[int, int], None]] = None) -> str:
+def verify(backend: str = "cpu", precision: str = "f64") -> str:
     """`reeb verify`'s rows as JSON."""
 
 def info() -> str:

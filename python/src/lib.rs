@@ -224,21 +224,14 @@ fn check(
 /// `reeb verify`: the oracles and convergence orders on `backend` in
 /// `precision`; returns the rows as JSON.
 #[pyfunction]
-#[pyo3(signature = (backend="cpu", precision="f64", progress=None))]
-fn verify(
-    py: Python,
-    backend: &str,
-    precision: &str,
-    progress: Option<Bound<PyAny>>,
-) -> PyResult<String> {
+#[pyo3(signature = (backend="cpu", precision="f64"))]
+fn verify(py: Python, backend: &str, precision: &str) -> PyResult<String> {
     let backend = parse::<BackendChoice>("backend", Some(backend))?.unwrap_or(BackendChoice::Cpu);
     let precision = parse::<Precision>("precision", Some(precision))?.unwrap_or(Precision::F64);
     let (engine, _) = Engine::resolve(backend, precision).map_err(|e| error(py, e.into()))?;
     let target = Target { engine, precision };
     let watch = Watch::default();
-    let rows = watched(py, &watch, progress.as_ref(), || {
-        reeb::verify::run_all(&target, |_| {})
-    })?;
+    let rows = watched(py, &watch, None, || reeb::verify::run_all(&target, |_| {}))?;
     let rows: Vec<serde_json::Value> = rows
         .iter()
         .map(|c| {
