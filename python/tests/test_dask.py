@@ -19,3 +19,37 @@ def test_shards_on_a_local_cluster_give_the_bits_of_one_process(tmp_path):
         a, b = ds[name].values, one[name].values
         assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), name
     assert ds.final_q.dims == ("epsilon", "q")
+
+
+def test_a_failed_shard_run_again_resumes_its_finished_chunks(tmp_path, capfd):
+    """What a Dask retry does: the same shard called again after a failure
+    halfway continues from its finished chunks, and the merged store is
+    bitwise the single-process run."""
+    from reeb import _reeb
+    from reeb._scene import resolve
+
+    scene = {**VAN_DER_POL, "integrator": {"scheme": "s2", "dt": 0.002, "steps": 1_000_000}}
+    scene["output"] = {"final": ["q", "s"], "cycle": True}
+    text, path = resolve(scene)
+    store = str(tmp_path / "store")
+    options = dict(format="zarr", chunk_trajectories=3)
+
+    def lost_halfway(done, total):
+        if done > total // 2:
+            raise RuntimeError("worker lost")
+
+    try:
+        _reeb.run(text, path, store, shard="0/1", resume=True, progress=lost_halfway, **options)
+    except RuntimeError as e:
+        assert "worker lost" in str(e)
+    else:
+        raise AssertionError("the shard finished before it failed")
+    capfd.readouterr()
+    reeb.dask._shard(text, path, store, 0, 1, options)
+    said = capfd.readouterr().err
+    assert "resuming:" in said and "already finished" in said, said
+    _reeb.merge(store)
+    ds = reeb.open(store)
+    one = reeb.run(scene, progress=False)
+    for name in one.data_vars:
+        assert ds[name].values.tobytes() == one[name].values.tobytes(), name
