@@ -662,7 +662,7 @@ fn info() -> Result<ExitCode> {
     println!(
         "reeb {}; CPU backend: {} threads (rayon), {isa} kernels",
         env!("CARGO_PKG_VERSION"),
-        rayon::current_num_threads()
+        reeb::backend::cpu::threads()
     );
     let adapters = list_adapters();
     if adapters.is_empty() {

@@ -254,16 +254,12 @@ fn info() -> String {
         .map_err(|e| e.to_string());
     serde_json::json!({
         "version": env!("CARGO_PKG_VERSION"),
-        "cpu": {"threads": rayon_threads(), "kernels": isa},
+        "cpu": {"threads": reeb::backend::cpu::threads(), "kernels": isa},
         "adapters": adapters,
         "gpu": gpu.as_ref().ok(),
         "gpu_unavailable": gpu.err(),
     })
     .to_string()
-}
-
-fn rayon_threads() -> usize {
-    std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
 /// `reeb report KIND`: the work–precision (`"work-precision"`) or

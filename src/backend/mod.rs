@@ -101,7 +101,7 @@ impl Engine {
 
     pub fn describe(&self) -> String {
         match self {
-            Engine::Cpu => format!("cpu ({} threads)", rayon::current_num_threads()),
+            Engine::Cpu => format!("cpu ({} threads)", cpu::threads()),
             Engine::Gpu(ctx) => format!("gpu: {}", ctx.describe()),
         }
     }

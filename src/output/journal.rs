@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
+use crate::backend::checkpoint::Contents;
 use crate::output::chunks::Chunks;
 
 pub const RECORD_FILE: &str = ".reeb-run.json";
@@ -67,7 +68,8 @@ impl Record {
         std::fs::create_dir_all(dir.join(CHUNKS_DIR))
             .with_context(|| format!("creating {}", dir.join(CHUNKS_DIR).display()))?;
         let path = dir.join(RECORD_FILE);
-        let tmp = write_temporary(&path, serde_json::to_string_pretty(self)?.as_bytes())?;
+        let text = serde_json::to_string_pretty(self)?;
+        let tmp = write_temporary(&path, &|w| w.write_all(text.as_bytes()))?;
         let linked = std::fs::hard_link(&tmp, &path);
         let _ = std::fs::remove_file(&tmp);
         match linked {
@@ -167,23 +169,10 @@ fn state(dir: &Path, k: usize) -> PathBuf {
 /// Replaces chunk `k`'s checkpoint (the integrator's state inside the
 /// chunk) with what `write` writes, durably and atomically: a kill while
 /// writing leaves the previous one.
-pub fn save_state(
-    dir: &Path,
-    k: usize,
-    write: &dyn Fn(&mut dyn Write) -> std::io::Result<()>,
-) -> std::io::Result<()> {
+pub fn save_state(dir: &Path, k: usize, write: Contents) -> std::io::Result<()> {
     let path = state(dir, k);
-    let tmp = temporary_name(&path);
-    let written = || -> std::io::Result<()> {
-        let f = std::fs::File::create(&tmp)?;
-        let mut w = BufWriter::with_capacity(1 << 20, &f);
-        write(&mut w)?;
-        w.flush()?;
-        drop(w);
-        f.sync_all()?;
-        std::fs::rename(&tmp, &path)
-    };
-    written().map_err(|e| {
+    let tmp = write_temporary(&path, write)?;
+    std::fs::rename(&tmp, &path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         std::io::Error::new(e.kind(), format!("writing {}: {e}", path.display()))
     })
@@ -212,21 +201,32 @@ pub fn remove_state(dir: &Path, k: usize) -> Result<()> {
 
 /// Writes `path` through a temporary file and a rename, durably.
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = write_temporary(path, bytes)?;
+    let tmp = write_temporary(path, &|w| w.write_all(bytes))?;
     std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))
 }
 
-/// Writes `bytes` durably to a file of this process beside `path`; returns
-/// its path.
-fn write_temporary(path: &Path, bytes: &[u8]) -> Result<PathBuf> {
+/// Writes what `write` writes durably to a file of this process beside
+/// `path` (removed again if that fails); returns its path.
+fn write_temporary(path: &Path, write: Contents) -> std::io::Result<PathBuf> {
     let tmp = temporary_name(path);
-    let write = || -> std::io::Result<()> {
+    let written = || -> std::io::Result<()> {
         let f = std::fs::File::create(&tmp)?;
-        std::io::Write::write_all(&mut &f, bytes)?;
+        let mut w = BufWriter::with_capacity(1 << 20, &f);
+        write(&mut w)?;
+        w.flush()?;
+        drop(w);
         f.sync_all()
     };
-    write().with_context(|| format!("writing {}", tmp.display()))?;
-    Ok(tmp)
+    match written() {
+        Ok(()) => Ok(tmp),
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            Err(std::io::Error::new(
+                e.kind(),
+                format!("writing {}: {e}", tmp.display()),
+            ))
+        }
+    }
 }
 
 /// A file of this process beside `path`.

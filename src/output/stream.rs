@@ -161,6 +161,22 @@ fn chunk<R: Flows>(t: &Target, k: usize, sink: &Sink, done: &AtomicU64) -> Resul
 /// A sub-run with rows in a chunk, and those rows (of the sub-run's grid).
 type Part<'a> = (&'a SubRun, Range<usize>);
 
+/// The parts of chunk `k`: the sub-runs with rows in it, in order.
+fn parts<'a>(t: &Target<'a>, k: usize) -> Vec<Part<'a>> {
+    let (shape, strides) = (t.scene.shape(), t.scene.strides());
+    let rows = t.chunks.range(k);
+    t.subs
+        .iter()
+        .map(|sub| (sub, sub.rows_within(&rows, &shape, &strides)))
+        .filter(|(_, own)| !own.is_empty())
+        .collect()
+}
+
+/// Trajectory-steps of a part.
+fn part_steps((sub, own): &Part) -> u64 {
+    own.len() as u64 * sub.plan.steps
+}
+
 /// The observations of chunk `k`'s rows, from every sub-run that has some
 /// of them, continued from the chunk's checkpoint if it has one (and
 /// checkpointed every `t.checkpoint_every`); and the seconds the
@@ -172,12 +188,7 @@ fn integrate_rows<R: Flows>(
 ) -> Result<(Observations<R>, f64, &'static str)> {
     let rows = t.chunks.range(k);
     let (shape, strides) = (t.scene.shape(), t.scene.strides());
-    let parts: Vec<Part> = t
-        .subs
-        .iter()
-        .map(|sub| (sub, sub.rows_within(&rows, &shape, &strides)))
-        .filter(|(_, own)| !own.is_empty())
-        .collect();
+    let parts = parts(t, k);
     // Sub-runs fill one set of arrays shaped by the longest; a scene of one
     // sub-run takes its arrays as they come.
     let mut whole =
@@ -195,11 +206,12 @@ fn integrate_rows<R: Flows>(
         None => (0, 0.0, None),
     };
     let (mut since, mut timing, mut single) = (Instant::now(), "wall clock", None);
-    for (i, (sub, own)) in parts.iter().enumerate() {
+    for (i, part) in parts.iter().enumerate() {
         if i < first {
-            progress.fetch_add(own.len() as u64 * sub.plan.steps, Ordering::Relaxed);
+            progress.fetch_add(part_steps(part), Ordering::Relaxed);
             continue;
         }
+        let (sub, own) = part;
         let resume = header
             .take()
             .zip(saved.as_mut().map(|r| r as &mut dyn Read));
@@ -291,10 +303,7 @@ fn continued<R: Flows>(
     };
     match read() {
         Ok((i, seconds, h)) => {
-            let before: u64 = parts[..i]
-                .iter()
-                .map(|(s, own)| own.len() as u64 * s.plan.steps)
-                .sum();
+            let before: u64 = parts[..i].iter().map(part_steps).sum();
             let share = (before + h.traj_steps) as f64 / traj_steps(t, k).max(1) as f64;
             eprintln!(
                 "chunk {k}: continuing from its checkpoint ({:.0} % of its trajectory-steps done)",
@@ -313,12 +322,7 @@ fn continued<R: Flows>(
 
 /// Trajectory-steps of chunk `k`.
 fn traj_steps(t: &Target, k: usize) -> u64 {
-    let (shape, strides) = (t.scene.shape(), t.scene.strides());
-    let rows = t.chunks.range(k);
-    t.subs
-        .iter()
-        .map(|s| s.rows_within(&rows, &shape, &strides).len() as u64 * s.plan.steps)
-        .sum()
+    parts(t, k).iter().map(part_steps).sum()
 }
 
 /// The longest sub-run's plan for `n` trajectories: it shapes the arrays.

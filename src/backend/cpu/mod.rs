@@ -48,6 +48,12 @@ pub fn run_isa<R: Flows>(plan: &Plan, progress: Option<&AtomicU64>, isa: Isa) ->
     }
 }
 
+/// The threads the CPU backend integrates on (rayon's pool: every core,
+/// or `RAYON_NUM_THREADS`).
+pub fn threads() -> usize {
+    rayon::current_num_threads()
+}
+
 /// What a snapshot of a CPU run names its engine: the kernels' level
 /// decides the bits.
 pub fn fingerprint(isa: Isa) -> String {
@@ -77,7 +83,7 @@ pub fn resumable<R: Flows>(
     if let Some(c) = cp.as_deref_mut() {
         if let Some((h, r)) = c.restore(&mut out).map_err(GpuError::checkpoint)? {
             read_blocks(&program, r, &mut blocks).map_err(GpuError::checkpoint)?;
-            (header.seconds, header.traj_steps) = (h.seconds, h.traj_steps);
+            header.seconds = h.seconds;
             if let Some(pr) = progress {
                 pr.fetch_add(h.traj_steps, Ordering::Relaxed);
             }
@@ -165,7 +171,7 @@ impl Pause<'_> {
         if self.requested.load(Ordering::Relaxed) {
             return true;
         }
-        if self.stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
+        if self.stop_asked() {
             self.requested.store(true, Ordering::Relaxed);
             return true;
         }
@@ -178,8 +184,11 @@ impl Pause<'_> {
 
     /// Whether a block that has not started waits for the checkpoint.
     fn holds_back(&self) -> bool {
-        let stop = self.stop.is_some_and(|s| s.load(Ordering::Relaxed));
-        stop || self.progressed.load(Ordering::Relaxed) && self.due(true)
+        self.stop_asked() || self.progressed.load(Ordering::Relaxed) && self.due(true)
+    }
+
+    fn stop_asked(&self) -> bool {
+        self.stop.is_some_and(|s| s.load(Ordering::Relaxed))
     }
 
     fn progressed(&self) {

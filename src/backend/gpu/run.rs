@@ -141,12 +141,16 @@ pub fn fingerprint<R: Flows>(
     plan: &Plan,
     opts: &GpuOptions,
 ) -> Result<String, GpuError> {
-    let cap = Sizes::new::<R>(ctx, plan, opts)?.cap;
+    Ok(engine_name(ctx, Sizes::new::<R>(ctx, plan, opts)?.cap))
+}
+
+/// [`fingerprint`] for a chunk capacity `cap`.
+fn engine_name(ctx: &GpuContext, cap: u64) -> String {
     let i = &ctx.info;
-    Ok(format!(
+    format!(
         "gpu {} ({:?}, {} {}, chunks of {cap})",
         i.name, i.backend, i.driver, i.driver_info
-    ))
+    )
 }
 
 /// [`run_with`] with checkpoints: continues from `cp`'s snapshot if it has
@@ -188,7 +192,7 @@ pub fn run_resumable<R: Flows>(
         bind: bind_group(ctx, &bufs),
         timestamps: Timestamps::new(ctx),
     };
-    let mut header = Header::of::<R>(plan, fingerprint::<R>(ctx, plan, opts)?);
+    let mut header = Header::of::<R>(plan, engine_name(ctx, sizes.cap));
     // Where the first chunk starts: (its first trajectory, its first step).
     let mut start = (0u64, 0u64);
     if let Some(c) = cp.as_deref_mut() {
