@@ -647,6 +647,7 @@ fn report(kind: ReportKind) -> Result<ExitCode> {
             backend: args.backend,
             precision: args.precision,
             force: args.force,
+            stop: None,
         },
     )?;
     println!("{}", written.display());

@@ -23,6 +23,7 @@ fn work_precision_on_cpu(scene: &Scene, out: &Path) -> String {
             backend: Some(BackendChoice::Cpu),
             precision: None,
             force: false,
+            stop: None,
         },
     )
     .unwrap();
@@ -113,6 +114,7 @@ precisions = ["f32", "f64"]
         backend: Some(BackendChoice::Cpu),
         precision: None,
         force: false,
+        stop: None,
     };
     let csv = stability(&scene, &opts).unwrap();
     // A report replaces its own earlier output (its summary.json lists every file).
@@ -200,6 +202,7 @@ precisions = ["f64"]
         backend: Some(BackendChoice::Cpu),
         precision: None,
         force: false,
+        stop: None,
     };
     let map = |text: String, name: &str| {
         let scene = Scene::parse(Path::new("st.toml"), &text).unwrap();
@@ -219,4 +222,42 @@ precisions = ["f64"]
     );
     assert_eq!(builtin.len(), 25);
     assert_eq!(formula, builtin, "epsilon, dt, precision, class per cell");
+}
+
+/// A report asked to stop (Ctrl-C in Python) ends with an error inside its
+/// first run, and leaves nothing (its `.partial` is removed).
+#[test]
+fn a_stopped_report_ends_and_looks_unfinished() {
+    let scene = Scene::parse(
+        Path::new("st.toml"),
+        r#"
+model = "van_der_pol"
+[params]
+epsilon = { logspace = [-1.0, 1.0, 2] }
+[initial]
+q = 2.0
+[integrator]
+dt = { logspace = [-4.0, -3.0, 2] }
+t_end = 1e5
+[output]
+cycle = true
+[report]
+precisions = ["f64"]
+"#,
+    )
+    .unwrap();
+    let out = tmp("st-stopped");
+    let opts = ReportOptions {
+        out: Some(out.clone()),
+        backend: Some(BackendChoice::Cpu),
+        precision: None,
+        force: false,
+        stop: Some(std::sync::Arc::new(true.into())),
+    };
+    let started = std::time::Instant::now();
+    let e = stability(&scene, &opts).unwrap_err();
+    assert!(format!("{e:#}").contains("stopped"), "{e:#}");
+    assert!(started.elapsed().as_secs() < 10, "{:?}", started.elapsed());
+    assert!(!out.exists());
+    assert!(!out.with_extension("partial").exists());
 }

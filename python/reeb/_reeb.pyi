@@ -47,3 +47,6 @@ def report(
     force: bool = False,
 ) -> str:
     """`reeb report KIND`; returns the path of the report's main file in its directory."""
+
+def _panic(message: str) -> None:
+    """Panics on the engine's thread (tests only): raises `reeb.InternalError`."""

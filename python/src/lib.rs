@@ -290,16 +290,26 @@ fn report(
         }
     };
     let scene = Scene::parse(Path::new(path), text).map_err(|e| scene_error(py, &e))?;
+    let watch = Watch::default();
     let opts = ReportOptions {
         out,
         backend: parse::<BackendChoice>("backend", backend)?,
         precision: parse::<Precision>("precision", precision)?,
         force,
+        stop: Some(watch.stop.clone()),
     };
-    let watch = Watch::default();
     let written = watched(py, &watch, None, || make(&scene, &opts))?;
     let written = written.map_err(|e| error(py, e))?;
     Ok(written.display().to_string())
+}
+
+/// Panics on the engine's thread, as a bug in reeb would: the tests' way
+/// to see that a panic reaches Python as `reeb.InternalError`.
+#[pyfunction]
+fn _panic(py: Python, message: String) -> PyResult<()> {
+    watched(py, &Watch::default(), None, || -> () {
+        panic!("{message}")
+    })
 }
 
 #[pymodule]
@@ -310,6 +320,7 @@ fn _reeb(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(verify, m)?)?;
     m.add_function(wrap_pyfunction!(info, m)?)?;
     m.add_function(wrap_pyfunction!(report, m)?)?;
+    m.add_function(wrap_pyfunction!(_panic, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -53,3 +53,46 @@ def test_a_failed_shard_run_again_resumes_its_finished_chunks(tmp_path, capfd):
     one = reeb.run(scene, progress=False)
     for name in one.data_vars:
         assert ds[name].values.tobytes() == one[name].values.tobytes(), name
+
+
+def test_a_worker_killed_mid_shard_is_retried_and_resumes(tmp_path, capfd):
+    """A worker process SIGKILLed while its shard runs: the nanny restarts
+    it, the scheduler runs the shard again, the shard continues from the
+    chunks finished before the kill, and the store is bitwise the
+    single-process run."""
+    import os
+    import signal
+    import threading
+    import time
+
+    scene = {**VAN_DER_POL, "integrator": {"scheme": "s2", "dt": 0.002, "steps": 2_000_000}}
+    scene["output"] = {"final": ["q", "s"], "cycle": True}
+    store = tmp_path / "store"
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with distributed.Client(cluster) as client:
+            pids = client.run(os.getpid)
+            result = {}
+
+            def shards():
+                try:
+                    result["ds"] = reeb.dask.run(scene, client, shards=1, store=store, chunk_trajectories=3)
+                except BaseException as e:  # noqa: BLE001 - handed to the test thread
+                    result["error"] = e
+
+            running = threading.Thread(target=shards)
+            running.start()
+            deadline = time.monotonic() + 120
+            while not list(tmp_path.glob("store.partial/**/.reeb-chunks/*.json")):
+                assert time.monotonic() < deadline and running.is_alive(), result
+                time.sleep(0.05)
+            busy = [w for w, tasks in client.processing().items() if tasks]
+            assert len(busy) == 1, client.processing()
+            os.kill(pids[busy[0]], signal.SIGKILL)
+            running.join(timeout=300)
+            assert not running.is_alive()
+    assert "error" not in result, result.get("error")
+    said = capfd.readouterr().err
+    assert "already finished" in said, said
+    one = reeb.run(scene, progress=False)
+    for name in one.data_vars:
+        assert result["ds"][name].values.tobytes() == one[name].values.tobytes(), name

@@ -73,10 +73,9 @@ def test_an_existing_foreign_directory_is_refused(tmp_path):
     assert (tmp_path / "mine.txt").read_text() == "keep me"
 
 
-def test_ctrl_c_stops_a_run_within_a_second_and_leaves_nothing_complete(tmp_path):
-    # About 12 s uninterrupted (2·10⁷ steps), Ctrl-C after 1 s.
-    long = scene(integrator__steps=20_000_000, output={"final": ["q", "s"]})
-    out = tmp_path / "long"
+def interrupted_after_a_second(work) -> float:
+    """Runs `work` with Ctrl-C pressed after 1 s; the seconds it took to end
+    in KeyboardInterrupt."""
     # Python's own Ctrl-C handler, as in a terminal or a notebook (a process
     # started in the background inherits SIGINT ignored).
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
@@ -85,13 +84,48 @@ def test_ctrl_c_stops_a_run_within_a_second_and_leaves_nothing_complete(tmp_path
     started = time.monotonic()
     try:
         with pytest.raises(KeyboardInterrupt):
-            reeb.run(long, out=out, progress=False)
+            work()
     finally:
         timer.cancel()
         signal.signal(signal.SIGINT, previous)
-    stopped = time.monotonic() - started
+    return time.monotonic() - started
+
+
+def test_ctrl_c_stops_a_run_within_a_second_and_leaves_nothing_complete(tmp_path):
+    # About 12 s uninterrupted (2·10⁷ steps), Ctrl-C after 1 s.
+    long = scene(integrator__steps=20_000_000, output={"final": ["q", "s"]})
+    out = tmp_path / "long"
+    stopped = interrupted_after_a_second(lambda: reeb.run(long, out=out, progress=False))
     assert stopped < 2.5, f"took {stopped:.2f} s to stop"
     assert not out.exists(), "an interrupted run looks complete"
     assert (tmp_path / "long.partial").exists()
     # The interpreter is fine: the next run works.
     assert reeb.run(VAN_DER_POL, progress=False).final_q.size == 15
+
+
+def test_a_panic_in_the_engine_is_an_internal_error_not_a_crash():
+    from reeb import _reeb
+
+    with pytest.raises(reeb.InternalError, match="reeb panicked: lane 7 lost") as e:
+        _reeb._panic("lane 7 lost")
+    assert isinstance(e.value, reeb.ReebError)
+    # The interpreter and the extension go on working.
+    assert reeb.check(VAN_DER_POL)["trajectories"] == 15
+
+
+def test_ctrl_c_stops_a_report_inside_its_run(tmp_path):
+    # A stability map whose cells run 10⁹ steps each: minutes uninterrupted.
+    long = {
+        "name": "long",
+        "model": "van_der_pol",
+        "params": {"epsilon": {"logspace": [-1.0, 1.0, 2]}},
+        "initial": {"q": 2.0},
+        "integrator": {"dt": {"logspace": [-4.0, -3.0, 2]}, "t_end": 1e5},
+        "output": {"cycle": True},
+        "report": {"precisions": ["f64"]},
+    }
+    out = tmp_path / "map"
+    stopped = interrupted_after_a_second(lambda: reeb.report.stability(long, out=out, backend="cpu"))
+    assert stopped < 2.5, f"took {stopped:.2f} s to stop"
+    # A failed report removes its own `.partial`: nothing is left.
+    assert sorted(tmp_path.iterdir()) == [], sorted(tmp_path.iterdir())

@@ -7,7 +7,7 @@ pub mod checkpoint;
 pub mod cpu;
 pub mod gpu;
 
-use std::sync::atomic::AtomicU64;
+use std::sync::atomic::{AtomicBool, AtomicU64};
 
 use crate::models::Flows;
 use crate::num::precision::Precision;
@@ -163,13 +163,33 @@ impl Engine {
         plan: &Plan,
         precision: Precision,
     ) -> Result<(Observations<f64>, f64), GpuError> {
+        self.run_f64_until(plan, precision, None)
+    }
+
+    /// [`Engine::run_f64`] that ends with `GpuError::Stopped` soon after
+    /// `stop` is set (Ctrl-C in Python).
+    pub fn run_f64_until(
+        &self,
+        plan: &Plan,
+        precision: Precision,
+        stop: Option<&AtomicBool>,
+    ) -> Result<(Observations<f64>, f64), GpuError> {
+        let mut save = |_: checkpoint::Contents| Ok(());
+        let mut cp = stop.map(|s| Checkpoints {
+            every: None,
+            since: std::time::Instant::now(),
+            resume: None,
+            save: &mut save,
+            taken: 0,
+            stop: Some(s),
+        });
         Ok(match precision {
             Precision::F32 => {
-                let r = self.run::<f32>(plan, None)?;
+                let r = self.run_resumable::<f32>(plan, None, cp.as_mut())?;
                 (r.observations.convert(), r.seconds)
             }
             Precision::F64 => {
-                let r = self.run::<f64>(plan, None)?;
+                let r = self.run_resumable::<f64>(plan, None, cp.as_mut())?;
                 (r.observations, r.seconds)
             }
         })

@@ -7,6 +7,7 @@ use std::io::Read;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
@@ -52,7 +53,7 @@ pub struct Target<'a> {
 pub struct Watch {
     pub done: AtomicU64,
     pub total: AtomicU64,
-    pub stop: AtomicBool,
+    pub stop: Arc<AtomicBool>,
 }
 
 /// Where a run's chunks go: `.npy` files written in slabs, or a Zarr store.
@@ -266,7 +267,7 @@ fn integrate_part<R: Flows>(
         resume: resume.map(|(h, r)| (h, r as &mut dyn Read)),
         save: &mut save,
         taken: 0,
-        stop: t.watch.map(|w| &w.stop),
+        stop: t.watch.map(|w| &*w.stop),
     };
     let plan = sub.plan.rows(own.clone());
     let run = t

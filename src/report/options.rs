@@ -2,6 +2,8 @@
 //! `[report]` settings, and the directory the report is written to.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
 
 use anyhow::{Context, Result};
 
@@ -20,6 +22,9 @@ pub struct ReportOptions {
     pub precision: Option<Precision>,
     /// Replace `out` even when it holds files reeb did not write.
     pub force: bool,
+    /// Set from another thread to stop the report (Ctrl-C in Python): its
+    /// runs end with an error and its `.partial` directory is removed.
+    pub stop: Option<Arc<AtomicBool>>,
 }
 
 /// The scene's `[report]` table, or the defaults for its scheme.

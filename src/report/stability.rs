@@ -10,10 +10,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
+use crate::backend::gpu::GpuError;
 use crate::backend::BackendChoice;
 use crate::backend::Engine;
 use crate::num::precision::Precision;
 use crate::output::plot::{self, Figure};
+use crate::plan::observations::Observations;
 use crate::plan::observers::CycleObs;
 use crate::plan::Plan;
 use crate::reference::truth::{dop853_of, lane_of};
@@ -74,7 +76,8 @@ pub fn stability(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
         if let Some(n) = notice {
             eprintln!("{n}");
         }
-        let cells = classify_cells(&engine, *p, &subs, &map, &mut references, set.distorted)?;
+        let run = |plan: &Plan| engine.run_f64_until(plan, *p, opts.stop.as_deref());
+        let cells = classify_cells(run, &subs, &map, &mut references, set.distorted)?;
         write_rows(&mut csv, scene, &map, *p, &cells)?;
         let counts = [0u8, 1, 2].map(|c| cells.class.iter().filter(|x| **x == c).count());
         let _ = writeln!(
@@ -274,10 +277,9 @@ struct Cells {
     measured: Vec<Measurement>,
 }
 
-/// Runs every plan in precision `p` and classifies each of its cells.
+/// Runs every plan (with `run`, in one precision) and classifies each of its cells.
 fn classify_cells(
-    engine: &Engine,
-    p: Precision,
+    run: impl Fn(&Plan) -> Result<(Observations<f64>, f64), GpuError>,
     subs: &[SubRun],
     map: &Map,
     references: &mut CycleReferences,
@@ -289,7 +291,7 @@ fn classify_cells(
         measured: vec![],
     };
     for sub in subs {
-        let (obs, _) = engine.run_f64(&sub.plan, p)?;
+        let (obs, _) = run(&sub.plan)?;
         for (j, g) in sub.scene_rows(&map.shape, &map.strides).enumerate() {
             let (ra, rp) = references.of(&sub.plan, j)?;
             let (a, per, st) = (

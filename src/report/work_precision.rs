@@ -8,6 +8,7 @@
 use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
 
 use anyhow::{bail, Context, Result};
 
@@ -80,7 +81,8 @@ pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
     let base = measured_scene(scene, &error_vars);
     let engines = engines(opts, &set);
     let precisions = precisions(scene, opts, &set)?;
-    let measured = measure_schemes(&base, &set, &engines, &precisions, &error_vars)?;
+    let stop = opts.stop.as_deref();
+    let measured = measure_schemes(&base, &set, &engines, &precisions, &error_vars, stop)?;
     let mut rows = measured.rows;
 
     // The reference integrator as points of the same diagram, on the first plan.
@@ -273,6 +275,7 @@ fn measure_schemes(
     engines: &[(BackendChoice, Engine)],
     precisions: &[Precision],
     error_vars: &[String],
+    stop: Option<&AtomicBool>,
 ) -> Result<Measured> {
     let tty = std::io::IsTerminal::is_terminal(&std::io::stderr());
     let mut m = Measured::default();
@@ -284,7 +287,8 @@ fn measure_schemes(
         let mid = subs.len() / 2;
         for (engine, p) in configurations(engines, precisions) {
             for (k, sub) in subs.iter().enumerate() {
-                let (row, per_time) = measure(&s, engine, p, sub, &mut references, error_vars)?;
+                let (row, per_time) =
+                    measure(&s, engine, p, sub, &mut references, error_vars, stop)?;
                 let label = format!("{scheme} {} {p}", engine.name());
                 if k == mid && per_time.len() > 1 {
                     m.over_time
@@ -324,10 +328,11 @@ fn measure(
     sub: &SubRun,
     references: &mut References,
     error_vars: &[String],
+    stop: Option<&AtomicBool>,
 ) -> Result<(Row, Vec<f64>)> {
     let copies = timing_copies(&sub.plan);
     let plan = sub.plan.replicated(copies);
-    let (obs, seconds) = engine.run_f64(&plan, p)?;
+    let (obs, seconds) = engine.run_f64_until(&plan, p, stop)?;
     let mut err = Errors::default();
     for j in 0..sub.plan.n {
         let times = sub.plan.output_times(j);
