@@ -263,3 +263,97 @@ fn every_instruction_set_level_agrees() {
         }
     }
 }
+
+/// Time terms shared by the ensemble (`t0`, `dt` and the time ops' inputs
+/// one value) are evaluated once per block and stage: bitwise the
+/// per-trajectory evaluation, for every time-dependent model, in both
+/// precisions, on every stage of a composition, with the observers that
+/// read time; an ensemble that varies a time input is not shared.
+#[test]
+fn shared_time_terms_are_bitwise_the_per_trajectory_ones() {
+    use reeb::backend::cpu::program::Program;
+    use reeb::bench::Scenario;
+    let forced = |model: Model, scheme: &str| {
+        let mut p = Problem::new(model, scheme)
+            .unwrap()
+            .param("forcing_amplitude", Source::Const(0.7))
+            .param("forcing_frequency", Source::Const(1.3));
+        let q0 = p.axis("q0", (0..100).map(|i| 0.5 + 0.02 * i as f64).collect());
+        p = p.initial("q", q0).initial("t0", Source::Const(0.25));
+        p.dt = Source::Const(0.01);
+        p.steps = 400;
+        p.observers.trajectory = Some(TrajectoryObs {
+            every: 50,
+            vars: vec!["q".into(), "t".into()],
+        });
+        p
+    };
+    let lane_emden = {
+        let mut p = Problem::new(Model::LaneEmden, "s2")
+            .unwrap()
+            .param("index", Source::Const(3.0));
+        let q0 = p.axis("q0", (0..70).map(|i| 1.0 - 0.001 * i as f64).collect());
+        p = p.initial("q", q0).initial("t0", Source::Const(0.01));
+        p.dt = Source::Const(0.001);
+        p.steps = 500;
+        p
+    };
+    let plans = [
+        Scenario::SpinOrbitS2.plan(300, 500),
+        Scenario::KeplerS2.plan(130, 500),
+        Plan::new(&forced(Model::VanDerPol, "s2")).unwrap(),
+        Plan::new(&forced(Model::VanDerPol, "yoshida6a")).unwrap(),
+        Plan::new(&forced(Model::DampedOscillator, "s2")).unwrap(),
+        Plan::new(&lane_emden).unwrap(),
+    ];
+    let isa = cpu::isa();
+    for plan in &plans {
+        let name = plan.model.name();
+        assert!(
+            Program::<f64>::new(plan, isa, true).shared_time.is_some(),
+            "{name}"
+        );
+        let same = |a: &reeb::plan::observations::Observations<f64>,
+                    b: &reeb::plan::observations::Observations<f64>| {
+            for ((n, x), (_, y)) in a.final_values.iter().zip(&b.final_values) {
+                assert!(
+                    x.iter().zip(y).all(|(x, y)| x.to_bits() == y.to_bits()),
+                    "{name} {n}"
+                );
+            }
+            for ((n, x), (_, y)) in a.trajectory.iter().zip(&b.trajectory) {
+                assert!(
+                    x.iter().zip(y).all(|(x, y)| x.to_bits() == y.to_bits()),
+                    "{name} {n}"
+                );
+            }
+            assert_eq!(a.nonfinite_step, b.nonfinite_step, "{name}");
+        };
+        same(
+            &cpu::run_isa::<f64>(plan, None, isa),
+            &cpu::run_time_per_trajectory::<f64>(plan, isa),
+        );
+        let (a, b) = (
+            cpu::run_isa::<f32>(plan, None, isa),
+            cpu::run_time_per_trajectory::<f32>(plan, isa),
+        );
+        for ((n, x), (_, y)) in a.final_values.iter().zip(&b.final_values) {
+            assert!(
+                x.iter().zip(y).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{name} f32 {n}"
+            );
+        }
+    }
+    // A time input along an axis: evaluated per trajectory.
+    let mut p = forced(Model::VanDerPol, "s2");
+    let w = p.axis("w", vec![1.0, 1.3]);
+    p = p.param("forcing_frequency", w);
+    let plan = Plan::new(&p).unwrap();
+    assert!(Program::<f64>::new(&plan, isa, true).shared_time.is_none());
+    // So is a `t0` along one.
+    let mut p = forced(Model::VanDerPol, "s2");
+    let t0 = p.axis("t0", vec![0.0, 0.5]);
+    p = p.initial("t0", t0);
+    let plan = Plan::new(&p).unwrap();
+    assert!(Program::<f64>::new(&plan, isa, true).shared_time.is_none());
+}

@@ -12,6 +12,11 @@ use crate::num::precision::Real;
 /// small enough that the arrays a step touches stay in L1.
 pub const LANES: usize = 64;
 
+/// Whether an op argument of type `ty` (as written) is one the op writes.
+pub const fn written(ty: &str) -> bool {
+    !ty.is_empty() && ty.as_bytes()[0] == b'&'
+}
+
 /// The lane loop of one op.
 pub type LaneFn<R> = fn(&mut Lanes<R>);
 
@@ -70,6 +75,11 @@ macro_rules! define_lanes {
             #[inline(always)]
             pub fn gather(l: &Lanes<R>, i: usize) -> Lane<R> {
                 Lane { $( $f: l.$f[i], )* }
+            }
+            /// Writes every field back into lane `i` of a block.
+            #[inline(always)]
+            pub fn scatter_all(&self, l: &mut Lanes<R>, i: usize) {
+                $( l.$f[i] = self.$f; )*
             }
             /// Writes the state variables back into lane `i` of a block.
             #[inline(always)]
@@ -224,6 +234,18 @@ macro_rules! model_ops {
                     _ => None,
                 }
             }
+            /// The arguments of the op called `name`: lane names, and
+            /// whether the op writes them.
+            pub fn args(name: &str) -> Option<&'static [(&'static str, bool)]> {
+                match name {
+                    $( stringify!($name) => {
+                        const ARGS: &[(&str, bool)] =
+                            &[$( (stringify!($arg), $crate::models::lanes::written(stringify!($aty))) ),*];
+                        Some(ARGS)
+                    } )*
+                    _ => None,
+                }
+            }
 
             /// The same ops on one trajectory, binding the fields of a [`Lane`].
             pub mod scalar {
@@ -263,6 +285,10 @@ macro_rules! model_lanes {
         /// The lane loop of this model's op `name`.
         pub fn lane_fn<R: Ops>(name: &str) -> Option<$crate::models::lanes::LaneFn<R>> {
             None$(.or_else(|| $($lm)::+::lookup::<R>(name)))*
+        }
+        /// The arguments of this model's op `name` (lane name, written).
+        pub fn op_args(name: &str) -> Option<&'static [(&'static str, bool)]> {
+            None$(.or_else(|| $($lm)::+::args(name)))*
         }
         /// The one-trajectory op `name` of this model.
         pub fn scalar_fn<R: Ops>(name: &str) -> Option<$crate::models::lanes::ScalarFn<R>> {

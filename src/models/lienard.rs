@@ -123,13 +123,15 @@ crate::model_ops! {
     fn van_der_pol_b_p(p: &mut R, tau: R) {
         *p = *p - tau;
     }
-    /// Piece A (f(q) s, f = −ε(1 − q²)) on s.
+    /// Piece A (f(q) s, f = −ε(1 − q²)) on s: `s ← s e^{τε(1 − q²)}`, with τε
+    /// formed before q is known (it shortens the step's dependent chain).
     fn van_der_pol_a_s(q: R, s: &mut R, tau: R, epsilon: R) {
-        *s = R::lienard_flow_a_s(*s, tau, -epsilon * (1.0 - q * q));
+        *s = *s * R::exp_r((tau * epsilon) * (1.0 - q * q));
     }
-    /// Piece A on p (f' = 2εq); runs before `van_der_pol_a_s`.
+    /// Piece A on p (f' = 2εq): `p ← (p − 2τεq s) e^{τε(1 − q²)}`; runs
+    /// before `van_der_pol_a_s`.
     fn van_der_pol_a_p(q: R, s: R, p: &mut R, tau: R, epsilon: R) {
-        *p = R::lienard_flow_a_p(*p, s, tau, -epsilon * (1.0 - q * q), 2.0 * epsilon * q);
+        *p = (*p - tau * (2.0 * epsilon * q) * s) * R::exp_r((tau * epsilon) * (1.0 - q * q));
     }
 }
 

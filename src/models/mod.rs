@@ -85,6 +85,11 @@ macro_rules! registry {
         pub fn lane_fn<R: Flows>(name: &str) -> Option<LaneFn<R>> {
             None$(.or_else(|| $file::lane_fn::<R>(name)))*
         }
+        /// The arguments of the op called `name`: lane names, and whether
+        /// the op writes them.
+        pub fn op_args(name: &str) -> Option<&'static [(&'static str, bool)]> {
+            None$(.or_else(|| $file::op_args(name)))*
+        }
         /// The scalar op called `name` (one trajectory).
         pub fn scalar_fn<R: Flows>(name: &str) -> Option<ScalarFn<R>> {
             None$(.or_else(|| $file::scalar_fn::<R>(name)))*

@@ -18,26 +18,32 @@ use crate::num::prims::Prims;
 crate::shared_fns! {
     concrete, wgsl MATH_F32_WGSL;
 
-    /// e^x in f32: x = n ln 2 + r with |r| ≤ ln2/2, e^r by Taylor of degree 7
-    /// (truncation 5·10⁻⁹, below half an ULP), 2^n applied in two halves so that
-    /// results down to the subnormal range round once.
+    /// e^x in f32: x = n ln 2 + r with |r| ≤ ln2/2, e^r = 1 + r·P(r) with P
+    /// the Taylor polynomial of degree 6 (truncation 5·10⁻⁹, below half an
+    /// ULP) by Estrin's scheme, 2^n applied in two halves so that results down
+    /// to the subnormal range round once. Estrin and the fused reduction keep
+    /// the dependent chain short: a lane's step is mostly this chain.
     fn exp_f32(x: f32) -> f32 {
         // Clamp by select, not min/max, so that NaN passes through.
         let lo: f32 = f32::select(x, -104.0, x < -104.0);
         let xc: f32 = f32::select(lo, 89.0, x > 89.0);
         let nf: f32 = f32::floor(xc * 1.44269502 + 0.5);
+        // nf·0.693359375 is exact (9 bits times at most 8); fma would cost the
+        // baseline kernels, which call libm for it, two more calls.
         let r: f32 = (xc - nf * 0.693359375) - nf * -0.000212194442;
-        let mut p: f32 = 0.000198412701;
-        p = f32::fma(p, r, 0.00138888892);
-        p = f32::fma(p, r, 0.00833333377);
-        p = f32::fma(p, r, 0.0416666679);
-        p = f32::fma(p, r, 0.166666672);
-        p = f32::fma(p, r, 0.5);
-        p = f32::fma(p, r, 1.0);
-        p = f32::fma(p, r, 1.0);
+        let r2: f32 = r * r;
+        let r4: f32 = r2 * r2;
+        let e01: f32 = f32::fma(r, 0.5, 1.0);
+        let e23: f32 = f32::fma(r, 0.0416666679, 0.166666672);
+        let e45: f32 = f32::fma(r, 0.00138888892, 0.00833333377);
+        let f0: f32 = f32::fma(r2, e23, e01);
+        let f1: f32 = f32::fma(r2, 0.000198412701, e45);
+        let pr: f32 = f32::fma(r4, f1, f0);
         let n: i32 = f32::to_i32(nf);
         let n1: i32 = n >> 1;
-        let res: f32 = p * f32::pow2i(n1) * f32::pow2i(n - n1);
+        let s1: f32 = f32::pow2i(n1);
+        // (1 + r·P)·2^n1 without leaving the normal range, then ·2^(n − n1).
+        let res: f32 = f32::fma(r * s1, pr, s1) * f32::pow2i(n - n1);
         return f32::select(res, 0.0, x < -103.98);
     }
 
@@ -68,30 +74,33 @@ crate::shared_fns! {
 crate::shared_fns! {
     concrete, wgsl MATH_F64_WGSL;
 
-    /// e^x in f64: x = n ln 2 + r (fdlibm's two-part ln 2), e^r by Taylor of
-    /// degree 13 (truncation 4·10⁻¹⁸), 2^n in two halves.
+    /// e^x in f64: x = n ln 2 + r (fdlibm's two-part ln 2), e^r = 1 + r·P(r)
+    /// with P the Taylor polynomial of degree 12 (truncation 4·10⁻¹⁸) by
+    /// Estrin's scheme, 2^n in two halves (as `exp_f32`).
     fn exp_f64(x: f64) -> f64 {
         let lo: f64 = f64::select(x, -746.0, x < -746.0);
         let xc: f64 = f64::select(lo, 710.0, x > 710.0);
         let nf: f64 = f64::floor(xc * 1.4426950408889634 + 0.5);
         let r: f64 = (xc - nf * 6.93147180369123816490e-01) - nf * 1.90821492927058770002e-10;
-        let mut p: f64 = 1.6059043836821613e-10;
-        p = f64::fma(p, r, 2.08767569878681e-09);
-        p = f64::fma(p, r, 2.505210838544172e-08);
-        p = f64::fma(p, r, 2.755731922398589e-07);
-        p = f64::fma(p, r, 2.7557319223985893e-06);
-        p = f64::fma(p, r, 2.48015873015873e-05);
-        p = f64::fma(p, r, 0.0001984126984126984);
-        p = f64::fma(p, r, 0.001388888888888889);
-        p = f64::fma(p, r, 0.008333333333333333);
-        p = f64::fma(p, r, 0.041666666666666664);
-        p = f64::fma(p, r, 0.16666666666666666);
-        p = f64::fma(p, r, 0.5);
-        p = f64::fma(p, r, 1.0);
-        p = f64::fma(p, r, 1.0);
+        let r2: f64 = r * r;
+        let r4: f64 = r2 * r2;
+        let r8: f64 = r4 * r4;
+        let e01: f64 = f64::fma(r, 0.5, 1.0);
+        let e23: f64 = f64::fma(r, 0.041666666666666664, 0.16666666666666666);
+        let e45: f64 = f64::fma(r, 0.001388888888888889, 0.008333333333333333);
+        let e67: f64 = f64::fma(r, 2.48015873015873e-05, 0.0001984126984126984);
+        let e89: f64 = f64::fma(r, 2.755731922398589e-07, 2.7557319223985893e-06);
+        let e1011: f64 = f64::fma(r, 2.08767569878681e-09, 2.505210838544172e-08);
+        let f0: f64 = f64::fma(r2, e23, e01);
+        let f1: f64 = f64::fma(r2, e67, e45);
+        let f2: f64 = f64::fma(r2, e1011, e89);
+        let g0: f64 = f64::fma(r4, f1, f0);
+        let g1: f64 = f64::fma(r4, 1.6059043836821613e-10, f2);
+        let pr: f64 = f64::fma(r8, g1, g0);
         let n: i32 = f64::to_i32(nf);
         let n1: i32 = n >> 1;
-        let res: f64 = p * f64::pow2i(n1) * f64::pow2i(n - n1);
+        let s1: f64 = f64::pow2i(n1);
+        let res: f64 = f64::fma(r * s1, pr, s1) * f64::pow2i(n - n1);
         return f64::select(res, 0.0, x < -745.2);
     }
 

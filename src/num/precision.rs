@@ -40,6 +40,10 @@ pub trait Real:
     const NAME: &'static str;
     /// Unit roundoff (half the machine epsilon).
     const UNIT_ROUNDOFF: f64;
+    /// An unsigned integer as wide as `Self`: the vectorised kernels
+    /// accumulate per-lane conditions in it (a vector of booleans would be
+    /// narrowed and widened again on every iteration).
+    type Flag: Copy + Default + PartialEq + std::ops::BitOrAssign + From<bool>;
     fn from_f64(x: f64) -> Self;
     fn to_f64(self) -> f64;
     fn finite(self) -> bool;
@@ -52,6 +56,7 @@ pub trait Real:
 impl Real for f32 {
     const NAME: &'static str = "f32";
     const UNIT_ROUNDOFF: f64 = f32::EPSILON as f64 / 2.0;
+    type Flag = u32;
     #[inline(always)]
     fn from_f64(x: f64) -> f32 {
         x as f32
@@ -85,6 +90,7 @@ impl Real for f32 {
 impl Real for f64 {
     const NAME: &'static str = "f64";
     const UNIT_ROUNDOFF: f64 = f64::EPSILON / 2.0;
+    type Flag = u64;
     #[inline(always)]
     fn from_f64(x: f64) -> f64 {
         x

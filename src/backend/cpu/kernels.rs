@@ -31,25 +31,52 @@ pub fn fused_stage_body<
     c: R,
     nf: R,
 ) -> bool {
-    let mut bad = false;
-    for i in 0..LANES {
+    let mut bad = R::Flag::default();
+    // Two lanes, half a block apart, per iteration: once vectorised, two
+    // independent chains that the core overlaps (one stage is a long
+    // dependent chain, exp's polynomial most of it).
+    for i in 0..LANES / 2 {
+        let j = i + LANES / 2;
         let mut x = Lane::gather(l, i);
-        if TIME {
-            x.t = x.t0 + nf * x.dt + c * x.dt;
-            P::time(&mut x);
-        }
-        x.tau = half * x.dt;
-        P::piece::<OPT>(P1, &mut x);
-        P::piece::<OPT>(P2, &mut x);
-        x.tau = full * x.dt;
-        P::piece::<OPT>(P3, &mut x);
-        x.tau = half * x.dt;
-        P::piece::<OPT>(P2, &mut x);
-        P::piece::<OPT>(P1, &mut x);
-        bad |= !P::finite(&x);
+        let mut y = Lane::gather(l, j);
+        bad |= stage::<R, P, P1, P2, P3, OPT, TIME>(&mut x, half, full, c, nf).into();
+        bad |= stage::<R, P, P1, P2, P3, OPT, TIME>(&mut y, half, full, c, nf).into();
         x.scatter_state(l, i);
+        y.scatter_state(l, j);
     }
-    bad
+    bad != R::Flag::default()
+}
+
+/// The stage on one trajectory; whether its state is non-finite after it.
+#[inline(always)]
+fn stage<
+    R: Real,
+    P: Pieces<R>,
+    const P1: char,
+    const P2: char,
+    const P3: char,
+    const OPT: bool,
+    const TIME: bool,
+>(
+    x: &mut Lane<R>,
+    half: R,
+    full: R,
+    c: R,
+    nf: R,
+) -> bool {
+    if TIME {
+        x.t = x.t0 + nf * x.dt + c * x.dt;
+        P::time(x);
+    }
+    x.tau = half * x.dt;
+    P::piece::<OPT>(P1, x);
+    P::piece::<OPT>(P2, x);
+    x.tau = full * x.dt;
+    P::piece::<OPT>(P3, x);
+    x.tau = half * x.dt;
+    P::piece::<OPT>(P2, x);
+    P::piece::<OPT>(P1, x);
+    !P::finite(x)
 }
 
 /// [`fused_stage_body`] for any x86-64 (or other) CPU.
@@ -215,5 +242,16 @@ impl<R: Real> PiecesVisitor<R> for StageBuilder {
     type Out = Option<StageFn<R>>;
     fn visit<P: Pieces<R>>(self) -> Option<StageFn<R>> {
         stage_fn::<R, P>(self.order, self.opt, self.time, self.isa)
+    }
+}
+
+/// Builds the scalar time-terms function of whichever model's pieces it
+/// visits (for time terms shared by a block, `program::SharedTime`).
+pub struct TimeBuilder;
+
+impl<R: Real> PiecesVisitor<R> for TimeBuilder {
+    type Out = fn(&mut Lane<R>);
+    fn visit<P: Pieces<R>>(self) -> fn(&mut Lane<R>) {
+        P::time
     }
 }

@@ -68,6 +68,26 @@ pub fn resumable<R: Flows>(
     plan: &Plan,
     progress: Option<&AtomicU64>,
     isa: Isa,
+    cp: Option<&mut Checkpoints>,
+) -> Result<(Observations<R>, f64), GpuError> {
+    integrate(plan, progress, isa, true, cp)
+}
+
+/// [`run_isa`] evaluating the time terms on every trajectory even where the
+/// ensemble shares them (`program::SharedTime`): the reference the shared
+/// evaluation is tested and timed against.
+pub fn run_time_per_trajectory<R: Flows>(plan: &Plan, isa: Isa) -> Observations<R> {
+    match integrate(plan, None, isa, false, None) {
+        Ok((out, _)) => out,
+        Err(e) => unreachable!("a run without checkpoints failed: {e}"),
+    }
+}
+
+fn integrate<R: Flows>(
+    plan: &Plan,
+    progress: Option<&AtomicU64>,
+    isa: Isa,
+    share_time: bool,
     mut cp: Option<&mut Checkpoints>,
 ) -> Result<(Observations<R>, f64), GpuError> {
     assert!(
@@ -75,7 +95,7 @@ pub fn resumable<R: Flows>(
         "the CPU lacks {isa:?}"
     );
     let mut out = Observations::<R>::for_plan(plan);
-    let program = Program::<R>::new(plan, isa);
+    let program = Program::<R>::new(plan, isa, share_time);
     let mut blocks: Vec<Block<R>> = (0..plan.n.div_ceil(LANES))
         .map(|_| Block::Unstarted)
         .collect();
@@ -428,6 +448,9 @@ fn step<R: Flows>(
     if let Some(stages) = &p.stages {
         let mut any = false;
         for (f, half, full, tc) in stages {
+            if let Some(shared) = &p.shared_time {
+                shared.set(l, *tc, nf);
+            }
             // SAFETY: `isa()` chose wide kernels only where the CPU has the features.
             any = unsafe { f(l, *half, *full, *tc, nf) };
         }

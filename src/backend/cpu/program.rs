@@ -7,7 +7,9 @@ use crate::num::precision::Real;
 use crate::plan::{Op, Plan, Source};
 
 use super::formula::{FormulaCall, FormulaStep};
-use super::kernels::{Isa, StageBuilder, StageFn};
+use super::kernels::{Isa, StageBuilder, StageFn, TimeBuilder};
+use crate::models::lanes::Lane;
+use crate::models::op_args;
 
 /// The plan's step, field and inputs for the CPU.
 pub struct Program<'p, R> {
@@ -16,6 +18,9 @@ pub struct Program<'p, R> {
     /// The step as fused S2 stages `(kernel, w/2, w, time offset)`, when the
     /// plan is a splitting (preferred over `ops`).
     pub stages: Option<Vec<FusedStage<R>>>,
+    /// The stages' time terms, when every trajectory has the same: then
+    /// `stages` are kernels without time terms, which this sets per block.
+    pub shared_time: Option<SharedTime<R>>,
     /// A formula model's step composed into one program (preferred over
     /// `ops`).
     pub formula_step: Option<FormulaStep<R>>,
@@ -57,8 +62,9 @@ fn lane(name: &str) -> usize {
 pub type FusedStage<R> = (StageFn<R>, R, R, R);
 
 impl<'p, R: Flows> Program<'p, R> {
-    /// Resolves `plan`, with fused kernels of instruction-set level `isa`.
-    pub fn new(plan: &'p Plan, isa: Isa) -> Self {
+    /// Resolves `plan`, with fused kernels of instruction-set level `isa`;
+    /// `share_time`: time terms once per block where the ensemble shares them.
+    pub fn new(plan: &'p Plan, isa: Isa, share_time: bool) -> Self {
         // Formula models' ops first: their names are the same for every
         // formula model, their programs are the model's.
         let call = |name: &str| match plan.model.formula() {
@@ -90,10 +96,12 @@ impl<'p, R: Flows> Program<'p, R> {
             .max()
             .unwrap_or(0);
         let idx = lane;
+        let shared_time = SharedTime::of(plan, share_time);
         Program {
             plan,
             ops,
-            stages: fused_stages(plan, isa),
+            stages: fused_stages(plan, isa, shared_time.is_none()),
+            shared_time,
             formula_step: plan
                 .model
                 .formula()
@@ -110,12 +118,13 @@ impl<'p, R: Flows> Program<'p, R> {
 
 /// The plan's splitting step as fused stages, if the model has a kernel for
 /// its piece order.
-fn fused_stages<R: Flows>(plan: &Plan, isa: Isa) -> Option<Vec<FusedStage<R>>> {
+/// `time`: whether the kernels evaluate the time terms themselves.
+fn fused_stages<R: Flows>(plan: &Plan, isa: Isa, time: bool) -> Option<Vec<FusedStage<R>>> {
     let st = plan.stages.as_ref()?;
     let f = plan.model.with_pieces::<R, _>(StageBuilder {
         order: st.order,
         opt: st.with_optional,
-        time: plan.time,
+        time: plan.time && time,
         isa,
     })??;
     Some(
@@ -124,4 +133,60 @@ fn fused_stages<R: Flows>(plan: &Plan, isa: Isa) -> Option<Vec<FusedStage<R>>> {
             .map(|(w, c)| (f, R::from_f64(0.5 * w), R::from_f64(*w), R::from_f64(*c)))
             .collect(),
     )
+}
+
+/// Time terms every trajectory shares: when `t0`, `dt` and every input of
+/// the model's time ops are one value for the whole ensemble, a block
+/// evaluates them once per stage, on its first lane, and hands them to all
+/// (the peers' trick: sin, cos and exp of t once per step, not per
+/// trajectory). Bitwise the per-trajectory evaluation: the same function of
+/// the same inputs.
+pub struct SharedTime<R> {
+    /// The model's time ops on one trajectory.
+    pub time: fn(&mut Lane<R>),
+    /// The lanes they write.
+    pub writes: Vec<usize>,
+}
+
+impl<R: Flows> SharedTime<R> {
+    fn of(plan: &Plan, share: bool) -> Option<Self> {
+        if !share || !plan.time || plan.stages.is_none() || plan.model.formula().is_some() {
+            return None;
+        }
+        let mut reads = vec!["t0", "dt"];
+        let mut writes = vec![];
+        for op in plan.model.spec().time_ops {
+            for &(name, written) in op_args(op)? {
+                match written {
+                    true => writes.push(lane(name)),
+                    false if name != "t" => reads.push(name),
+                    false => {}
+                }
+            }
+        }
+        let one_value = |name: &str| match plan.bindings.iter().find(|(n, _)| *n == name) {
+            Some((_, src)) => src.values().windows(2).all(|w| w[0] == w[1]),
+            None => true,
+        };
+        if !reads.into_iter().all(one_value) {
+            return None;
+        }
+        Some(SharedTime {
+            time: plan.model.with_pieces::<R, _>(TimeBuilder)?,
+            writes,
+        })
+    }
+
+    /// Evaluates the time terms of stage offset `c` of step `nf` on lane 0
+    /// and copies them to every lane.
+    pub fn set(&self, l: &mut Lanes<R>, c: R, nf: R) {
+        let mut x = Lane::gather(l, 0);
+        x.t = x.t0 + nf * x.dt + c * x.dt;
+        (self.time)(&mut x);
+        x.scatter_all(l, 0);
+        for &k in &self.writes {
+            let v = l.at(k)[0];
+            l.at_mut(k).fill(v);
+        }
+    }
 }
