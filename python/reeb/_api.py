@@ -40,7 +40,7 @@ class _Bar:
 def run(
     scene: Scene,
     *,
-    backend: str = "auto",
+    backend: Optional[str] = "auto",
     precision: Optional[str] = None,
     out: Optional[PathLike] = None,
     progress: bool = True,
@@ -52,7 +52,8 @@ def run(
 
     ``scene`` is a path, a TOML string, or a dict with the TOML's structure
     (numpy arrays wherever a list is). ``backend`` is ``"auto"`` (a hardware
-    GPU if there is one, else every CPU core), ``"cpu"`` or ``"gpu"``;
+    GPU if there is one, else every CPU core), ``"cpu"``, ``"gpu"``, or
+    ``None`` (the scene's ``[run] backend``, as without ``--backend``);
     ``precision`` ``"f32"`` or ``"f64"`` overrides the scene's. With ``out``
     the run is also written to that directory exactly as ``reeb run`` writes
     it (``force`` replaces a directory holding files reeb did not write;
