@@ -309,10 +309,7 @@ fn shared_time_terms_are_bitwise_the_per_trajectory_ones() {
     let isa = cpu::isa();
     for plan in &plans {
         let name = plan.model.name();
-        assert!(
-            Program::<f64>::new(plan, isa, true).shared_time.is_some(),
-            "{name}"
-        );
+        assert!(Program::<f64>::new(plan, isa, true).shared_time, "{name}");
         let same = |a: &reeb::plan::observations::Observations<f64>,
                     b: &reeb::plan::observations::Observations<f64>| {
             for ((n, x), (_, y)) in a.final_values.iter().zip(&b.final_values) {
@@ -349,11 +346,11 @@ fn shared_time_terms_are_bitwise_the_per_trajectory_ones() {
     let w = p.axis("w", vec![1.0, 1.3]);
     p = p.param("forcing_frequency", w);
     let plan = Plan::new(&p).unwrap();
-    assert!(Program::<f64>::new(&plan, isa, true).shared_time.is_none());
+    assert!(!Program::<f64>::new(&plan, isa, true).shared_time);
     // So is a `t0` along one.
     let mut p = forced(Model::VanDerPol, "s2");
     let t0 = p.axis("t0", vec![0.0, 0.5]);
     p = p.initial("t0", t0);
     let plan = Plan::new(&p).unwrap();
-    assert!(Program::<f64>::new(&plan, isa, true).shared_time.is_none());
+    assert!(!Program::<f64>::new(&plan, isa, true).shared_time);
 }

@@ -76,11 +76,6 @@ macro_rules! define_lanes {
             pub fn gather(l: &Lanes<R>, i: usize) -> Lane<R> {
                 Lane { $( $f: l.$f[i], )* }
             }
-            /// Writes every field back into lane `i` of a block.
-            #[inline(always)]
-            pub fn scatter_all(&self, l: &mut Lanes<R>, i: usize) {
-                $( l.$f[i] = self.$f; )*
-            }
             /// Writes the state variables back into lane `i` of a block.
             #[inline(always)]
             pub fn scatter_state(&self, l: &mut Lanes<R>, i: usize) {
@@ -245,6 +240,19 @@ macro_rules! model_ops {
                     } )*
                     _ => None,
                 }
+            }
+
+            /// Each op's arguments copied from one trajectory to another:
+            /// a block's lanes take the time terms its first lane evaluated
+            /// (`Pieces::share_time`).
+            pub mod share {
+                use $crate::models::lanes::Lane;
+                $(
+                    #[inline(always)]
+                    pub fn $name<R: Copy>(x: &mut Lane<R>, from: &Lane<R>) {
+                        $( x.$arg = from.$arg; )*
+                    }
+                )*
             }
 
             /// The same ops on one trajectory, binding the fields of a [`Lane`].

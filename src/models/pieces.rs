@@ -10,6 +10,9 @@ use crate::num::precision::Real;
 pub trait Pieces<R: Real> {
     /// The time terms at `x.t`.
     fn time(x: &mut Lane<R>);
+    /// Takes the time terms, their inputs, `t`, `t0` and `dt` from `from`
+    /// (time terms the ensemble shares, evaluated once).
+    fn share_time(x: &mut Lane<R>, from: &Lane<R>);
     /// Piece `piece` over `x.tau`; `OPT`: also on the optional variable.
     fn piece<const OPT: bool>(piece: char, x: &mut Lane<R>);
     /// Are the model's state variables finite?
@@ -55,6 +58,14 @@ macro_rules! pieces {
                 $( #[allow(unused_imports)] use $($opmod)::+::scalar::*; )*
                 $( $top(x); )*
                 let _ = x;
+            }
+            #[inline(always)]
+            fn share_time(x: &mut $crate::models::lanes::Lane<R>, from: &$crate::models::lanes::Lane<R>) {
+                $( #[allow(unused_imports)] use $($opmod)::+::share::*; )*
+                $( $top(x, from); )*
+                x.t = from.t;
+                x.t0 = from.t0;
+                x.dt = from.dt;
             }
             #[inline(always)]
             fn piece<const OPT: bool>(piece: char, x: &mut $crate::models::lanes::Lane<R>) {

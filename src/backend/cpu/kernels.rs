@@ -13,6 +13,20 @@ use crate::num::precision::Real;
 /// Unsafe to call: the variant compiled for AVX2/FMA needs those features.
 pub type StageFn<R> = unsafe fn(&mut Lanes<R>, R, R, R, R) -> bool;
 
+/// How a stage gets its time terms.
+pub mod time {
+    /// The model reads no time.
+    pub const NONE: u8 = 0;
+    /// Every trajectory evaluates its own.
+    pub const PER_LANE: u8 = 1;
+    /// The ensemble shares them (`t0`, `dt` and the time ops' inputs one
+    /// value): evaluated once on the first lane, and every lane takes them
+    /// (with `dt`) as values the loop does not vary, so the compiler also
+    /// hoists what the pieces compute from time terms alone (the damping's
+    /// `exp` of the spin–orbit A piece).
+    pub const SHARED: u8 = 2;
+}
+
 /// One stage `D½ P1½ P2½ P3 P2½ P1½ D½` of weight w on every lane:
 /// `half = w/2`, `full = w` (times dt), time terms at `t0 + (n + c) dt`.
 #[inline(always)]
@@ -23,7 +37,7 @@ pub fn fused_stage_body<
     const P2: char,
     const P3: char,
     const OPT: bool,
-    const TIME: bool,
+    const TIME: u8,
 >(
     l: &mut Lanes<R>,
     half: R,
@@ -31,6 +45,12 @@ pub fn fused_stage_body<
     c: R,
     nf: R,
 ) -> bool {
+    let mut shared = Lane::default();
+    if TIME == time::SHARED {
+        shared = Lane::gather(l, 0);
+        shared.t = shared.t0 + nf * shared.dt + c * shared.dt;
+        P::time(&mut shared);
+    }
     let mut bad = R::Flag::default();
     // Two lanes, half a block apart, per iteration: once vectorised, two
     // independent chains that the core overlaps (one stage is a long
@@ -39,6 +59,10 @@ pub fn fused_stage_body<
         let j = i + LANES / 2;
         let mut x = Lane::gather(l, i);
         let mut y = Lane::gather(l, j);
+        if TIME == time::SHARED {
+            P::share_time(&mut x, &shared);
+            P::share_time(&mut y, &shared);
+        }
         bad |= stage::<R, P, P1, P2, P3, OPT, TIME>(&mut x, half, full, c, nf).into();
         bad |= stage::<R, P, P1, P2, P3, OPT, TIME>(&mut y, half, full, c, nf).into();
         x.scatter_state(l, i);
@@ -56,7 +80,7 @@ fn stage<
     const P2: char,
     const P3: char,
     const OPT: bool,
-    const TIME: bool,
+    const TIME: u8,
 >(
     x: &mut Lane<R>,
     half: R,
@@ -64,7 +88,7 @@ fn stage<
     c: R,
     nf: R,
 ) -> bool {
-    if TIME {
+    if TIME == time::PER_LANE {
         x.t = x.t0 + nf * x.dt + c * x.dt;
         P::time(x);
     }
@@ -90,7 +114,7 @@ pub unsafe fn fused_stage<
     const P2: char,
     const P3: char,
     const OPT: bool,
-    const TIME: bool,
+    const TIME: u8,
 >(
     l: &mut Lanes<R>,
     half: R,
@@ -114,7 +138,7 @@ pub unsafe fn fused_stage_v3<
     const P2: char,
     const P3: char,
     const OPT: bool,
-    const TIME: bool,
+    const TIME: u8,
 >(
     l: &mut Lanes<R>,
     half: R,
@@ -139,7 +163,7 @@ pub unsafe fn fused_stage_v4<
     const P2: char,
     const P3: char,
     const OPT: bool,
-    const TIME: bool,
+    const TIME: u8,
 >(
     l: &mut Lanes<R>,
     half: R,
@@ -194,17 +218,19 @@ pub fn isa() -> Isa {
 pub fn stage_fn<R: Real, P: Pieces<R>>(
     order: [char; 3],
     opt: bool,
-    time: bool,
+    time: u8,
     isa: Isa,
 ) -> Option<StageFn<R>> {
     macro_rules! pick {
         ($($a:literal $b:literal $c:literal),*) => {
             match (order, opt, time) {
                 $(
-                    ([$a, $b, $c], false, false) => Some(variant!($a, $b, $c, false, false)),
-                    ([$a, $b, $c], true, false) => Some(variant!($a, $b, $c, true, false)),
-                    ([$a, $b, $c], false, true) => Some(variant!($a, $b, $c, false, true)),
-                    ([$a, $b, $c], true, true) => Some(variant!($a, $b, $c, true, true)),
+                    ([$a, $b, $c], false, 0) => Some(variant!($a, $b, $c, false, 0)),
+                    ([$a, $b, $c], true, 0) => Some(variant!($a, $b, $c, true, 0)),
+                    ([$a, $b, $c], false, 1) => Some(variant!($a, $b, $c, false, 1)),
+                    ([$a, $b, $c], true, 1) => Some(variant!($a, $b, $c, true, 1)),
+                    ([$a, $b, $c], false, 2) => Some(variant!($a, $b, $c, false, 2)),
+                    ([$a, $b, $c], true, 2) => Some(variant!($a, $b, $c, true, 2)),
                 )*
                 _ => None,
             }
@@ -234,7 +260,8 @@ pub fn stage_fn<R: Real, P: Pieces<R>>(
 pub struct StageBuilder {
     pub order: [char; 3],
     pub opt: bool,
-    pub time: bool,
+    /// One of [`time`]'s modes.
+    pub time: u8,
     pub isa: Isa,
 }
 
@@ -242,16 +269,5 @@ impl<R: Real> PiecesVisitor<R> for StageBuilder {
     type Out = Option<StageFn<R>>;
     fn visit<P: Pieces<R>>(self) -> Option<StageFn<R>> {
         stage_fn::<R, P>(self.order, self.opt, self.time, self.isa)
-    }
-}
-
-/// Builds the scalar time-terms function of whichever model's pieces it
-/// visits (for time terms shared by a block, `program::SharedTime`).
-pub struct TimeBuilder;
-
-impl<R: Real> PiecesVisitor<R> for TimeBuilder {
-    type Out = fn(&mut Lane<R>);
-    fn visit<P: Pieces<R>>(self) -> fn(&mut Lane<R>) {
-        P::time
     }
 }

@@ -74,7 +74,7 @@ pub fn resumable<R: Flows>(
 }
 
 /// [`run_isa`] evaluating the time terms on every trajectory even where the
-/// ensemble shares them (`program::SharedTime`): the reference the shared
+/// ensemble shares them (`program::shares_time`): the reference the shared
 /// evaluation is tested and timed against.
 pub fn run_time_per_trajectory<R: Flows>(plan: &Plan, isa: Isa) -> Observations<R> {
     match integrate(plan, None, isa, false, None) {
@@ -448,9 +448,6 @@ fn step<R: Flows>(
     if let Some(stages) = &p.stages {
         let mut any = false;
         for (f, half, full, tc) in stages {
-            if let Some(shared) = &p.shared_time {
-                shared.set(l, *tc, nf);
-            }
             // SAFETY: `isa()` chose wide kernels only where the CPU has the features.
             any = unsafe { f(l, *half, *full, *tc, nf) };
         }

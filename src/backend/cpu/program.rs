@@ -7,8 +7,7 @@ use crate::num::precision::Real;
 use crate::plan::{Op, Plan, Source};
 
 use super::formula::{FormulaCall, FormulaStep};
-use super::kernels::{Isa, StageBuilder, StageFn, TimeBuilder};
-use crate::models::lanes::Lane;
+use super::kernels::{time, Isa, StageBuilder, StageFn};
 use crate::models::op_args;
 
 /// The plan's step, field and inputs for the CPU.
@@ -18,9 +17,9 @@ pub struct Program<'p, R> {
     /// The step as fused S2 stages `(kernel, w/2, w, time offset)`, when the
     /// plan is a splitting (preferred over `ops`).
     pub stages: Option<Vec<FusedStage<R>>>,
-    /// The stages' time terms, when every trajectory has the same: then
-    /// `stages` are kernels without time terms, which this sets per block.
-    pub shared_time: Option<SharedTime<R>>,
+    /// Whether `stages` evaluate time terms the ensemble shares once per
+    /// block ([`shares_time`]).
+    pub shared_time: bool,
     /// A formula model's step composed into one program (preferred over
     /// `ops`).
     pub formula_step: Option<FormulaStep<R>>,
@@ -96,11 +95,11 @@ impl<'p, R: Flows> Program<'p, R> {
             .max()
             .unwrap_or(0);
         let idx = lane;
-        let shared_time = SharedTime::of(plan, share_time);
+        let shared_time = share_time && plan.stages.is_some() && shares_time(plan);
         Program {
             plan,
             ops,
-            stages: fused_stages(plan, isa, shared_time.is_none()),
+            stages: fused_stages(plan, isa, shared_time),
             shared_time,
             formula_step: plan
                 .model
@@ -118,13 +117,17 @@ impl<'p, R: Flows> Program<'p, R> {
 
 /// The plan's splitting step as fused stages, if the model has a kernel for
 /// its piece order.
-/// `time`: whether the kernels evaluate the time terms themselves.
-fn fused_stages<R: Flows>(plan: &Plan, isa: Isa, time: bool) -> Option<Vec<FusedStage<R>>> {
+/// `shared`: whether the ensemble shares the time terms.
+fn fused_stages<R: Flows>(plan: &Plan, isa: Isa, shared: bool) -> Option<Vec<FusedStage<R>>> {
     let st = plan.stages.as_ref()?;
     let f = plan.model.with_pieces::<R, _>(StageBuilder {
         order: st.order,
         opt: st.with_optional,
-        time: plan.time && time,
+        time: match (plan.time, shared) {
+            (false, _) => time::NONE,
+            (true, false) => time::PER_LANE,
+            (true, true) => time::SHARED,
+        },
         isa,
     })??;
     Some(
@@ -135,58 +138,30 @@ fn fused_stages<R: Flows>(plan: &Plan, isa: Isa, time: bool) -> Option<Vec<Fused
     )
 }
 
-/// Time terms every trajectory shares: when `t0`, `dt` and every input of
-/// the model's time ops are one value for the whole ensemble, a block
-/// evaluates them once per stage, on its first lane, and hands them to all
-/// (the peers' trick: sin, cos and exp of t once per step, not per
-/// trajectory). Bitwise the per-trajectory evaluation: the same function of
-/// the same inputs.
-pub struct SharedTime<R> {
-    /// The model's time ops on one trajectory.
-    pub time: fn(&mut Lane<R>),
-    /// The lanes they write.
-    pub writes: Vec<usize>,
-}
-
-impl<R: Flows> SharedTime<R> {
-    fn of(plan: &Plan, share: bool) -> Option<Self> {
-        if !share || !plan.time || plan.stages.is_none() || plan.model.formula().is_some() {
-            return None;
-        }
-        let mut reads = vec!["t0", "dt"];
-        let mut writes = vec![];
-        for op in plan.model.spec().time_ops {
-            for &(name, written) in op_args(op)? {
-                match written {
-                    true => writes.push(lane(name)),
-                    false if name != "t" => reads.push(name),
-                    false => {}
-                }
-            }
-        }
-        let one_value = |name: &str| match plan.bindings.iter().find(|(n, _)| *n == name) {
-            Some((_, src)) => src.values().windows(2).all(|w| w[0] == w[1]),
-            None => true,
-        };
-        if !reads.into_iter().all(one_value) {
-            return None;
-        }
-        Some(SharedTime {
-            time: plan.model.with_pieces::<R, _>(TimeBuilder)?,
-            writes,
-        })
+/// Whether the ensemble shares the step's time terms: `t0`, `dt` and every
+/// input of the model's time ops one value for the whole plan. Then the
+/// fused stages evaluate them once per block and stage (`kernels::time::
+/// SHARED`; the peers' trick: sin, cos and exp of t once per step, not per
+/// trajectory), bitwise the per-trajectory evaluation: the same function
+/// of the same inputs.
+pub fn shares_time(plan: &Plan) -> bool {
+    if !plan.time || plan.model.formula().is_some() {
+        return false;
     }
-
-    /// Evaluates the time terms of stage offset `c` of step `nf` on lane 0
-    /// and copies them to every lane.
-    pub fn set(&self, l: &mut Lanes<R>, c: R, nf: R) {
-        let mut x = Lane::gather(l, 0);
-        x.t = x.t0 + nf * x.dt + c * x.dt;
-        (self.time)(&mut x);
-        x.scatter_all(l, 0);
-        for &k in &self.writes {
-            let v = l.at(k)[0];
-            l.at_mut(k).fill(v);
+    let mut reads = vec!["t0", "dt"];
+    for op in plan.model.spec().time_ops {
+        match op_args(op) {
+            Some(args) => reads.extend(
+                args.iter()
+                    .filter(|(n, w)| !w && *n != "t")
+                    .map(|(n, _)| *n),
+            ),
+            None => return false,
         }
     }
+    let one_value = |name: &str| match plan.bindings.iter().find(|(n, _)| *n == name) {
+        Some((_, src)) => src.values().windows(2).all(|w| w[0] == w[1]),
+        None => true,
+    };
+    reads.into_iter().all(one_value)
 }
