@@ -42,10 +42,7 @@ pub fn run<R: Flows>(plan: &Plan, progress: Option<&AtomicU64>) -> Observations<
 /// [`run`] with the fused kernels of a given instruction-set level (which
 /// must not exceed the CPU's, see [`isa`]).
 pub fn run_isa<R: Flows>(plan: &Plan, progress: Option<&AtomicU64>, isa: Isa) -> Observations<R> {
-    match resumable(plan, progress, isa, None) {
-        Ok((out, _)) => out,
-        Err(e) => unreachable!("a run without checkpoints failed: {e}"),
-    }
+    uninterrupted(integrate(plan, progress, isa, true, None))
 }
 
 /// The threads the CPU backend integrates on (rayon's pool: every core,
@@ -77,7 +74,12 @@ pub fn resumable<R: Flows>(
 /// ensemble shares them (`program::shares_time`): the reference the shared
 /// evaluation is tested and timed against.
 pub fn run_time_per_trajectory<R: Flows>(plan: &Plan, isa: Isa) -> Observations<R> {
-    match integrate(plan, None, isa, false, None) {
+    uninterrupted(integrate(plan, None, isa, false, None))
+}
+
+/// The observations of a run without checkpoints, which cannot fail.
+fn uninterrupted<R>(run: Result<(Observations<R>, f64), GpuError>) -> Observations<R> {
+    match run {
         Ok((out, _)) => out,
         Err(e) => unreachable!("a run without checkpoints failed: {e}"),
     }
