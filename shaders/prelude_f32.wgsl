@@ -12,6 +12,11 @@ fn to_i32(x: f32) -> i32 {
     return i32(x);
 }
 
+// Nearest integer, ties to even.
+fn rint(x: f32) -> f32 {
+    return round(x);
+}
+
 fn from_i32(n: i32) -> f32 {
     return f32(n);
 }

@@ -22,6 +22,11 @@ fn to_i32(x: f64) -> i32 {
     return i32(x);
 }
 
+// Nearest integer, ties to even.
+fn rint(x: f64) -> f64 {
+    return round(x);
+}
+
 fn from_i32(n: i32) -> f64 {
     return f64(n);
 }

@@ -354,3 +354,85 @@ fn shared_time_terms_are_bitwise_the_per_trajectory_ones() {
     let plan = Plan::new(&p).unwrap();
     assert!(!Program::<f64>::new(&plan, isa, true).shared_time);
 }
+
+/// The fused kernels take runs of steps no observer looks at in one call
+/// (up to the next trajectory frame or multiple of 64 steps), stop a run at
+/// the first step that leaves a lane non-finite, and make such a lane a twin
+/// of a running one. All of it is bitwise one step per call (a frame after
+/// every step forces that), with divergences at many different steps inside
+/// runs, and the trajectories that do not diverge are bitwise those of an
+/// ensemble without the diverging ones. A model without time shares its one
+/// `dt`; a `dt` along an axis is per trajectory.
+#[test]
+fn runs_of_steps_are_bitwise_single_steps() {
+    use reeb::backend::cpu::program::Program;
+    // ετ = 100 in f32: the A flow overflows the first time q comes near 0,
+    // at a step that depends on q0 (or never, in 700 steps).
+    let ensemble = |q0: Vec<f64>, every: Option<u64>| {
+        let mut p = vdp(Source::Const(500.0), 0.2, 700);
+        let q = p.axis("q0", q0);
+        p = p.initial("q", q);
+        p.observers.trajectory = every.map(|every| TrajectoryObs {
+            every,
+            vars: vec!["q".into(), "s".into()],
+        });
+        Plan::new(&p).unwrap()
+    };
+    let q0: Vec<f64> = (0..300).map(|i| 1.0 + 0.01 * i as f64).collect();
+    let runs = cpu::run::<f32>(&ensemble(q0.clone(), None), None);
+    let single = cpu::run::<f32>(&ensemble(q0.clone(), Some(1)), None);
+    let sevens = cpu::run::<f32>(&ensemble(q0.clone(), Some(7)), None);
+    let bits = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    for (o, name) in [(&single, "every step"), (&sevens, "every 7")] {
+        for ((n, x), (_, y)) in runs.final_values.iter().zip(&o.final_values) {
+            assert_eq!(bits(x), bits(y), "{name}: {n}");
+        }
+        assert_eq!(runs.nonfinite_step, o.nonfinite_step, "{name}");
+    }
+    // Frame f of every 7 is frame 7f of every step.
+    let frames = |every: u64| (700 / every + 1) as usize;
+    for ((_, a), (_, b)) in sevens.trajectory.iter().zip(&single.trajectory) {
+        for i in 0..q0.len() {
+            for f in 0..frames(7) {
+                let (x, y) = (a[i * frames(7) + f], b[i * frames(1) + 7 * f]);
+                assert_eq!(x.to_bits(), y.to_bits(), "trajectory {i} frame {f}");
+            }
+        }
+    }
+    let steps: std::collections::BTreeSet<u32> = runs
+        .nonfinite_step
+        .iter()
+        .copied()
+        .filter(|s| *s > 0)
+        .collect();
+    let inside = steps.iter().filter(|&&s| s > 64 && s % 64 != 0).count();
+    assert!(
+        steps.len() >= 10 && inside >= 5,
+        "divergence steps {steps:?}"
+    );
+    // The survivors are bitwise an ensemble of survivors alone.
+    let alive: Vec<usize> = (0..q0.len())
+        .filter(|&i| runs.nonfinite_step[i] == 0)
+        .collect();
+    assert!(alive.len() >= 20 && alive.len() < q0.len() - 20);
+    let survivors = cpu::run::<f32>(
+        &ensemble(alive.iter().map(|&i| q0[i]).collect(), None),
+        None,
+    );
+    for ((n, x), (_, y)) in runs.final_values.iter().zip(&survivors.final_values) {
+        let kept: Vec<f32> = alive.iter().map(|&i| x[i]).collect();
+        assert_eq!(bits(&kept), bits(y), "survivors: {n}");
+    }
+    // No time, one dt: shared; bitwise the per-trajectory dt.
+    let isa = cpu::isa();
+    let plan = ensemble(q0.clone(), None);
+    assert!(Program::<f32>::new(&plan, isa, true).shared_time);
+    let per_lane = cpu::run_time_per_trajectory::<f32>(&plan, isa);
+    for ((n, x), (_, y)) in runs.final_values.iter().zip(&per_lane.final_values) {
+        assert_eq!(bits(x), bits(y), "dt per trajectory: {n}");
+    }
+    let mut p = vdp(Source::Const(1.0), 0.05, 10);
+    let dt = p.axis("dt", vec![0.05, 0.01]);
+    p.dt = dt;
+    assert!(!Program::<f32>::new(&Plan::new(&p).unwrap(), isa, true).shared_time);
+}

@@ -125,6 +125,10 @@ macro_rules! define_lanes {
                 // SAFETY: as in `at`; the &mut self borrow covers the whole struct.
                 unsafe { &mut *(self as *mut Self as *mut [R; LANES]).add(k) }
             }
+            /// Makes trajectory `to` a copy of trajectory `from`, every field.
+            pub fn copy_lane(&mut self, from: usize, to: usize) {
+                $( self.$f[to] = self.$f[from]; )*
+            }
             /// Every lane array, one after the other (a snapshot's view).
             pub fn as_slice(&self) -> &[R] {
                 // SAFETY: as in `at`: COUNT arrays of LANES values, no padding.

@@ -26,8 +26,8 @@ crate::shared_fns! {
     fn exp_f32(x: f32) -> f32 {
         // Clamp by select, not min/max, so that NaN passes through.
         let lo: f32 = f32::select(x, -104.0, x < -104.0);
-        let xc: f32 = f32::select(lo, 89.0, x > 89.0);
-        let nf: f32 = f32::floor(xc * 1.44269502 + 0.5);
+        let xc: f32 = f32::select(lo, 89.0, lo > 89.0);
+        let nf: f32 = f32::rint(xc * 1.44269502);
         // nf·0.693359375 is exact (9 bits times at most 8); fma would cost the
         // baseline kernels, which call libm for it, two more calls.
         let r: f32 = (xc - nf * 0.693359375) - nf * -0.000212194442;
@@ -79,8 +79,8 @@ crate::shared_fns! {
     /// Estrin's scheme, 2^n in two halves (as `exp_f32`).
     fn exp_f64(x: f64) -> f64 {
         let lo: f64 = f64::select(x, -746.0, x < -746.0);
-        let xc: f64 = f64::select(lo, 710.0, x > 710.0);
-        let nf: f64 = f64::floor(xc * 1.4426950408889634 + 0.5);
+        let xc: f64 = f64::select(lo, 710.0, lo > 710.0);
+        let nf: f64 = f64::rint(xc * 1.4426950408889634);
         let r: f64 = (xc - nf * 6.93147180369123816490e-01) - nf * 1.90821492927058770002e-10;
         let r2: f64 = r * r;
         let r4: f64 = r2 * r2;

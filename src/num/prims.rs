@@ -12,6 +12,9 @@ pub trait Prims: Sized {
     fn pow2i(n: i32) -> Self;
     /// Truncation toward zero; callers keep `x` well inside the `i32` range.
     fn to_i32(x: Self) -> i32;
+    /// The nearest integer, ties to even (WGSL's `round`; one instruction
+    /// on SSE4.1 and later).
+    fn rint(x: Self) -> Self;
     /// Exact conversion of small integers.
     fn from_i32(n: i32) -> Self;
     /// Positive infinity.
@@ -46,6 +49,10 @@ impl Prims for f32 {
         };
         // SAFETY: y is finite and within the range of i32.
         unsafe { y.to_int_unchecked::<i32>() }
+    }
+    #[inline(always)]
+    fn rint(x: f32) -> f32 {
+        x.round_ties_even()
     }
     #[inline(always)]
     fn from_i32(n: i32) -> f32 {
@@ -84,6 +91,10 @@ impl Prims for f64 {
         };
         // SAFETY: y is finite and within the range of i32.
         unsafe { y.to_int_unchecked::<i32>() }
+    }
+    #[inline(always)]
+    fn rint(x: f64) -> f64 {
+        x.round_ties_even()
     }
     #[inline(always)]
     fn from_i32(n: i32) -> f64 {

@@ -1,17 +1,24 @@
 //! The CPU's fused S2 stages: one stage `D½ P1½ P2½ P3 P2½ P1½ D½` applied to
 //! a whole block in one loop (which the compiler vectorises), built from a
-//! model's [`Pieces`], compiled for three instruction-set levels and chosen
-//! at run time.
+//! model's [`Pieces`]; a run of steps of such stages in one call, compiled for
+//! three instruction-set levels and chosen at run time.
 
 use crate::models::lanes::{Lane, Lanes, LANES};
 use crate::models::pieces::{Pieces, PiecesVisitor};
 pub use crate::num::isa::Isa;
 use crate::num::precision::Real;
 
-/// One fused S2 stage over a block: `(lanes, half, full, time offset, step)`;
-/// returns whether any state variable of any lane is non-finite after it.
-/// Unsafe to call: the variant compiled for AVX2/FMA needs those features.
-pub type StageFn<R> = unsafe fn(&mut Lanes<R>, R, R, R, R) -> bool;
+/// A stage's weights: `(w/2, w, time offset c)`.
+pub type Weights<R> = (R, R, R);
+
+/// A run of steps over a block: `(lanes, stages, n, k, time_terms)` takes
+/// steps `n … n+k−1`, each the stages in order; `time_terms`: whether the
+/// [`time::SHARED`] mode evaluates the model's time ops (a plan without time
+/// shares only `dt`). Returns how many steps it took — fewer than `k` when
+/// one left some lane non-finite (the last stage's verdict is the step's) —
+/// and whether the last one did. Unsafe to call: the variants compiled for
+/// AVX2/FMA and AVX-512 need those features.
+pub type StepsFn<R> = unsafe fn(&mut Lanes<R>, &[Weights<R>], u64, u64, bool) -> (u64, bool);
 
 /// How a stage gets its time terms.
 pub mod time {
@@ -23,8 +30,42 @@ pub mod time {
     /// value): evaluated once on the first lane, and every lane takes them
     /// (with `dt`) as values the loop does not vary, so the compiler also
     /// hoists what the pieces compute from time terms alone (the damping's
-    /// `exp` of the spin–orbit A piece).
+    /// `exp` of the spin–orbit A piece). A plan without time shares `dt`
+    /// alone this way (every τ then a loop invariant).
     pub const SHARED: u8 = 2;
+}
+
+/// Steps `n … n+k−1` on every lane (see [`StepsFn`]): one call for a run of
+/// steps no observer looks at, so the core overlaps the end of one step's
+/// lanes with the start of the next's, and no call, return or observer
+/// check comes between them.
+#[inline(always)]
+pub fn fused_steps_body<
+    R: Real,
+    P: Pieces<R>,
+    const P1: char,
+    const P2: char,
+    const P3: char,
+    const OPT: bool,
+    const TIME: u8,
+>(
+    l: &mut Lanes<R>,
+    stages: &[Weights<R>],
+    n: u64,
+    k: u64,
+    time_terms: bool,
+) -> (u64, bool) {
+    for j in 0..k {
+        let nf = R::from_f64((n + j) as f64);
+        let mut bad = false;
+        for &(half, full, c) in stages {
+            bad = fused_stage_body::<R, P, P1, P2, P3, OPT, TIME>(l, half, full, c, nf, time_terms);
+        }
+        if bad {
+            return (j + 1, true);
+        }
+    }
+    (k, false)
 }
 
 /// One stage `D½ P1½ P2½ P3 P2½ P1½ D½` of weight w on every lane:
@@ -44,12 +85,15 @@ pub fn fused_stage_body<
     full: R,
     c: R,
     nf: R,
+    time_terms: bool,
 ) -> bool {
     let mut shared = Lane::default();
     if TIME == time::SHARED {
         shared = Lane::gather(l, 0);
         shared.t = shared.t0 + nf * shared.dt + c * shared.dt;
-        P::time(&mut shared);
+        if time_terms {
+            P::time(&mut shared);
+        }
     }
     let mut bad = R::Flag::default();
     // Two lanes, half a block apart, per iteration: once vectorised, two
@@ -103,11 +147,11 @@ fn stage<
     !P::finite(x)
 }
 
-/// [`fused_stage_body`] for any x86-64 (or other) CPU.
+/// [`fused_steps_body`] for any x86-64 (or other) CPU.
 ///
 /// # Safety
-/// None required; `unsafe` only to share [`StageFn`] with the AVX2 variant.
-pub unsafe fn fused_stage<
+/// None required; `unsafe` only to share [`StepsFn`] with the wide variants.
+pub unsafe fn fused_steps<
     R: Real,
     P: Pieces<R>,
     const P1: char,
@@ -117,21 +161,21 @@ pub unsafe fn fused_stage<
     const TIME: u8,
 >(
     l: &mut Lanes<R>,
-    half: R,
-    full: R,
-    c: R,
-    nf: R,
-) -> bool {
-    fused_stage_body::<R, P, P1, P2, P3, OPT, TIME>(l, half, full, c, nf)
+    stages: &[Weights<R>],
+    n: u64,
+    k: u64,
+    time_terms: bool,
+) -> (u64, bool) {
+    fused_steps_body::<R, P, P1, P2, P3, OPT, TIME>(l, stages, n, k, time_terms)
 }
 
-/// [`fused_stage_body`] compiled for AVX2 and FMA (x86-64-v3).
+/// [`fused_steps_body`] compiled for AVX2 and FMA (x86-64-v3).
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-pub unsafe fn fused_stage_v3<
+pub unsafe fn fused_steps_v3<
     R: Real,
     P: Pieces<R>,
     const P1: char,
@@ -141,22 +185,22 @@ pub unsafe fn fused_stage_v3<
     const TIME: u8,
 >(
     l: &mut Lanes<R>,
-    half: R,
-    full: R,
-    c: R,
-    nf: R,
-) -> bool {
-    fused_stage_body::<R, P, P1, P2, P3, OPT, TIME>(l, half, full, c, nf)
+    stages: &[Weights<R>],
+    n: u64,
+    k: u64,
+    time_terms: bool,
+) -> (u64, bool) {
+    fused_steps_body::<R, P, P1, P2, P3, OPT, TIME>(l, stages, n, k, time_terms)
 }
 
-/// [`fused_stage_body`] compiled for AVX-512 (x86-64-v4): twice the lanes per
+/// [`fused_steps_body`] compiled for AVX-512 (x86-64-v4): twice the lanes per
 /// instruction and 32 vector registers, so constants stay in registers.
 ///
 /// # Safety
 /// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
-pub unsafe fn fused_stage_v4<
+pub unsafe fn fused_steps_v4<
     R: Real,
     P: Pieces<R>,
     const P1: char,
@@ -166,12 +210,12 @@ pub unsafe fn fused_stage_v4<
     const TIME: u8,
 >(
     l: &mut Lanes<R>,
-    half: R,
-    full: R,
-    c: R,
-    nf: R,
-) -> bool {
-    fused_stage_body::<R, P, P1, P2, P3, OPT, TIME>(l, half, full, c, nf)
+    stages: &[Weights<R>],
+    n: u64,
+    k: u64,
+    time_terms: bool,
+) -> (u64, bool) {
+    fused_steps_body::<R, P, P1, P2, P3, OPT, TIME>(l, stages, n, k, time_terms)
 }
 
 /// The values `REEB_CPU_ISA` may take.
@@ -213,14 +257,14 @@ pub fn isa() -> Isa {
     }
 }
 
-/// The fused stage for a piece order, optional variable and time, or `None`
+/// The fused steps for a piece order, optional variable and time, or `None`
 /// for an order that is not a permutation of A, B, C.
-pub fn stage_fn<R: Real, P: Pieces<R>>(
+pub fn steps_fn<R: Real, P: Pieces<R>>(
     order: [char; 3],
     opt: bool,
     time: u8,
     isa: Isa,
-) -> Option<StageFn<R>> {
+) -> Option<StepsFn<R>> {
     macro_rules! pick {
         ($($a:literal $b:literal $c:literal),*) => {
             match (order, opt, time) {
@@ -241,22 +285,22 @@ pub fn stage_fn<R: Real, P: Pieces<R>>(
             #[cfg(target_arch = "x86_64")]
             {
                 match isa {
-                    Isa::V4 => fused_stage_v4::<R, P, $a, $b, $c, $o, $t> as StageFn<R>,
-                    Isa::V3 => fused_stage_v3::<R, P, $a, $b, $c, $o, $t> as StageFn<R>,
-                    Isa::Baseline => fused_stage::<R, P, $a, $b, $c, $o, $t> as StageFn<R>,
+                    Isa::V4 => fused_steps_v4::<R, P, $a, $b, $c, $o, $t> as StepsFn<R>,
+                    Isa::V3 => fused_steps_v3::<R, P, $a, $b, $c, $o, $t> as StepsFn<R>,
+                    Isa::Baseline => fused_steps::<R, P, $a, $b, $c, $o, $t> as StepsFn<R>,
                 }
             }
             #[cfg(not(target_arch = "x86_64"))]
             {
                 let _ = isa;
-                fused_stage::<R, P, $a, $b, $c, $o, $t> as StageFn<R>
+                fused_steps::<R, P, $a, $b, $c, $o, $t> as StepsFn<R>
             }
         }};
     }
     pick!('A' 'B' 'C', 'A' 'C' 'B', 'B' 'A' 'C', 'B' 'C' 'A', 'C' 'A' 'B', 'C' 'B' 'A')
 }
 
-/// Builds the fused stage of whichever model's pieces it visits.
+/// Builds the fused steps of whichever model's pieces it visits.
 pub struct StageBuilder {
     pub order: [char; 3],
     pub opt: bool,
@@ -266,8 +310,8 @@ pub struct StageBuilder {
 }
 
 impl<R: Real> PiecesVisitor<R> for StageBuilder {
-    type Out = Option<StageFn<R>>;
-    fn visit<P: Pieces<R>>(self) -> Option<StageFn<R>> {
-        stage_fn::<R, P>(self.order, self.opt, self.time, self.isa)
+    type Out = Option<StepsFn<R>>;
+    fn visit<P: Pieces<R>>(self) -> Option<StepsFn<R>> {
+        steps_fn::<R, P>(self.order, self.opt, self.time, self.isa)
     }
 }

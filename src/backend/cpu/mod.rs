@@ -383,7 +383,8 @@ fn run_block<R: Flows>(
             *reported = n;
         }
     };
-    for n in n0..plan.steps {
+    let mut n = n0;
+    while n < plan.steps {
         if n > n0 && n % LANES as u64 == 0 && pause.due(n % 1024 == 0) {
             report(&mut reported, n);
             let lanes = std::mem::replace(l, Lanes::boxed());
@@ -402,18 +403,22 @@ fn run_block<R: Flows>(
                 dprev[k] = *l.at(p.dvar[k]);
             }
         }
-        let any = step(p, l, &mut regs, memory.as_mut(), n);
+        let (done, any) = advance(p, l, &mut regs, memory.as_mut(), n, quiet_run(p, n));
         if any {
-            alive -= mark_nonfinite(p, l, &mut status, count, n);
+            alive -= mark_nonfinite(p, l, &mut status, count, n + done - 1);
+            if p.stages.is_some() {
+                retire(p, l, &status, count);
+            }
         }
+        n += done;
         if p.needs_field {
-            eval_field(p, l, &mut regs, n + 1);
+            eval_field(p, l, &mut regs, n);
         }
-        let view = after!(n + 1);
+        let view = after!(n);
         obs.observe(&view);
         obs.cycle(&view);
-        if (n + 1) % 1024 == 0 {
-            report(&mut reported, n + 1);
+        if n % 1024 == 0 {
+            report(&mut reported, n);
         }
         if alive == 0 {
             break;
@@ -435,32 +440,62 @@ fn load_inputs<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, base: usize, count: u
     }
 }
 
-/// Step `n` on every lane; returns whether some state variable may have
-/// become non-finite (then [`mark_nonfinite`] looks lane by lane).
-fn step<R: Flows>(
+/// How many steps from step `n` the block takes in one call: 1 where
+/// something looks at every step (the vector field, cycle statistics, a
+/// Poincaré section) or the step is not fused stages; else up to the next
+/// trajectory frame or multiple of [`LANES`] steps (where a pause may
+/// come), at most to the end.
+fn quiet_run<R>(p: &Program<R>, n: u64) -> u64 {
+    let plan = p.plan;
+    let every_step = p.needs_field || plan.cycle_var.is_some() || plan.observers.poincare.is_some();
+    if p.stages.is_none() || every_step {
+        return 1;
+    }
+    let lanes = LANES as u64;
+    let mut end = (n / lanes + 1) * lanes;
+    if let Some(tr) = &plan.observers.trajectory {
+        end = end.min((n / tr.every + 1) * tr.every);
+    }
+    end.min(plan.steps) - n
+}
+
+/// Steps `n … n+k−1` on every lane (`k` > 1 only for fused stages); returns
+/// how many it took (it stops after a step that may have left some state
+/// variable non-finite) and whether the last one did (then
+/// [`mark_nonfinite`] looks lane by lane).
+fn advance<R: Flows>(
     p: &Program<R>,
     l: &mut Lanes<R>,
     regs: &mut [[R; LANES]],
     memory: Option<&mut StepMemory<R>>,
     n: u64,
-) -> bool {
-    let nf = R::from_f64(n as f64);
-    // Fused stages report non-finite lanes themselves (the last stage's
-    // answer is the step's); the op interpreter needs a separate pass.
-    if let Some(stages) = &p.stages {
-        let mut any = false;
-        for (f, half, full, tc) in stages {
-            // SAFETY: `isa()` chose wide kernels only where the CPU has the features.
-            any = unsafe { f(l, *half, *full, *tc, nf) };
-        }
-        return any;
+    k: u64,
+) -> (u64, bool) {
+    if let Some(f) = &p.stages {
+        // SAFETY: `isa()` chose wide kernels only where the CPU has the features.
+        return unsafe { (f.kernel)(l, &f.weights, n, k, f.time_terms) };
     }
     if let (Some(f), Some(m)) = (&p.formula_step, memory) {
         // A variable no op assigns keeps its initial value: checked once.
-        return f.step(l, m, n) || (n == 0 && any_nonfinite(p, l));
+        return (1, f.step(l, m, n) || (n == 0 && any_nonfinite(p, l)));
     }
-    run_ops(p, l, regs, nf);
-    any_nonfinite(p, l)
+    run_ops(p, l, regs, R::from_f64(n as f64));
+    (1, any_nonfinite(p, l))
+}
+
+/// Makes every lane whose state is non-finite (marked, or padding) a twin
+/// of a running one: what it computes from now on is never read (its
+/// results are NaN), and as a twin it no longer ends every run of steps
+/// after one step. Does nothing when no lane runs (the block stops).
+fn retire<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, status: &[u64; LANES], count: usize) {
+    let Some(live) = (0..count).find(|&i| status[i] == 0) else {
+        return;
+    };
+    for i in 0..LANES {
+        if p.var.iter().any(|&k| !l.at(k)[i].finite()) {
+            l.copy_lane(live, i);
+        }
+    }
 }
 
 /// Whether some state variable is non-finite in some lane.

@@ -7,18 +7,18 @@ use crate::num::precision::Real;
 use crate::plan::{Op, Plan, Source};
 
 use super::formula::{FormulaCall, FormulaStep};
-use super::kernels::{time, Isa, StageBuilder, StageFn};
+use super::kernels::{time, Isa, StageBuilder, StepsFn, Weights};
 use crate::models::op_args;
 
 /// The plan's step, field and inputs for the CPU.
 pub struct Program<'p, R> {
     pub plan: &'p Plan,
     pub ops: Vec<CpuOp<R>>,
-    /// The step as fused S2 stages `(kernel, w/2, w, time offset)`, when the
-    /// plan is a splitting (preferred over `ops`).
-    pub stages: Option<Vec<FusedStage<R>>>,
-    /// Whether `stages` evaluate time terms the ensemble shares once per
-    /// block ([`shares_time`]).
+    /// The step as fused S2 stages, when the plan is a splitting (preferred
+    /// over `ops`).
+    pub stages: Option<FusedSteps<R>>,
+    /// Whether `stages` evaluate time terms the ensemble shares (or, for a
+    /// plan without time, its one `dt`) once per block ([`shares_time`]).
     pub shared_time: bool,
     /// A formula model's step composed into one program (preferred over
     /// `ops`).
@@ -57,8 +57,14 @@ fn lane(name: &str) -> usize {
     index_of(name).unwrap_or_else(|| panic!("{name} is not a lane field"))
 }
 
-/// A fused S2 stage with its `w/2`, `w` and time offset.
-pub type FusedStage<R> = (StageFn<R>, R, R, R);
+/// The plan's step as fused S2 stages: the kernel that takes runs of steps,
+/// and each stage's weights.
+pub struct FusedSteps<R> {
+    pub kernel: StepsFn<R>,
+    pub weights: Vec<Weights<R>>,
+    /// Whether the kernel evaluates the model's time ops (the plan has time).
+    pub time_terms: bool,
+}
 
 impl<'p, R: Flows> Program<'p, R> {
     /// Resolves `plan`, with fused kernels of instruction-set level `isa`;
@@ -118,37 +124,44 @@ impl<'p, R: Flows> Program<'p, R> {
 /// The plan's splitting step as fused stages, if the model has a kernel for
 /// its piece order.
 /// `shared`: whether the ensemble shares the time terms.
-fn fused_stages<R: Flows>(plan: &Plan, isa: Isa, shared: bool) -> Option<Vec<FusedStage<R>>> {
+fn fused_stages<R: Flows>(plan: &Plan, isa: Isa, shared: bool) -> Option<FusedSteps<R>> {
     let st = plan.stages.as_ref()?;
-    let f = plan.model.with_pieces::<R, _>(StageBuilder {
+    let kernel = plan.model.with_pieces::<R, _>(StageBuilder {
         order: st.order,
         opt: st.with_optional,
         time: match (plan.time, shared) {
-            (false, _) => time::NONE,
+            (_, true) => time::SHARED,
+            (false, false) => time::NONE,
             (true, false) => time::PER_LANE,
-            (true, true) => time::SHARED,
         },
         isa,
     })??;
-    Some(
-        st.stages
+    Some(FusedSteps {
+        kernel,
+        weights: st
+            .stages
             .iter()
-            .map(|(w, c)| (f, R::from_f64(0.5 * w), R::from_f64(*w), R::from_f64(*c)))
+            .map(|(w, c)| (R::from_f64(0.5 * w), R::from_f64(*w), R::from_f64(*c)))
             .collect(),
-    )
+        time_terms: plan.time,
+    })
 }
 
 /// Whether the ensemble shares the step's time terms: `t0`, `dt` and every
-/// input of the model's time ops one value for the whole plan. Then the
-/// fused stages evaluate them once per block and stage (`kernels::time::
-/// SHARED`; the peers' trick: sin, cos and exp of t once per step, not per
-/// trajectory), bitwise the per-trajectory evaluation: the same function
-/// of the same inputs.
+/// input of the model's time ops one value for the whole plan (for a model
+/// without time, `dt` alone). Then the fused stages evaluate them once per
+/// block and stage (`kernels::time::SHARED`; the peers' trick: sin, cos and
+/// exp of t once per step, not per trajectory) and take `dt`, hence every
+/// stage's τ, as a value the lane loop does not vary; bitwise the
+/// per-trajectory evaluation: the same function of the same inputs.
 pub fn shares_time(plan: &Plan) -> bool {
-    if !plan.time || plan.model.formula().is_some() {
+    if plan.model.formula().is_some() {
         return false;
     }
-    let mut reads = vec!["t0", "dt"];
+    let mut reads = vec!["dt"];
+    if plan.time {
+        reads.push("t0");
+    }
     for op in plan.model.spec().time_ops {
         match op_args(op) {
             Some(args) => reads.extend(
