@@ -158,6 +158,39 @@ impl Plan {
         self.crossing_var.is_some() || self.cycle_var.is_some() || self.strobe_interpolated()
     }
 
+    /// Whether the ensemble shares the step's time terms: `t0`, `dt` and
+    /// every input of the model's time ops one value for the whole plan (for
+    /// a plan without time, `dt` alone). Then both backends evaluate them
+    /// once for the ensemble, not per trajectory (the peers' trick: sin, cos
+    /// and exp of t once per step): the CPU's fused stages once per block
+    /// and stage, taking `dt`, hence every τ, as a loop invariant; the GPU
+    /// once per window into a table. Formula models share theirs in their
+    /// staged programs instead.
+    pub fn shares_time(&self) -> bool {
+        if self.model.formula().is_some() {
+            return false;
+        }
+        let mut reads = vec!["dt"];
+        if self.time {
+            reads.push("t0");
+        }
+        for op in self.model.spec().time_ops {
+            match crate::models::op_args(op) {
+                Some(args) => reads.extend(
+                    args.iter()
+                        .filter(|(n, w)| !w && *n != "t")
+                        .map(|(n, _)| *n),
+                ),
+                None => return false,
+            }
+        }
+        let one_value = |name: &str| match self.bindings.iter().find(|(n, _)| *n == name) {
+            Some((_, src)) => src.values().windows(2).all(|w| w[0] == w[1]),
+            None => true,
+        };
+        reads.into_iter().all(one_value)
+    }
+
     /// Does some trajectory's stroboscopic sample fall inside a step (period
     /// or phase not a whole number of steps), so that it is interpolated?
     pub fn strobe_interpolated(&self) -> bool {

@@ -71,7 +71,7 @@ pub fn resumable<R: Flows>(
 }
 
 /// [`run_isa`] evaluating the time terms on every trajectory even where the
-/// ensemble shares them (`program::shares_time`): the reference the shared
+/// ensemble shares them (`Plan::shares_time`): the reference the shared
 /// evaluation is tested and timed against.
 pub fn run_time_per_trajectory<R: Flows>(plan: &Plan, isa: Isa) -> Observations<R> {
     uninterrupted(integrate(plan, None, isa, false, None))

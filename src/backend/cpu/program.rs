@@ -8,7 +8,6 @@ use crate::plan::{Op, Plan, Source};
 
 use super::formula::{FormulaCall, FormulaStep};
 use super::kernels::{time, Isa, StageBuilder, StepsFn, Weights};
-use crate::models::op_args;
 
 /// The plan's step, field and inputs for the CPU.
 pub struct Program<'p, R> {
@@ -18,7 +17,7 @@ pub struct Program<'p, R> {
     /// over `ops`).
     pub stages: Option<FusedSteps<R>>,
     /// Whether `stages` evaluate time terms the ensemble shares (or, for a
-    /// plan without time, its one `dt`) once per block ([`shares_time`]).
+    /// plan without time, its one `dt`) once per block ([`Plan::shares_time`]).
     pub shared_time: bool,
     /// A formula model's step composed into one program (preferred over
     /// `ops`).
@@ -101,7 +100,7 @@ impl<'p, R: Flows> Program<'p, R> {
             .max()
             .unwrap_or(0);
         let idx = lane;
-        let shared_time = share_time && plan.stages.is_some() && shares_time(plan);
+        let shared_time = share_time && plan.stages.is_some() && plan.shares_time();
         Program {
             plan,
             ops,
@@ -145,36 +144,4 @@ fn fused_stages<R: Flows>(plan: &Plan, isa: Isa, shared: bool) -> Option<FusedSt
             .collect(),
         time_terms: plan.time,
     })
-}
-
-/// Whether the ensemble shares the step's time terms: `t0`, `dt` and every
-/// input of the model's time ops one value for the whole plan (for a model
-/// without time, `dt` alone). Then the fused stages evaluate them once per
-/// block and stage (`kernels::time::SHARED`; the peers' trick: sin, cos and
-/// exp of t once per step, not per trajectory) and take `dt`, hence every
-/// stage's τ, as a value the lane loop does not vary; bitwise the
-/// per-trajectory evaluation: the same function of the same inputs.
-pub fn shares_time(plan: &Plan) -> bool {
-    if plan.model.formula().is_some() {
-        return false;
-    }
-    let mut reads = vec!["dt"];
-    if plan.time {
-        reads.push("t0");
-    }
-    for op in plan.model.spec().time_ops {
-        match op_args(op) {
-            Some(args) => reads.extend(
-                args.iter()
-                    .filter(|(n, w)| !w && *n != "t")
-                    .map(|(n, _)| *n),
-            ),
-            None => return false,
-        }
-    }
-    let one_value = |name: &str| match plan.bindings.iter().find(|(n, _)| *n == name) {
-        Some((_, src)) => src.values().windows(2).all(|w| w[0] == w[1]),
-        None => true,
-    };
-    reads.into_iter().all(one_value)
 }
