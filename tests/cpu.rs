@@ -366,10 +366,41 @@ fn shared_time_terms_are_bitwise_the_per_trajectory_ones() {
 #[test]
 fn runs_of_steps_are_bitwise_single_steps() {
     use reeb::backend::cpu::program::Program;
-    // ετ = 100 in f32: the A flow overflows the first time q comes near 0,
-    // at a step that depends on q0 (or never, in 700 steps).
+    // S2 (ετ = 100), and a composition whose stages but the last skip the
+    // check (ετ = 2: its negative weights overflow where |q| > 1; no
+    // trajectory survives there).
+    runs_match_single_steps("s2", 500.0, 0.2, true);
+    runs_match_single_steps("yoshida6a", 40.0, 0.05, false);
+    // No time, one dt: shared; bitwise the per-trajectory dt.
+    let isa = cpu::isa();
+    let mut p = vdp(Source::Const(3.0), 0.05, 300);
+    let q0 = p.axis("q0", (0..100).map(|i| 0.5 + 0.03 * i as f64).collect());
+    p = p.initial("q", q0);
+    let plan = Plan::new(&p).unwrap();
+    assert!(Program::<f32>::new(&plan, isa, true).shared_time);
+    let (shared, per_lane) = (
+        cpu::run::<f32>(&plan, None),
+        cpu::run_time_per_trajectory::<f32>(&plan, isa),
+    );
+    for ((n, x), (_, y)) in shared.final_values.iter().zip(&per_lane.final_values) {
+        assert!(
+            x.iter().zip(y).all(|(a, b)| a.to_bits() == b.to_bits()),
+            "dt per trajectory: {n}"
+        );
+    }
+    let mut p = vdp(Source::Const(1.0), 0.05, 10);
+    let dt = p.axis("dt", vec![0.05, 0.01]);
+    p.dt = dt;
+    assert!(!Program::<f32>::new(&Plan::new(&p).unwrap(), isa, true).shared_time);
+}
+
+/// [`runs_of_steps_are_bitwise_single_steps`] for one scheme, ε and dt;
+/// `survivors`: whether some trajectories survive 700 steps.
+fn runs_match_single_steps(scheme: &str, eps: f64, dt: f64, survivors: bool) {
+    // The A flow overflows f32 at a step that depends on q0 (or never).
     let ensemble = |q0: Vec<f64>, every: Option<u64>| {
-        let mut p = vdp(Source::Const(500.0), 0.2, 700);
+        let mut p = vdp(Source::Const(eps), dt, 700);
+        p.scheme = reeb::plan::scheme::Scheme::by_name(scheme).unwrap();
         let q = p.axis("q0", q0);
         p = p.initial("q", q);
         p.observers.trajectory = every.map(|every| TrajectoryObs {
@@ -385,9 +416,9 @@ fn runs_of_steps_are_bitwise_single_steps() {
     let bits = |x: &[f32]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
     for (o, name) in [(&single, "every step"), (&sevens, "every 7")] {
         for ((n, x), (_, y)) in runs.final_values.iter().zip(&o.final_values) {
-            assert_eq!(bits(x), bits(y), "{name}: {n}");
+            assert_eq!(bits(x), bits(y), "{scheme} {name}: {n}");
         }
-        assert_eq!(runs.nonfinite_step, o.nonfinite_step, "{name}");
+        assert_eq!(runs.nonfinite_step, o.nonfinite_step, "{scheme} {name}");
     }
     // Frame f of every 7 is frame 7f of every step.
     let frames = |every: u64| (700 / every + 1) as usize;
@@ -408,31 +439,26 @@ fn runs_of_steps_are_bitwise_single_steps() {
     let inside = steps.iter().filter(|&&s| s > 64 && s % 64 != 0).count();
     assert!(
         steps.len() >= 10 && inside >= 5,
-        "divergence steps {steps:?}"
+        "{scheme}: divergence steps {steps:?}"
     );
+    if !survivors {
+        return;
+    }
     // The survivors are bitwise an ensemble of survivors alone.
     let alive: Vec<usize> = (0..q0.len())
         .filter(|&i| runs.nonfinite_step[i] == 0)
         .collect();
-    assert!(alive.len() >= 20 && alive.len() < q0.len() - 20);
+    assert!(
+        alive.len() >= 20 && alive.len() < q0.len() - 20,
+        "{scheme}: {} survive",
+        alive.len()
+    );
     let survivors = cpu::run::<f32>(
         &ensemble(alive.iter().map(|&i| q0[i]).collect(), None),
         None,
     );
     for ((n, x), (_, y)) in runs.final_values.iter().zip(&survivors.final_values) {
         let kept: Vec<f32> = alive.iter().map(|&i| x[i]).collect();
-        assert_eq!(bits(&kept), bits(y), "survivors: {n}");
+        assert_eq!(bits(&kept), bits(y), "{scheme} survivors: {n}");
     }
-    // No time, one dt: shared; bitwise the per-trajectory dt.
-    let isa = cpu::isa();
-    let plan = ensemble(q0.clone(), None);
-    assert!(Program::<f32>::new(&plan, isa, true).shared_time);
-    let per_lane = cpu::run_time_per_trajectory::<f32>(&plan, isa);
-    for ((n, x), (_, y)) in runs.final_values.iter().zip(&per_lane.final_values) {
-        assert_eq!(bits(x), bits(y), "dt per trajectory: {n}");
-    }
-    let mut p = vdp(Source::Const(1.0), 0.05, 10);
-    let dt = p.axis("dt", vec![0.05, 0.01]);
-    p.dt = dt;
-    assert!(!Program::<f32>::new(&Plan::new(&p).unwrap(), isa, true).shared_time);
 }
