@@ -160,12 +160,12 @@ impl Plan {
 
     /// Whether the ensemble shares the step's time terms: `t0`, `dt` and
     /// every input of the model's time ops one value for the whole plan (for
-    /// a plan without time, `dt` alone). Then both backends evaluate them
-    /// once for the ensemble, not per trajectory (the peers' trick: sin, cos
-    /// and exp of t once per step): the CPU's fused stages once per block
-    /// and stage, taking `dt`, hence every τ, as a loop invariant; the GPU
-    /// once per window into a table. Formula models share theirs in their
-    /// staged programs instead.
+    /// a plan without time, `dt` alone). Then the CPU's fused stages
+    /// evaluate them once per block and stage, not per trajectory (the
+    /// peers' trick: sin, cos and exp of t once per step), and take `dt`,
+    /// hence every τ, as a loop invariant; the GPU still evaluates them per
+    /// trajectory. Formula models share theirs in their staged programs
+    /// instead.
     pub fn shares_time(&self) -> bool {
         if self.model.formula().is_some() {
             return false;

@@ -40,7 +40,7 @@ pub mod time {
 /// lanes with the start of the next's, and no call, return or observer
 /// check comes between them.
 #[inline(always)]
-pub fn fused_steps_body<
+fn fused_steps_body<
     R: Real,
     P: Pieces<R>,
     const P1: char,
@@ -76,7 +76,7 @@ pub fn fused_steps_body<
 /// with `CHECK`, whether some lane's state is non-finite after it (else
 /// false).
 #[inline(always)]
-pub fn fused_stage_body<
+fn fused_stage_body<
     R: Real,
     P: Pieces<R>,
     const P1: char,
@@ -157,75 +157,58 @@ fn stage<
     !P::finite(x)
 }
 
-/// [`fused_steps_body`] for any x86-64 (or other) CPU.
-///
-/// # Safety
-/// None required; `unsafe` only to share [`StepsFn`] with the wide variants.
-pub unsafe fn fused_steps<
-    R: Real,
-    P: Pieces<R>,
-    const P1: char,
-    const P2: char,
-    const P3: char,
-    const OPT: bool,
-    const TIME: u8,
->(
-    l: &mut Lanes<R>,
-    stages: &[Weights<R>],
-    n: u64,
-    k: u64,
-    time_terms: bool,
-) -> (u64, bool) {
-    fused_steps_body::<R, P, P1, P2, P3, OPT, TIME>(l, stages, n, k, time_terms)
+/// Declares a [`StepsFn`] variant of [`fused_steps_body`], compiled with
+/// the given attributes (its instruction-set level).
+macro_rules! steps_variant {
+    ($(#[$m:meta])* $name:ident) => {
+        $(#[$m])*
+        pub unsafe fn $name<
+            R: Real,
+            P: Pieces<R>,
+            const P1: char,
+            const P2: char,
+            const P3: char,
+            const OPT: bool,
+            const TIME: u8,
+        >(
+            l: &mut Lanes<R>,
+            stages: &[Weights<R>],
+            n: u64,
+            k: u64,
+            time_terms: bool,
+        ) -> (u64, bool) {
+            fused_steps_body::<R, P, P1, P2, P3, OPT, TIME>(l, stages, n, k, time_terms)
+        }
+    };
 }
 
-/// [`fused_steps_body`] compiled for AVX2 and FMA (x86-64-v3).
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-pub unsafe fn fused_steps_v3<
-    R: Real,
-    P: Pieces<R>,
-    const P1: char,
-    const P2: char,
-    const P3: char,
-    const OPT: bool,
-    const TIME: u8,
->(
-    l: &mut Lanes<R>,
-    stages: &[Weights<R>],
-    n: u64,
-    k: u64,
-    time_terms: bool,
-) -> (u64, bool) {
-    fused_steps_body::<R, P, P1, P2, P3, OPT, TIME>(l, stages, n, k, time_terms)
+steps_variant! {
+    /// [`fused_steps_body`] for any x86-64 (or other) CPU.
+    ///
+    /// # Safety
+    /// None required; `unsafe` only to share [`StepsFn`] with the wide variants.
+    fused_steps
 }
 
-/// [`fused_steps_body`] compiled for AVX-512 (x86-64-v4): twice the lanes per
-/// instruction and 32 vector registers, so constants stay in registers.
-///
-/// # Safety
-/// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
-pub unsafe fn fused_steps_v4<
-    R: Real,
-    P: Pieces<R>,
-    const P1: char,
-    const P2: char,
-    const P3: char,
-    const OPT: bool,
-    const TIME: u8,
->(
-    l: &mut Lanes<R>,
-    stages: &[Weights<R>],
-    n: u64,
-    k: u64,
-    time_terms: bool,
-) -> (u64, bool) {
-    fused_steps_body::<R, P, P1, P2, P3, OPT, TIME>(l, stages, n, k, time_terms)
+steps_variant! {
+    /// [`fused_steps_body`] compiled for AVX2 and FMA (x86-64-v3).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fused_steps_v3
+}
+
+steps_variant! {
+    /// [`fused_steps_body`] compiled for AVX-512 (x86-64-v4): twice the lanes
+    /// per instruction and 32 vector registers, so constants stay in registers.
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
+    fused_steps_v4
 }
 
 /// The values `REEB_CPU_ISA` may take.

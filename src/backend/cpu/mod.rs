@@ -405,9 +405,10 @@ fn run_block<R: Flows>(
         }
         let (done, any) = advance(p, l, &mut regs, memory.as_mut(), n, quiet_run(p, n));
         if any {
-            alive -= mark_nonfinite(p, l, &mut status, count, n + done - 1);
+            let bad = nonfinite_lanes(p, l);
+            alive -= mark_nonfinite(&bad, &mut status, count, n + done - 1);
             if p.stages.is_some() {
-                retire(p, l, &status, count);
+                retire(&bad, l, &status, count);
             }
         }
         n += done;
@@ -462,7 +463,7 @@ fn quiet_run<R>(p: &Program<R>, n: u64) -> u64 {
 /// Steps `n … n+k−1` on every lane (`k` > 1 only for fused stages); returns
 /// how many it took (it stops after a step that may have left some state
 /// variable non-finite) and whether the last one did (then
-/// [`mark_nonfinite`] looks lane by lane).
+/// [`nonfinite_lanes`] looks lane by lane).
 fn advance<R: Flows>(
     p: &Program<R>,
     l: &mut Lanes<R>,
@@ -483,18 +484,16 @@ fn advance<R: Flows>(
     (1, any_nonfinite(p, l))
 }
 
-/// Makes every lane whose state is non-finite (marked, or padding) a twin
-/// of a running one: what it computes from now on is never read (its
+/// Makes every lane whose state is non-finite (`bad`: marked, or padding)
+/// a twin of a running one: what it computes from now on is never read (its
 /// results are NaN), and as a twin it no longer ends every run of steps
 /// after one step. Does nothing when no lane runs (the block stops).
-fn retire<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, status: &[u64; LANES], count: usize) {
+fn retire<R: Flows>(bad: &[bool; LANES], l: &mut Lanes<R>, status: &[u64; LANES], count: usize) {
     let Some(live) = (0..count).find(|&i| status[i] == 0) else {
         return;
     };
-    for i in 0..LANES {
-        if p.var.iter().any(|&k| !l.at(k)[i].finite()) {
-            l.copy_lane(live, i);
-        }
+    for i in (0..LANES).filter(|&i| bad[i]) {
+        l.copy_lane(live, i);
     }
 }
 
@@ -530,15 +529,8 @@ fn run_ops<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, regs: &mut [[R; LANES]], 
     }
 }
 
-/// Marks the lanes whose state went non-finite at step `n` (first time
-/// only); returns how many stopped.
-fn mark_nonfinite<R: Flows>(
-    p: &Program<R>,
-    l: &Lanes<R>,
-    status: &mut [u64; LANES],
-    count: usize,
-    n: u64,
-) -> usize {
+/// Which lanes have some state variable non-finite.
+fn nonfinite_lanes<R: Flows>(p: &Program<R>, l: &Lanes<R>) -> [bool; LANES] {
     let mut bad = [false; LANES];
     for &k in &p.var {
         let x = l.at(k);
@@ -546,6 +538,12 @@ fn mark_nonfinite<R: Flows>(
             bad[i] |= !x[i].finite();
         }
     }
+    bad
+}
+
+/// Marks the lanes `bad` at step `n` as stopped there (first time only);
+/// returns how many stopped.
+fn mark_nonfinite(bad: &[bool; LANES], status: &mut [u64; LANES], count: usize, n: u64) -> usize {
     let mut stopped = 0;
     for i in 0..count {
         if bad[i] && status[i] == 0 {
