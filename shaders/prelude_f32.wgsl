@@ -17,6 +17,12 @@ fn rint(x: f32) -> f32 {
     return round(x);
 }
 
+// Nearest integer, ties to even, as an i32 (the CPU's add-and-look-at-the-bits
+// twin agrees wherever the result fits; NaN gives some i32 on both).
+fn round_i32(x: f32) -> i32 {
+    return i32(round(x));
+}
+
 fn from_i32(n: i32) -> f32 {
     return f32(n);
 }

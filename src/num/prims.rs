@@ -15,6 +15,12 @@ pub trait Prims: Sized {
     /// The nearest integer, ties to even (WGSL's `round`; one instruction
     /// on SSE4.1 and later).
     fn rint(x: Self) -> Self;
+    /// The nearest integer, ties to even, as an `i32`, for |x| < 2²² (f32)
+    /// or 2³¹ (f64); NaN and larger |x| give some `i32` (callers keep the
+    /// float path, which carries the NaN). One addition of 1.5·2^mantissa
+    /// and a look at the bits: no rounding instruction, no conversion and
+    /// none of the range checks a float-to-int conversion needs.
+    fn round_i32(x: Self) -> i32;
     /// Exact conversion of small integers.
     fn from_i32(n: i32) -> Self;
     /// Positive infinity.
@@ -53,6 +59,11 @@ impl Prims for f32 {
     #[inline(always)]
     fn rint(x: f32) -> f32 {
         x.round_ties_even()
+    }
+    #[inline(always)]
+    fn round_i32(x: f32) -> i32 {
+        // x + 1.5·2²³ rounds x to an integer n in the low mantissa bits.
+        ((x + 12582912.0).to_bits() as i32).wrapping_sub(0x4b40_0000)
     }
     #[inline(always)]
     fn from_i32(n: i32) -> f32 {
@@ -95,6 +106,11 @@ impl Prims for f64 {
     #[inline(always)]
     fn rint(x: f64) -> f64 {
         x.round_ties_even()
+    }
+    #[inline(always)]
+    fn round_i32(x: f64) -> i32 {
+        // x + 1.5·2⁵² rounds x to an integer n; the low 32 bits hold n.
+        (x + 6755399441055744.0).to_bits() as u32 as i32
     }
     #[inline(always)]
     fn from_i32(n: i32) -> f64 {
