@@ -94,6 +94,29 @@ fn exp_edges() {
     assert!(sub32 > 0.0 && sub32 < f32::MIN_POSITIVE);
 }
 
+/// Through gradual underflow to 0, with no select at the end: within one
+/// subnormal step of the correctly rounded result, 0 where it is 0.
+#[test]
+fn exp_underflow_is_gradual_and_ends_in_zero() {
+    for x in sample(-110.0, -87.0, 100_000, 11) {
+        let x = x as f32;
+        let (got, want) = (exp_f32(x) as f64, (x as f64).exp());
+        assert!(
+            (got - want).abs() <= f32::from_bits(1) as f64,
+            "exp_f32({x}) = {got}, not {want}"
+        );
+    }
+    for x in sample(-760.0, -708.0, 100_000, 12) {
+        let (got, want) = (exp_f64(x), x.exp());
+        assert!(
+            (got - want).abs() <= f64::from_bits(1),
+            "exp_f64({x}) = {got}, not {want}"
+        );
+    }
+    assert_eq!(exp_f32(-103.98), 0.0);
+    assert_eq!(exp_f64(-745.2), 0.0);
+}
+
 fn sincos32(x: f32) -> (f32, f32) {
     let (mut s, mut c) = (0.0, 0.0);
     sincos_f32(x, &mut s, &mut c);

@@ -115,9 +115,11 @@ crate::model_ops! {
     fn van_der_pol_time(t: R, forcing_amplitude: R, forcing_frequency: R, forcing: &mut R) {
         *forcing = forcing_amplitude * R::cos_r(forcing_frequency * t);
     }
-    /// Piece B (g = q − A cos ωt) on s.
+    /// Piece B (g = q − A cos ωt) on s: `s ← (s + τ A cos ωt) − τ q`, the
+    /// forcing added to the old s, so that only `− τ q` waits for the new q
+    /// (a shorter dependent chain; unforced, it is `s − τ q` exactly).
     fn van_der_pol_b_s(q: R, s: &mut R, tau: R, forcing: R) {
-        *s = *s - tau * (q - forcing);
+        *s = (*s + tau * forcing) - tau * q;
     }
     /// Piece B on p (g' = 1).
     fn van_der_pol_b_p(p: &mut R, tau: R) {

@@ -84,7 +84,13 @@ macro_rules! pieces {
             }
             #[inline(always)]
             fn finite(x: &$crate::models::lanes::Lane<R>) -> bool {
-                true $(&& x.$var.finite())*
+                // v·0 is ±0 for finite v and NaN for ±∞ and NaN: one sum and
+                // one compare for all variables, where a test per variable
+                // costs a mask each (and `&&` a conditional load).
+                let zero = R::from_f64(0.0);
+                let mut sum = zero;
+                $( sum = sum + x.$var * zero; )*
+                sum == zero
             }
         }
     };
