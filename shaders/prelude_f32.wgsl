@@ -17,10 +17,13 @@ fn rint(x: f32) -> f32 {
     return round(x);
 }
 
-// Nearest integer, ties to even, as an i32 (the CPU's add-and-look-at-the-bits
-// twin agrees wherever the result fits; NaN gives some i32 on both).
-fn round_i32(x: f32) -> i32 {
-    return i32(round(x));
+// 2^n in two normal halves for n = round(y): lo = 2^floor(n/2), hi = 2^(n - floor(n/2))
+// (the CPU's twin reads n from the bits of y + 1.5·2^mantissa).
+fn pow2_halves(y: f32, lo: ptr<function, f32>, hi: ptr<function, f32>) {
+    let n = i32(round(y));
+    let n1 = n >> 1u;
+    *lo = pow2i(n1);
+    *hi = pow2i(n - n1);
 }
 
 fn from_i32(n: i32) -> f32 {

@@ -88,9 +88,7 @@ macro_rules! pieces {
                 // one compare for all variables, where a test per variable
                 // costs a mask each (and `&&` a conditional load).
                 let zero = R::from_f64(0.0);
-                let mut sum = zero;
-                $( sum = sum + x.$var * zero; )*
-                sum == zero
+                zero $(+ x.$var * zero)* == zero
             }
         }
     };

@@ -29,7 +29,9 @@ crate::shared_fns! {
         let xc: f32 = f32::select(lo, 89.0, lo > 89.0);
         let y: f32 = xc * 1.44269502;
         let nf: f32 = f32::rint(y);
-        let n: i32 = f32::round_i32(y);
+        let mut s1: f32 = 0.0;
+        let mut s2: f32 = 0.0;
+        f32::pow2_halves(y, &mut s1, &mut s2);
         // nf·0.693359375 is exact (9 bits times at most 8); fma would cost the
         // baseline kernels, which call libm for it, two more calls.
         let r: f32 = (xc - nf * 0.693359375) - nf * -0.000212194442;
@@ -41,12 +43,10 @@ crate::shared_fns! {
         let f0: f32 = f32::fma(r2, e23, e01);
         let f1: f32 = f32::fma(r2, 0.000198412701, e45);
         let pr: f32 = f32::fma(r4, f1, f0);
-        let n1: i32 = n >> 1;
-        let s1: f32 = f32::pow2i(n1);
-        // (1 + r·P)·2^n1 without leaving the normal range, then ·2^(n − n1):
+        // (1 + r·P)·2^⌊n/2⌋ without leaving the normal range, then ·2^⌈n/2⌉:
         // one rounding into the subnormals, and e^-104 < 2^-150 rounds to 0
         // (so the clamp needs no underflow select).
-        return f32::fma(r * s1, pr, s1) * f32::pow2i(n - n1);
+        return f32::fma(r * s1, pr, s1) * s2;
     }
 
     /// sin x and cos x in f32: k = round(2x/π), r = x − kπ/2 in three parts
@@ -84,7 +84,9 @@ crate::shared_fns! {
         let xc: f64 = f64::select(lo, 710.0, lo > 710.0);
         let y: f64 = xc * 1.4426950408889634;
         let nf: f64 = f64::rint(y);
-        let n: i32 = f64::round_i32(y);
+        let mut s1: f64 = 0.0;
+        let mut s2: f64 = 0.0;
+        f64::pow2_halves(y, &mut s1, &mut s2);
         let r: f64 = (xc - nf * 6.93147180369123816490e-01) - nf * 1.90821492927058770002e-10;
         let r2: f64 = r * r;
         let r4: f64 = r2 * r2;
@@ -101,10 +103,8 @@ crate::shared_fns! {
         let g0: f64 = f64::fma(r4, f1, f0);
         let g1: f64 = f64::fma(r4, 1.6059043836821613e-10, f2);
         let pr: f64 = f64::fma(r8, g1, g0);
-        let n1: i32 = n >> 1;
-        let s1: f64 = f64::pow2i(n1);
         // As in exp_f32: e^-746 < 2^-1075 rounds to 0.
-        return f64::fma(r * s1, pr, s1) * f64::pow2i(n - n1);
+        return f64::fma(r * s1, pr, s1) * s2;
     }
 
     /// sin x and cos x in f64: Cody–Waite reduction by π/2 with fdlibm's

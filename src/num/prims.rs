@@ -8,19 +8,19 @@
 pub trait Prims: Sized {
     /// `t` where `c`, else `f` (argument order of WGSL's `select`).
     fn select(f: Self, t: Self, c: bool) -> Self;
-    /// `2^n`, exact, for `n` in the normal exponent range of the type.
-    fn pow2i(n: i32) -> Self;
     /// Truncation toward zero; callers keep `x` well inside the `i32` range.
     fn to_i32(x: Self) -> i32;
     /// The nearest integer, ties to even (WGSL's `round`; one instruction
     /// on SSE4.1 and later).
     fn rint(x: Self) -> Self;
-    /// The nearest integer, ties to even, as an `i32`, for |x| < 2²² (f32)
-    /// or 2³¹ (f64); NaN and larger |x| give some `i32` (callers keep the
-    /// float path, which carries the NaN). One addition of 1.5·2^mantissa
-    /// and a look at the bits: no rounding instruction, no conversion and
-    /// none of the range checks a float-to-int conversion needs.
-    fn round_i32(x: Self) -> i32;
+    /// `2^n` in two normal halves for n = round(y) (ties to even), |n| within
+    /// the exponent range: `lo = 2^⌊n/2⌋`, `hi = 2^(n − ⌊n/2⌋)`, so that
+    /// `v·lo·hi` rounds once even where `2^n` is subnormal. On the CPU one
+    /// addition of 1.5·2^mantissa puts n in the low bits, and integer shifts
+    /// make both exponents: no rounding instruction, no float-to-int
+    /// conversion and none of its range checks. NaN `y` gives some values
+    /// (callers carry the NaN on their float path).
+    fn pow2_halves(y: Self, lo: &mut Self, hi: &mut Self);
     /// Exact conversion of small integers.
     fn from_i32(n: i32) -> Self;
     /// Positive infinity.
@@ -40,10 +40,6 @@ impl Prims for f32 {
         }
     }
     #[inline(always)]
-    fn pow2i(n: i32) -> f32 {
-        f32::from_bits(((n + 127) as u32) << 23)
-    }
-    #[inline(always)]
     fn to_i32(x: f32) -> i32 {
         // `as` saturates lane by lane, which LLVM scalarises inside the lane
         // loops; this is the same for every input (NaN → 0, clamped) and
@@ -61,9 +57,13 @@ impl Prims for f32 {
         x.round_ties_even()
     }
     #[inline(always)]
-    fn round_i32(x: f32) -> i32 {
-        // x + 1.5·2²³ rounds x to an integer n in the low mantissa bits.
-        ((x + 12582912.0).to_bits() as i32).wrapping_sub(0x4b40_0000)
+    fn pow2_halves(y: f32, lo: &mut f32, hi: &mut f32) {
+        // y + 1.5·2²³ has bits 0x4b40_0000 + n; u = n + 254 ≥ 0 makes the
+        // halves' biased exponents u >> 1 = ⌊n/2⌋ + 127 and u − (u >> 1).
+        let u = (y + 12582912.0).to_bits().wrapping_sub(0x4b40_0000 - 254);
+        let e = u >> 1;
+        *lo = f32::from_bits(e << 23);
+        *hi = f32::from_bits(u.wrapping_sub(e) << 23);
     }
     #[inline(always)]
     fn from_i32(n: i32) -> f32 {
@@ -89,10 +89,6 @@ impl Prims for f64 {
         }
     }
     #[inline(always)]
-    fn pow2i(n: i32) -> f64 {
-        f64::from_bits(((n + 1023) as u64) << 52)
-    }
-    #[inline(always)]
     fn to_i32(x: f64) -> i32 {
         // As for f32: vectorisable, the same values as a saturating `as`.
         let y = if x.is_nan() {
@@ -108,9 +104,14 @@ impl Prims for f64 {
         x.round_ties_even()
     }
     #[inline(always)]
-    fn round_i32(x: f64) -> i32 {
-        // x + 1.5·2⁵² rounds x to an integer n; the low 32 bits hold n.
-        (x + 6755399441055744.0).to_bits() as u32 as i32
+    fn pow2_halves(y: f64, lo: &mut f64, hi: &mut f64) {
+        // As for f32, with 1.5·2⁵² and the bias 1023: u = n + 2046.
+        let u = (y + 6755399441055744.0)
+            .to_bits()
+            .wrapping_sub(0x4338_0000_0000_0000 - 2046);
+        let e = u >> 1;
+        *lo = f64::from_bits(e << 52);
+        *hi = f64::from_bits(u.wrapping_sub(e) << 52);
     }
     #[inline(always)]
     fn from_i32(n: i32) -> f64 {
