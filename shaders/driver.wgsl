@@ -34,6 +34,9 @@ struct Uniforms {
 @group(0) @binding(6) var<storage, read_write> traj_out: array<R>;
 // Poincaré points: points_out[(k * vars + j) * cap + i].
 @group(0) @binding(7) var<storage, read_write> points_out: array<R>;
+// Time terms the ensemble shares, per step and stage of this window (only in
+// kernels whose plan shares them; src/backend/gpu/time_table.rs).
+{{TIME_TABLE}}
 
 @compute @workgroup_size(64)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,

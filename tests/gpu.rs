@@ -310,3 +310,82 @@ fn ten_million_trajectories_on_the_gpu() {
         g.chunks, g.dispatches, g.seconds, g.timing
     );
 }
+
+/// Time terms the ensemble shares are tabulated on the host once per window
+/// (the uniform `tterms`, `backend/gpu/time_table.rs`): the kernel reads them
+/// instead of calling the time ops, over windows of any length and every
+/// stage of a composition, and agrees with the CPU; a `t0` along an axis
+/// keeps the per-trajectory time ops.
+#[test]
+fn shared_time_terms_come_from_a_table_per_window() {
+    use reeb::backend::gpu::codegen::generate;
+    use reeb::num::precision::Precision;
+    let Some(ctx) = gpu() else { return };
+    let mut tabled = vec![];
+    for model in MODEL_NAMES {
+        for scheme in ["s2", "yoshida6a", "yoshida8e", "rk4"] {
+            let Some(mut p) = ensemble(model, scheme) else {
+                continue;
+            };
+            // The parameters one value each: `ensemble` may vary a time input.
+            for (name, v) in problem(model, scheme).unwrap().params {
+                p = p.param(&name, v);
+            }
+            let plan = Plan::new(&p).unwrap();
+            let kernel = generate(&plan, Precision::F32).unwrap();
+            let Some(tt) = &kernel.time_table else {
+                continue;
+            };
+            for op in tt.ops {
+                assert!(
+                    !kernel.source.contains(&format!("        {op}(")),
+                    "{model} {scheme}: {op} still called per trajectory"
+                );
+            }
+            tabled.push(format!("{model} {scheme}"));
+            let c32 = cpu::run::<f32>(&plan, None);
+            let c64 = cpu::run::<f64>(&plan, None);
+            for window in [Some(1), Some(7), None] {
+                let opts = gpu::GpuOptions {
+                    max_chunk: None,
+                    max_steps_per_dispatch: window,
+                };
+                let label = format!("{model} {scheme} window {window:?}");
+                let g = gpu::run_with::<f32>(ctx, &plan, None, &opts).unwrap();
+                compare(&label, &g.observations, &c32, 2e-4);
+                if ctx.shader_f64 {
+                    let g = gpu::run_with::<f64>(ctx, &plan, None, &opts).unwrap();
+                    compare(&label, &g.observations, &c64, 1e-10);
+                }
+            }
+        }
+    }
+    eprintln!("tabled: {tabled:?}");
+    for must in [
+        "spin_orbit s2",
+        "spin_orbit yoshida8e",
+        "lane_emden yoshida6a",
+    ] {
+        assert!(
+            tabled.iter().any(|t| t == must),
+            "{must} not tabled: {tabled:?}"
+        );
+    }
+    assert!(!tabled.iter().any(|t| t.ends_with("rk4")), "{tabled:?}");
+    // A t0 along an axis: every trajectory its own time terms.
+    let mut p = ensemble("spin_orbit", "s2").unwrap();
+    let t0 = p.axis("t0", vec![0.0, 0.5]);
+    p = p.initial("t0", t0);
+    let plan = Plan::new(&p).unwrap();
+    assert!(generate(&plan, Precision::F32)
+        .unwrap()
+        .time_table
+        .is_none());
+    let g = gpu::run::<f32>(ctx, &plan, None).unwrap();
+    compare(
+        "t0 axis",
+        &g.observations,
+        &cpu::run::<f32>(&plan, None),
+        2e-4,
+    );
+}

@@ -22,6 +22,8 @@ use crate::num::precision::Precision;
 use crate::plan::observers::{Direction, PoincareObs, Section};
 use crate::plan::{ObsVar, Op, Plan, Source};
 
+use super::time_table::TimeTable;
+
 const PRELUDE_F32: &str = include_str!("../../../shaders/prelude_f32.wgsl");
 const PRELUDE_F64: &str = include_str!("../../../shaders/prelude_f64.wgsl");
 const DRIVER: &str = include_str!("../../../shaders/driver.wgsl");
@@ -47,6 +49,9 @@ pub struct Kernel {
     pub table: Vec<f64>,
     /// Whether the stroboscopic section samples exactly (no interpolation).
     pub strobe_exact: bool,
+    /// Time terms the host tabulates per window (uniform `tterms`), if the
+    /// ensemble shares them.
+    pub time_table: Option<TimeTable>,
 }
 
 /// Why no kernel could be generated.
@@ -144,10 +149,12 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
     let sigs = signatures(&shared);
     let names = bound_names(plan, &sigs)?;
     let mut table: Vec<f64> = vec![];
+    let time_table = TimeTable::of(plan);
     let mut g = Gen {
         plan,
         sigs: &sigs,
         names: &names,
+        time_table: time_table.as_ref(),
         load: String::new(),
         store: String::new(),
     };
@@ -168,7 +175,15 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
         Precision::F32 => PRELUDE_F32,
         Precision::F64 => PRELUDE_F64,
     };
+    let tterms = match &time_table {
+        Some(_) => format!(
+            "@group(0) @binding(8) var<uniform> tterms: array<vec4<R>, {}>;",
+            TimeTable::capacity(precision.bytes() as u64) / 4
+        ),
+        None => String::new(),
+    };
     let driver = DRIVER
+        .replace("{{TIME_TABLE}}", &tterms)
         .replace("{{INPUTS}}", inputs.trim_end())
         .replace("{{LOAD}}", g.load.trim_end())
         .replace("{{BEGIN}}", begin.trim_end())
@@ -181,6 +196,7 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
         source,
         table,
         strobe_exact,
+        time_table,
     })
 }
 
@@ -211,6 +227,7 @@ struct Gen<'a> {
     plan: &'a Plan,
     sigs: &'a BTreeMap<String, Vec<(String, bool)>>,
     names: &'a BTreeSet<String>,
+    time_table: Option<&'a TimeTable>,
     /// Declarations and loads at the start of the kernel, stores at its end.
     load: String,
     store: String,
@@ -325,16 +342,43 @@ impl Gen<'_> {
             step.push_str(&self.call("formula_step"));
             return step;
         }
+        if let Some(tt) = self.time_table {
+            let stride = tt.row_stride();
+            writeln!(step, "        let trow = (n - u.step0) * {stride}u;").unwrap();
+        }
+        let mut stage = 0;
         for op in &self.plan.ops {
             match op {
                 Op::Tau(c) => writeln!(step, "        tau = {} * dt;", lit(*c)).unwrap(),
                 Op::Time(c) => {
-                    writeln!(step, "        t = t0 + nf * dt + {} * dt;", lit(*c)).unwrap()
+                    writeln!(step, "        t = t0 + nf * dt + {} * dt;", lit(*c)).unwrap();
+                    if let Some(tt) = self.time_table {
+                        step.push_str(&Self::table_reads(tt, stage));
+                    }
+                    stage += 1;
                 }
+                // Read from the table above instead.
+                Op::Call(name) if self.time_table.is_some_and(|tt| tt.ops.contains(name)) => {}
                 Op::Call(name) => step.push_str(&self.call(name)),
             }
         }
         step
+    }
+
+    /// The time terms of stage `stage` from this window's table.
+    fn table_reads(tt: &TimeTable, stage: usize) -> String {
+        let first = stage * tt.vec4s();
+        tt.terms
+            .iter()
+            .enumerate()
+            .map(|(j, term)| {
+                format!(
+                    "        {term} = tterms[trow + {}u][{}];\n",
+                    first + j / 4,
+                    j % 4
+                )
+            })
+            .collect()
     }
 
     /// The vector field at step `n1` into the `d<var>` locals.

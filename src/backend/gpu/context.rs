@@ -212,6 +212,7 @@ impl GpuContext {
                 entry(5, rw),
                 entry(6, rw),
                 entry(7, rw),
+                entry(8, wgpu::BufferBindingType::Uniform),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {

@@ -12,6 +12,7 @@ use wgpu::util::DeviceExt;
 
 use super::codegen::{generate, AUX_R, AUX_U};
 use super::context::{GpuContext, GpuError};
+use super::time_table::{self, TimeTable};
 use crate::backend::checkpoint::Checkpoints;
 use crate::models::Flows;
 use crate::num::precision::Precision;
@@ -75,6 +76,8 @@ struct Buffers {
     aux_u: wgpu::Buffer,
     traj: wgpu::Buffer,
     points: wgpu::Buffer,
+    /// The window's shared time terms (16 bytes, unread, without them).
+    tterms: wgpu::Buffer,
     staging: wgpu::Buffer,
 }
 
@@ -180,12 +183,21 @@ pub fn run_resumable<R: Flows>(
     }
     let kernel = generate(plan, precision)?;
     let pipeline = ctx.pipeline(&kernel.source)?;
-    let sizes = Sizes::new::<R>(ctx, plan, opts)?;
+    let mut sizes = Sizes::new::<R>(ctx, plan, opts)?;
+    if let Some(tt) = &kernel.time_table {
+        sizes.max_window = sizes.max_window.min(tt.max_steps(sizes.b));
+    }
     let table: Vec<R> = kernel.table.iter().map(|v| R::from_f64(*v)).collect();
-    let bufs = Buffers::new(ctx, &sizes, bytemuck::cast_slice(&table));
+    let bufs = Buffers::new(
+        ctx,
+        &sizes,
+        bytemuck::cast_slice(&table),
+        kernel.time_table.is_some(),
+    );
     let run = Dispatcher {
         ctx,
         plan,
+        time_table: kernel.time_table.as_ref(),
         sizes: &sizes,
         bufs: &bufs,
         pipeline: &pipeline,
@@ -379,7 +391,7 @@ impl Sizes {
 }
 
 impl Buffers {
-    fn new(ctx: &GpuContext, s: &Sizes, table: &[u8]) -> Buffers {
+    fn new(ctx: &GpuContext, s: &Sizes, table: &[u8], time_table: bool) -> Buffers {
         let (b, cap) = (s.b, s.cap);
         let staging_per_trajectory = [
             s.nv * b,
@@ -412,6 +424,12 @@ impl Buffers {
                     })
             },
             status: storage(ctx, "status", 4 * cap),
+            tterms: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("time terms"),
+                size: if time_table { time_table::BYTES } else { 16 },
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
             aux_r: storage(ctx, "aux_r", AUX_R.len() as u64 * cap * b),
             aux_u: storage(ctx, "aux_u", AUX_U.len() as u64 * cap * 4),
             traj: storage(ctx, "trajectory", s.max_frames * s.tv * cap * b),
@@ -437,6 +455,7 @@ fn bind_group(ctx: &GpuContext, bufs: &Buffers) -> wgpu::BindGroup {
         &bufs.aux_u,
         &bufs.traj,
         &bufs.points,
+        &bufs.tterms,
     ];
     let entries: Vec<wgpu::BindGroupEntry> = order
         .iter()
@@ -494,6 +513,7 @@ impl Timestamps {
 struct Dispatcher<'a> {
     ctx: &'a GpuContext,
     plan: &'a Plan,
+    time_table: Option<&'a TimeTable>,
     sizes: &'a Sizes,
     bufs: &'a Buffers,
     pipeline: &'a wgpu::ComputePipeline,
@@ -544,6 +564,11 @@ impl Dispatcher<'_> {
                 nframes: nframes as u32,
                 _pad: 0,
             };
+            if let Some(tt) = self.time_table {
+                let rows = tt.fill::<R>(plan, step0, nsteps);
+                ctx.queue
+                    .write_buffer(&bufs.tterms, 0, bytemuck::cast_slice(&rows));
+            }
             let (wall, took) = self.dispatch(&u, count)?;
             seconds += took;
             dispatches += 1;
