@@ -462,3 +462,62 @@ fn runs_match_single_steps(scheme: &str, eps: f64, dt: f64, survivors: bool) {
         assert_eq!(bits(&kept), bits(y), "{scheme} survivors: {n}");
     }
 }
+
+/// An exact stroboscopic section lets the fused kernels take runs of steps
+/// up to the block's next sample (not one step per call): its points are
+/// bitwise the states a trajectory observer records at those steps, with a
+/// different sampling interval per lane (forcing periods of 7, 11 and 13
+/// steps along an axis) and a composition.
+#[test]
+fn exact_stroboscopic_samples_are_the_states_at_those_steps() {
+    let dt = 0.05;
+    let periods = [7u64, 11, 13];
+    let mut p = Problem::new(Model::DampedOscillator, "yoshida6a")
+        .unwrap()
+        .param("alpha", Source::Const(0.05))
+        .param("forcing_amplitude", Source::Const(0.3));
+    let w = p.axis(
+        "w",
+        periods
+            .iter()
+            .map(|m| 2.0 * std::f64::consts::PI / (*m as f64 * dt))
+            .collect(),
+    );
+    let q0 = p.axis("q0", (0..30).map(|i| 0.5 + 0.05 * i as f64).collect());
+    p = p.param("forcing_frequency", w).initial("q", q0);
+    p.dt = Source::Const(dt);
+    p.steps = 300;
+    // The states at every step (a frame per step: runs of one step) …
+    let mut every_step = p.clone();
+    every_step.observers.trajectory = Some(TrajectoryObs {
+        every: 1,
+        vars: vec!["q".into()],
+    });
+    let t = cpu::run::<f64>(&Plan::new(&every_step).unwrap(), None);
+    // … and the section alone (runs up to the next sample).
+    p.observers.poincare = Some(PoincareObs {
+        section: Section::Forced { skip: 1.0 },
+        vars: vec!["q".into()],
+        max_points: 50,
+    });
+    let plan = Plan::new(&p).unwrap();
+    assert!(!plan.strobe_interpolated());
+    let o = cpu::run::<f64>(&plan, None);
+    let (frames, points) = (t.trajectory_of("q").unwrap(), o.poincare_of("q").unwrap());
+    for i in 0..o.n {
+        let every = periods[i / 30] as usize;
+        assert_eq!(
+            o.poincare_count[i] as usize,
+            (300 - every) / every + 1,
+            "lane {i}"
+        );
+        for k in 0..o.poincare_count[i] as usize {
+            let step = every * (k + 1);
+            assert_eq!(
+                points[i * o.max_points + k].to_bits(),
+                frames[i * t.frames + step].to_bits(),
+                "lane {i}, point {k} (step {step})"
+            );
+        }
+    }
+}

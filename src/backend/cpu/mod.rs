@@ -403,7 +403,14 @@ fn run_block<R: Flows>(
                 dprev[k] = *l.at(p.dvar[k]);
             }
         }
-        let (done, any) = advance(p, l, &mut regs, memory.as_mut(), n, quiet_run(p, n));
+        let (done, any) = advance(
+            p,
+            l,
+            &mut regs,
+            memory.as_mut(),
+            n,
+            quiet_run(p, &obs, n, count),
+        );
         if any {
             let bad = nonfinite_lanes(p, l);
             alive -= mark_nonfinite(&bad, &mut status, count, n + done - 1);
@@ -442,13 +449,19 @@ fn load_inputs<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, base: usize, count: u
 }
 
 /// How many steps from step `n` the block takes in one call: 1 where
-/// something looks at every step (the vector field, cycle statistics, a
-/// Poincaré section) or the step is not fused stages; else up to the next
-/// trajectory frame or multiple of [`LANES`] steps (where a pause may
-/// come), at most to the end.
-fn quiet_run<R>(p: &Program<R>, n: u64) -> u64 {
+/// something looks at every step (the vector field, cycle statistics, an
+/// event or interpolated Poincaré section) or the step is not fused stages;
+/// else up to the next trajectory frame, exact stroboscopic sample of one of
+/// the block's `count` lanes or multiple of [`LANES`] steps (where a pause
+/// may come), at most to the end.
+fn quiet_run<R: Flows>(p: &Program<R>, obs: &BlockObservers<R>, n: u64, count: usize) -> u64 {
     let plan = p.plan;
-    let every_step = p.needs_field || plan.cycle_var.is_some() || plan.observers.poincare.is_some();
+    let strobe = plan
+        .observers
+        .poincare
+        .as_ref()
+        .map(|_| obs.next_exact_strobe(n, count));
+    let every_step = p.needs_field || plan.cycle_var.is_some() || strobe == Some(None);
     if p.stages.is_none() || every_step {
         return 1;
     }
@@ -456,6 +469,9 @@ fn quiet_run<R>(p: &Program<R>, n: u64) -> u64 {
     let mut end = (n / lanes + 1) * lanes;
     if let Some(tr) = &plan.observers.trajectory {
         end = end.min((n / tr.every + 1) * tr.every);
+    }
+    if let Some(Some(due)) = strobe {
+        end = end.min(due);
     }
     end.min(plan.steps) - n
 }

@@ -129,6 +129,23 @@ impl<R: Flows> BlockObservers<R> {
         get(r, std::slice::from_mut(&mut self.cycle_start))
     }
 
+    /// With a stroboscopic section sampled exactly, the first step `n1 > n`
+    /// after which one of the block's first `count` lanes samples (`u64::MAX`
+    /// if none ever does); `None` for any other section, which looks at
+    /// every step.
+    pub fn next_exact_strobe(&self, n: u64, count: usize) -> Option<u64> {
+        let (every, first) = self.strobe_exact.as_ref()?;
+        let due = |i: usize| {
+            let (every, first) = (every[i] as i64, first[i] as i64);
+            if every <= 0 {
+                return u64::MAX;
+            }
+            let lo = (n as i64 + 1).max(first);
+            (first + (lo - first + every - 1) / every * every) as u64
+        };
+        Some((0..count).map(due).min().unwrap_or(u64::MAX))
+    }
+
     /// Trajectory frames and Poincaré points after step `n1` (0: the initial
     /// state), for the first `count` lanes of the block at row `base`.
     pub fn observe(&mut self, s: &BlockStep<R>) {
