@@ -336,6 +336,18 @@ fn shared_time_terms_come_from_a_table_per_window() {
             let Some(tt) = &kernel.time_table else {
                 continue;
             };
+            // The declared uniform array holds the longest window's rows.
+            for precision in [Precision::F32, Precision::F64] {
+                let source = generate(&plan, precision).unwrap().source;
+                let decl = source
+                    .split("var<uniform> tterms: array<vec4<R>, ")
+                    .nth(1)
+                    .and_then(|r| r.split('>').next())
+                    .and_then(|n| n.parse::<u64>().ok())
+                    .expect("tterms declared");
+                let rows = tt.max_steps(precision.bytes() as u64) * tt.row_stride() as u64;
+                assert!(decl >= rows, "{model} {scheme}: {decl} < {rows}");
+            }
             for op in tt.ops {
                 assert!(
                     !kernel.source.contains(&format!("        {op}(")),
@@ -372,6 +384,31 @@ fn shared_time_terms_come_from_a_table_per_window() {
         );
     }
     assert!(!tabled.iter().any(|t| t.ends_with("rk4")), "{tabled:?}");
+    // Windows as long as the table allows (4096 f32 / 2048 f64 steps of
+    // spin–orbit S2: the whole uniform array is read).
+    let mut p = ensemble("spin_orbit", "s2").unwrap();
+    for (name, v) in problem("spin_orbit", "s2").unwrap().params {
+        p = p.param(&name, v);
+    }
+    p.steps = 9000;
+    let plan = Plan::new(&p).unwrap();
+    let g = gpu::run::<f32>(ctx, &plan, None).unwrap();
+    assert!(g.dispatches >= 3, "{} windows", g.dispatches);
+    compare(
+        "long windows f32",
+        &g.observations,
+        &cpu::run::<f32>(&plan, None),
+        2e-4,
+    );
+    if ctx.shader_f64 {
+        let g = gpu::run::<f64>(ctx, &plan, None).unwrap();
+        compare(
+            "long windows f64",
+            &g.observations,
+            &cpu::run::<f64>(&plan, None),
+            1e-9,
+        );
+    }
     // A t0 along an axis: every trajectory its own time terms.
     let mut p = ensemble("spin_orbit", "s2").unwrap();
     let t0 = p.axis("t0", vec![0.0, 0.5]);

@@ -178,7 +178,7 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
     let tterms = match &time_table {
         Some(_) => format!(
             "@group(0) @binding(8) var<uniform> tterms: array<vec4<R>, {}>;",
-            TimeTable::capacity(precision.bytes() as u64) / 4
+            TimeTable::capacity(precision.bytes() as u64)
         ),
         None => String::new(),
     };

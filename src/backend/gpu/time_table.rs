@@ -55,11 +55,13 @@ impl TimeTable {
                 _ => None,
             })
             .collect();
-        Some(TimeTable {
+        let table = TimeTable {
             terms,
             offsets,
             ops,
-        })
+        };
+        // At least one step must fit in either precision (else per trajectory).
+        (table.row_stride() as u64 <= Self::capacity(8)).then_some(table)
     }
 
     /// `vec4` rows per stage.
@@ -77,9 +79,10 @@ impl TimeTable {
         BYTES / (4 * b)
     }
 
-    /// Most steps one window's table holds, for values of `b` bytes.
+    /// Most steps one window's table holds, for values of `b` bytes (≥ 1:
+    /// [`Self::of`] keeps only tables with room for a step).
     pub fn max_steps(&self, b: u64) -> u64 {
-        (Self::capacity(b) / self.row_stride() as u64).max(1)
+        Self::capacity(b) / self.row_stride() as u64
     }
 
     /// The table of steps `step0 … step0+nsteps−1`: per step and stage,
