@@ -124,12 +124,16 @@ crate::shared_fns! {
         let hz: f64 = 0.5 * z;
         let w: f64 = 1.0 - hz;
         let c: f64 = w + (((1.0 - w) - hz) + z * pc);
-        let q: i32 = f64::to_i32(k) & 3;
-        let odd: bool = (q & 1) == 1;
+        // The quadrant k mod 4 in floating point (exact for every k), so the
+        // selects take their masks from compares of the working precision:
+        // spin–orbit S2 +7 % at AVX2, where an i32 quadrant's masks must be
+        // widened to 64 bits (sincos_f32 keeps its i32 one: lanes match).
+        let q: f64 = k - 4.0 * f64::floor(k * 0.25);
+        let odd: bool = q == 1.0 || q == 3.0;
         let s1: f64 = f64::select(s, c, odd);
         let c1: f64 = f64::select(c, s, odd);
-        let s2: f64 = f64::select(s1, -s1, q >= 2);
-        let c2: f64 = f64::select(c1, -c1, q == 1 || q == 2);
+        let s2: f64 = f64::select(s1, -s1, q >= 2.0);
+        let c2: f64 = f64::select(c1, -c1, q == 1.0 || q == 2.0);
         // Far beyond the accurate range r is not reduced; stay in [−1, 1].
         *sn = f64::select(f64::select(s2, 1.0, s2 > 1.0), -1.0, s2 < -1.0);
         *cs = f64::select(f64::select(c2, 1.0, c2 > 1.0), -1.0, c2 < -1.0);
