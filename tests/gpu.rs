@@ -67,6 +67,36 @@ fn compare<R: Real>(label: &str, g: &Observations<R>, c: &Observations<R>, tol: 
     worst.0
 }
 
+/// Runs `plan` on the GPU with `opts` in f32, and in f64 where the adapter
+/// has it, and compares each with the CPU (tolerances 2e-4 and `tol64`);
+/// returns the f32 run's number of dispatches.
+fn agrees_with_cpu(
+    ctx: &gpu::GpuContext,
+    label: &str,
+    plan: &Plan,
+    opts: &gpu::GpuOptions,
+    tol64: f64,
+) -> u64 {
+    let g = gpu::run_with::<f32>(ctx, plan, None, opts).unwrap_or_else(|e| panic!("{label}: {e}"));
+    compare(
+        &format!("{label} f32"),
+        &g.observations,
+        &cpu::run::<f32>(plan, None),
+        2e-4,
+    );
+    if ctx.shader_f64 {
+        let g64 =
+            gpu::run_with::<f64>(ctx, plan, None, opts).unwrap_or_else(|e| panic!("{label}: {e}"));
+        compare(
+            &format!("{label} f64"),
+            &g64.observations,
+            &cpu::run::<f64>(plan, None),
+            tol64,
+        );
+    }
+    g.dispatches
+}
+
 /// An ensemble over the first variable's initial value and one parameter,
 /// with every observer.
 fn ensemble(model: &str, scheme: &str) -> Option<Problem> {
@@ -180,22 +210,7 @@ fn stroboscopic_sections_agree() {
             max_points: 100,
         });
         let plan = Plan::new(&p).unwrap();
-        let g = gpu::run::<f32>(ctx, &plan, None).unwrap();
-        compare(
-            "spin-orbit strobe f32",
-            &g.observations,
-            &cpu::run::<f32>(&plan, None),
-            2e-4,
-        );
-        if ctx.shader_f64 {
-            let g = gpu::run::<f64>(ctx, &plan, None).unwrap();
-            compare(
-                "spin-orbit strobe f64",
-                &g.observations,
-                &cpu::run::<f64>(&plan, None),
-                1e-10,
-            );
-        }
+        agrees_with_cpu(ctx, "spin-orbit strobe", &plan, &Default::default(), 1e-10);
     }
 }
 
@@ -311,6 +326,16 @@ fn ten_million_trajectories_on_the_gpu() {
     );
 }
 
+/// [`ensemble`] with every parameter one value (it may vary a time input),
+/// so that the ensemble shares its time terms.
+fn shared_ensemble(model: &str, scheme: &str) -> Option<Problem> {
+    let mut p = ensemble(model, scheme)?;
+    for (name, v) in problem(model, scheme)?.params {
+        p = p.param(&name, v);
+    }
+    Some(p)
+}
+
 /// Time terms the ensemble shares are tabulated on the host once per window
 /// (the uniform `tterms`, `backend/gpu/time_table.rs`): the kernel reads them
 /// instead of calling the time ops, over windows of any length and every
@@ -324,13 +349,9 @@ fn shared_time_terms_come_from_a_table_per_window() {
     let mut tabled = vec![];
     for model in MODEL_NAMES {
         for scheme in ["s2", "yoshida6a", "yoshida8e", "rk4"] {
-            let Some(mut p) = ensemble(model, scheme) else {
+            let Some(p) = shared_ensemble(model, scheme) else {
                 continue;
             };
-            // The parameters one value each: `ensemble` may vary a time input.
-            for (name, v) in problem(model, scheme).unwrap().params {
-                p = p.param(&name, v);
-            }
             let plan = Plan::new(&p).unwrap();
             let kernel = generate(&plan, Precision::F32).unwrap();
             let Some(tt) = &kernel.time_table else {
@@ -355,20 +376,13 @@ fn shared_time_terms_come_from_a_table_per_window() {
                 );
             }
             tabled.push(format!("{model} {scheme}"));
-            let c32 = cpu::run::<f32>(&plan, None);
-            let c64 = cpu::run::<f64>(&plan, None);
             for window in [Some(1), Some(7), None] {
                 let opts = gpu::GpuOptions {
                     max_chunk: None,
                     max_steps_per_dispatch: window,
                 };
                 let label = format!("{model} {scheme} window {window:?}");
-                let g = gpu::run_with::<f32>(ctx, &plan, None, &opts).unwrap();
-                compare(&label, &g.observations, &c32, 2e-4);
-                if ctx.shader_f64 {
-                    let g = gpu::run_with::<f64>(ctx, &plan, None, &opts).unwrap();
-                    compare(&label, &g.observations, &c64, 1e-10);
-                }
+                agrees_with_cpu(ctx, &label, &plan, &opts, 1e-10);
             }
         }
     }
@@ -386,29 +400,11 @@ fn shared_time_terms_come_from_a_table_per_window() {
     assert!(!tabled.iter().any(|t| t.ends_with("rk4")), "{tabled:?}");
     // Windows as long as the table allows (4096 f32 / 2048 f64 steps of
     // spin–orbit S2: the whole uniform array is read).
-    let mut p = ensemble("spin_orbit", "s2").unwrap();
-    for (name, v) in problem("spin_orbit", "s2").unwrap().params {
-        p = p.param(&name, v);
-    }
+    let mut p = shared_ensemble("spin_orbit", "s2").unwrap();
     p.steps = 9000;
     let plan = Plan::new(&p).unwrap();
-    let g = gpu::run::<f32>(ctx, &plan, None).unwrap();
-    assert!(g.dispatches >= 3, "{} windows", g.dispatches);
-    compare(
-        "long windows f32",
-        &g.observations,
-        &cpu::run::<f32>(&plan, None),
-        2e-4,
-    );
-    if ctx.shader_f64 {
-        let g = gpu::run::<f64>(ctx, &plan, None).unwrap();
-        compare(
-            "long windows f64",
-            &g.observations,
-            &cpu::run::<f64>(&plan, None),
-            1e-9,
-        );
-    }
+    let windows = agrees_with_cpu(ctx, "long windows", &plan, &Default::default(), 1e-9);
+    assert!(windows >= 3, "{windows} windows");
     // A t0 along an axis: every trajectory its own time terms.
     let mut p = ensemble("spin_orbit", "s2").unwrap();
     let t0 = p.axis("t0", vec![0.0, 0.5]);
