@@ -241,6 +241,78 @@ fn formula_models_agree_with_the_built_ins_on_the_gpu() {
     }
 }
 
+/// Where the ensemble shares `t0` and `dt`, a formula model's shared values
+/// at a step (the forcing, spin–orbit's Cayley sums and `pref`, Lane–Emden's
+/// `2/t`) come from the host's table per window (`backend/gpu/time_table.rs`)
+/// as on the CPU: the kernel's per-trajectory step no longer reads the step
+/// number, and windows of any length agree with the CPU. A `dt` along an
+/// axis keeps the time per trajectory.
+#[test]
+fn formula_time_terms_come_from_a_table_on_the_gpu() {
+    use reeb::backend::gpu::codegen::generate;
+    use reeb::num::precision::Precision;
+    let Some(ctx) = common::gpu() else { return };
+    let reads_step = |source: &str| {
+        let sig = source
+            .split("fn formula_step(")
+            .nth(1)
+            .expect("formula_step");
+        sig.split(')').next().unwrap().contains("nf: R")
+    };
+    for scheme in ["s2", "yoshida6a"] {
+        for pair in pairs(scheme) {
+            let label = format!("{} {scheme}", pair.name);
+            let f = plan(&pair.formula);
+            let kernel = generate(&f, Precision::F32).unwrap();
+            let tt = kernel.time_table.as_ref();
+            assert!(tt.is_some(), "{label}: no time table");
+            assert!(!reads_step(&kernel.source), "{label}: time per trajectory");
+            for window in [Some(1), Some(7), None] {
+                let opts = gpu::GpuOptions {
+                    max_chunk: None,
+                    max_steps_per_dispatch: window,
+                };
+                let g = gpu::run_with::<f32>(ctx, &f, None, &opts).unwrap();
+                let w = worst(&g.observations, &cpu::run::<f32>(&f, None));
+                println!(
+                    "{label} window {window:?} f32 gpu vs cpu: {:.2e} ({})",
+                    w.0, w.1
+                );
+                assert!(
+                    w.0 <= 1e-4,
+                    "{label} window {window:?} f32: {:e} at {}",
+                    w.0,
+                    w.1
+                );
+                if !ctx.shader_f64 {
+                    continue;
+                }
+                let g = gpu::run_with::<f64>(ctx, &f, None, &opts).unwrap();
+                let w = worst(&g.observations, &cpu::run::<f64>(&f, None));
+                println!(
+                    "{label} window {window:?} f64 gpu vs cpu: {:.2e} ({})",
+                    w.0, w.1
+                );
+                assert!(
+                    w.0 <= 1e-12,
+                    "{label} window {window:?} f64: {:e} at {}",
+                    w.0,
+                    w.1
+                );
+            }
+        }
+    }
+    // dt along an axis: the step reads its number, and agrees all the same.
+    let forced = &pairs("s2")[1].formula;
+    let f = plan(&forced.replace("dt = 0.01", "dt = [0.01, 0.02]"));
+    assert!(f.on_axis("dt"));
+    let kernel = generate(&f, Precision::F32).unwrap();
+    assert!(kernel.time_table.is_none() && reads_step(&kernel.source));
+    let g = gpu::run::<f32>(ctx, &f, None).unwrap();
+    let w = worst(&g.observations, &cpu::run::<f32>(&f, None));
+    assert!(w.0 <= 1e-4, "dt axis f32: {:e} at {}", w.0, w.1);
+}
+
 /// A scene's error (or warnings) for a formula model given by its tables.
 fn refused(formula: &str, params: &str) -> String {
     let text = format!("model = \"mechanical\"\n[formula]\n{formula}\n[params]\n{params}\n[integrator]\nscheme = \"s2\"\ndt = 0.1\nsteps = 10\n");

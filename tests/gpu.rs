@@ -369,7 +369,7 @@ fn shared_time_terms_come_from_a_table_per_window() {
                 let rows = tt.max_steps(precision.bytes() as u64) * tt.row_stride() as u64;
                 assert!(decl >= rows, "{model} {scheme}: {decl} < {rows}");
             }
-            for op in tt.ops {
+            for op in tt.ops() {
                 assert!(
                     !kernel.source.contains(&format!("        {op}(")),
                     "{model} {scheme}: {op} still called per trajectory"

@@ -15,6 +15,7 @@ use std::sync::Mutex;
 use super::lanes::Lane;
 use super::spec::{Method, ModelSpec, Op, ParamDef, PieceOps, TimeDependence};
 use crate::num::formula::lower::{lower, Lowered};
+use crate::num::formula::stage::{Staged, Vary};
 use crate::num::formula::{compile, Dag, FormulaError, Func, Id};
 
 /// Most degrees of freedom of a mechanical formula model (lane fields).
@@ -83,6 +84,27 @@ impl Composed {
     /// Does input `name` change from step to step?
     pub fn changes_each_step(&self, name: &str) -> bool {
         changes_each_step(name, self.outputs.contains(&name))
+    }
+
+    /// How each input varies when the inputs bound to an axis are those for
+    /// which `on_axis` holds: the step number is the same in every lane, an
+    /// input a step changes is per lane, any other per lane exactly when it
+    /// is on an axis. What the ensemble shares (`t0`, `dt`, parameters of
+    /// one value) then lands in the split's fixed and uniform parts.
+    pub fn vary(&self, on_axis: impl Fn(&str) -> bool) -> Vec<Vary> {
+        self.inputs
+            .iter()
+            .map(|name| match self.changes_each_step(name) {
+                true => Vary {
+                    lane: *name != STEP_INDEX,
+                    step: true,
+                },
+                false => Vary {
+                    lane: on_axis(name),
+                    step: false,
+                },
+            })
+            .collect()
     }
 }
 
@@ -254,39 +276,30 @@ impl FormulaModel {
         })
     }
 
-    /// The WGSL of a composed step: `formula_fixed`, which the kernel calls
-    /// once before its step loop, computes what no step changes (functions
-    /// of the parameters, `t0` and `dt`: a Fourier sum's coefficients) into
-    /// the kernel's locals `fx0…`; `formula_step` is the step reading them.
-    /// Arguments are the kernel's locals of the same names (`nf` for
-    /// [`STEP_INDEX`]).
-    pub fn step_wgsl(c: &Composed) -> String {
-        use crate::num::formula::stage::{split, Vary};
+    /// The WGSL of a composed step split as `s` (`num/formula/stage.rs`):
+    /// `formula_fixed`, which the kernel calls once before its step loop,
+    /// computes what no step changes (functions of the parameters, `t0` and
+    /// `dt`: a Fourier sum's coefficients) into the kernel's locals `fx0…`;
+    /// `formula_step` is the step reading them and the values the ensemble
+    /// shares at the step, `tu0…` (the host tabulates them per window:
+    /// `backend/gpu/time_table.rs`). Other arguments are the kernel's locals
+    /// of the same names (`nf` for [`STEP_INDEX`]).
+    pub fn step_wgsl(c: &Composed, s: &Staged) -> String {
         use crate::num::formula::wgsl::function_text;
-        let vary: Vec<Vary> = c
-            .inputs
-            .iter()
-            .map(|n| Vary {
-                lane: true,
-                step: c.changes_each_step(n),
-            })
-            .collect();
-        let s = split(&c.program, &vary);
-        debug_assert!(s.uniform.instrs.is_empty(), "every input varies by lane");
         let mut inputs: Vec<&str> = c
             .inputs
             .iter()
             .map(|n| if *n == STEP_INDEX { "nf" } else { n })
             .collect();
-        let fixed: Vec<String> = (0..s.fixed.outputs.len())
-            .map(|k| format!("fx{k}"))
-            .collect();
+        let fixed = names("fx", s.fixed.outputs.len());
         let fixed: Vec<&str> = fixed.iter().map(|f| f.as_str()).collect();
         let mut text = String::new();
         if !fixed.is_empty() {
             text.push_str(&function_text("formula_fixed", &s.fixed, &inputs, &fixed));
         }
         inputs.extend(&fixed);
+        let shared = names(UNIFORM_PREFIX, s.uniform.outputs.len());
+        inputs.extend(shared.iter().map(|u| u.as_str()));
         text.push_str(&function_text("formula_step", &s.lane, &inputs, &c.outputs));
         text
     }
@@ -320,6 +333,14 @@ fn work(p: &Lowered, state: &[bool]) -> usize {
         }
     }
     cost
+}
+
+/// The kernel locals holding the shared values of a step: `tu0…`.
+pub const UNIFORM_PREFIX: &str = "tu";
+
+/// `prefix0 … prefix{count−1}`.
+pub fn names(prefix: &str, count: usize) -> Vec<String> {
+    (0..count).map(|k| format!("{prefix}{k}")).collect()
 }
 
 fn leak(s: String) -> &'static str {

@@ -163,9 +163,9 @@ impl Plan {
     /// a plan without time, `dt` alone). Then the CPU's fused stages
     /// evaluate them once per block and stage, not per trajectory (the
     /// peers' trick: sin, cos and exp of t once per step), and take `dt`,
-    /// hence every τ, as a loop invariant; the GPU still evaluates them per
-    /// trajectory. Formula models share theirs in their staged programs
-    /// instead.
+    /// hence every τ, as a loop invariant; the GPU reads them from a table
+    /// per window. Formula models share theirs in their staged programs
+    /// instead (`num/formula/stage.rs`), on both backends.
     pub fn shares_time(&self) -> bool {
         if self.model.formula().is_some() {
             return false;
@@ -210,6 +210,13 @@ impl Plan {
                 .iter()
                 .all(|(pe, ph)| observers::strobe_steps(*pe, *ph, *dt).is_some())
         })
+    }
+
+    /// Is `name` bound to an axis (one value per trajectory along it)?
+    pub fn on_axis(&self, name: &str) -> bool {
+        self.bindings
+            .iter()
+            .any(|(n, s)| *n == name && matches!(s, Source::Axis { .. }))
     }
 
     /// The source of a lane input (`dt`, `t0`, a parameter or an initial value).

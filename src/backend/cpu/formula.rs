@@ -9,10 +9,10 @@
 
 use crate::models::formula::{Cost, FormulaModel, STEP_INDEX};
 use crate::models::lanes::{index_of, Lanes, LANES};
-use crate::num::formula::stage::{split, Vary};
+use crate::num::formula::stage::split;
 use crate::num::formula::tape::{Inputs, Tape};
 use crate::num::precision::Real;
-use crate::plan::{Plan, Source};
+use crate::plan::Plan;
 
 use super::kernels::Isa;
 
@@ -105,11 +105,7 @@ impl<R: Real> FormulaStep<R> {
     /// The plan's step for formula model `m`, if every op is the model's.
     pub fn new(plan: &Plan, m: &FormulaModel, isa: Isa) -> Option<Self> {
         let c = m.compose(&plan.ops, Cost::PerLane)?;
-        let vary: Vec<Vary> = c
-            .inputs
-            .iter()
-            .map(|name| vary(plan, name, c.changes_each_step(name)))
-            .collect();
+        let vary = c.vary(|name| plan.on_axis(name));
         let s = split(&c.program, &vary);
         let n = vary.len() as u32;
         Some(FormulaStep {
@@ -222,26 +218,6 @@ unsafe fn commit_v3<R: Real>(
     l: &mut Lanes<R>,
 ) -> bool {
     commit(outputs, tape, regs, l)
-}
-
-/// How input `name` of a composed step varies in `plan`: the step number
-/// is the same in every lane, an input a step changes (`per_step`) is per
-/// lane, any other per lane exactly when it is bound to an axis.
-fn vary(plan: &Plan, name: &str, per_step: bool) -> Vary {
-    if per_step {
-        return Vary {
-            lane: name != STEP_INDEX,
-            step: true,
-        };
-    }
-    let axis = plan
-        .bindings
-        .iter()
-        .any(|(n, s)| *n == name && matches!(s, Source::Axis { .. }));
-    Vary {
-        lane: axis,
-        step: false,
-    }
 }
 
 /// The inputs of the uniform part over a window of steps: lane `j` is

@@ -11,9 +11,10 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write;
 
-use crate::models::formula::{Cost, FormulaModel};
+use crate::models::formula::{Composed, Cost, FormulaModel};
 use crate::models::COMMON_WGSL;
 use crate::num::dsl::to_wgsl;
+use crate::num::formula::stage::{split, Staged, Vary};
 use crate::num::formula::wgsl::lit;
 use crate::num::math::{
     ELEMENTARY_WGSL, LOG_ATAN_F32_WGSL, LOG_ATAN_F64_WGSL, MATH_F32_WGSL, MATH_F64_WGSL,
@@ -120,8 +121,56 @@ pub fn signatures(wgsl: &str) -> BTreeMap<String, Vec<(String, bool)>> {
     out
 }
 
+/// A formula model's whole step as the kernel runs it: composed, split by
+/// what its values vary with, and the table of its shared values if any.
+struct FormulaKernel {
+    step: Composed,
+    parts: Staged,
+    table: Option<TimeTable>,
+}
+
+impl FormulaKernel {
+    fn of(plan: &Plan) -> Option<FormulaKernel> {
+        let m = plan.model.formula()?;
+        // Where the ensemble shares `t0` and `dt`, the table holds the shared
+        // values: the program with the least per-lane work is the cheapest.
+        if !plan.on_axis("t0") && !plan.on_axis("dt") {
+            let step = m.compose(&plan.ops, Cost::PerLane)?;
+            let parts = split(&step.program, &step.vary(|n| plan.on_axis(n)));
+            if let Some(table) = TimeTable::of_formula(&step, &parts) {
+                return Some(FormulaKernel {
+                    step,
+                    parts,
+                    table: Some(table),
+                });
+            }
+        }
+        // Else every thread computes all that changes per step (what no
+        // step changes before its step loop): the least per-step work.
+        let step = m.compose(&plan.ops, Cost::PerStep)?;
+        let per_thread: Vec<Vary> = step
+            .inputs
+            .iter()
+            .map(|n| Vary {
+                lane: true,
+                step: step.changes_each_step(n),
+            })
+            .collect();
+        let parts = split(&step.program, &per_thread);
+        Some(FormulaKernel {
+            step,
+            parts,
+            table: None,
+        })
+    }
+}
+
 /// All shared-function text a plan's kernel includes, translated.
-fn shared_text(plan: &Plan, precision: Precision) -> Result<String, CodegenError> {
+fn shared_text(
+    plan: &Plan,
+    precision: Precision,
+    formula: Option<&FormulaKernel>,
+) -> Result<String, CodegenError> {
     let mut text = String::new();
     let (math, log_atan) = match precision {
         Precision::F32 => (MATH_F32_WGSL, LOG_ATAN_F32_WGSL),
@@ -136,8 +185,8 @@ fn shared_text(plan: &Plan, precision: Precision) -> Result<String, CodegenError
     // A formula model's ops are emitted as WGSL directly (num/formula/wgsl.rs).
     if let Some(m) = plan.model.formula() {
         text.push_str(&m.wgsl());
-        if let Some(c) = m.compose(&plan.ops, Cost::PerStep) {
-            text.push_str(&FormulaModel::step_wgsl(&c));
+        if let Some(f) = formula {
+            text.push_str(&FormulaModel::step_wgsl(&f.step, &f.parts));
         }
     }
     Ok(text)
@@ -145,11 +194,15 @@ fn shared_text(plan: &Plan, precision: Precision) -> Result<String, CodegenError
 
 /// Generates the kernel of `plan` in `precision`.
 pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenError> {
-    let shared = shared_text(plan, precision)?;
+    let formula = FormulaKernel::of(plan);
+    let shared = shared_text(plan, precision, formula.as_ref())?;
     let sigs = signatures(&shared);
     let names = bound_names(plan, &sigs)?;
     let mut table: Vec<f64> = vec![];
-    let time_table = TimeTable::of(plan);
+    let time_table = match formula {
+        Some(f) => f.table,
+        None => TimeTable::of(plan),
+    };
     let mut g = Gen {
         plan,
         sigs: &sigs,
@@ -337,14 +390,18 @@ impl Gen<'_> {
                 writeln!(step, "        prev_{v} = {v};\n        dprev_{v} = d{v};").unwrap();
             }
         }
-        // A formula model's whole step is one function (`shared_text`).
-        if self.sigs.contains_key("formula_step") {
-            step.push_str(&self.call("formula_step"));
-            return step;
-        }
         if let Some(tt) = self.time_table {
             let stride = tt.row_stride();
             writeln!(step, "        let trow = (n - u.step0) * {stride}u;").unwrap();
+        }
+        // A formula model's whole step is one function (`shared_text`),
+        // its shared values arguments.
+        if self.sigs.contains_key("formula_step") {
+            if let Some(tt) = self.time_table {
+                step.push_str(&Self::table_reads(tt, 0, "let ", ": R"));
+            }
+            step.push_str(&self.call("formula_step"));
+            return step;
         }
         let mut stage = 0;
         for op in &self.plan.ops {
@@ -353,27 +410,28 @@ impl Gen<'_> {
                 Op::Time(c) => {
                     writeln!(step, "        t = t0 + nf * dt + {} * dt;", lit(*c)).unwrap();
                     if let Some(tt) = self.time_table {
-                        step.push_str(&Self::table_reads(tt, stage));
+                        step.push_str(&Self::table_reads(tt, stage, "", ""));
                     }
                     stage += 1;
                 }
                 // Read from the table above instead.
-                Op::Call(name) if self.time_table.is_some_and(|tt| tt.ops.contains(name)) => {}
+                Op::Call(name) if self.time_table.is_some_and(|tt| tt.ops().contains(name)) => {}
                 Op::Call(name) => step.push_str(&self.call(name)),
             }
         }
         step
     }
 
-    /// The time terms of stage `stage` from this window's table.
-    fn table_reads(tt: &TimeTable, stage: usize) -> String {
+    /// The time terms of stage `stage` from this window's table, assigned
+    /// to existing locals (`decl`, `ty` empty) or declared (`let `, `: R`).
+    fn table_reads(tt: &TimeTable, stage: usize, decl: &str, ty: &str) -> String {
         let first = stage * tt.vec4s();
         tt.terms
             .iter()
             .enumerate()
             .map(|(j, term)| {
                 format!(
-                    "        {term} = tterms[trow + {}u][{}];\n",
+                    "        {decl}{term}{ty} = tterms[trow + {}u][{}];\n",
                     first + j / 4,
                     j % 4
                 )

@@ -158,6 +158,11 @@ impl<R: Real> Tape<R> {
         run_body(self, regs, input)
     }
 
+    /// How many outputs the program has.
+    pub fn outputs(&self) -> usize {
+        self.outputs.len()
+    }
+
     /// The register of output `k` after [`Tape::run`].
     pub fn output<'r, const N: usize>(&self, regs: &'r [[R; N]], k: usize) -> &'r [R; N] {
         &regs[self.outputs[k] as usize]
