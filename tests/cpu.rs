@@ -8,6 +8,8 @@ use reeb::plan::observations::Status;
 use reeb::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
 use reeb::plan::{Plan, Problem, Source};
 
+mod common;
+
 fn vdp(eps: Source, dt: f64, steps: u64) -> Problem {
     let mut p = Problem::new(Model::VanDerPol, "s2")
         .unwrap()
@@ -520,4 +522,93 @@ fn exact_stroboscopic_samples_are_the_states_at_those_steps() {
             );
         }
     }
+}
+
+/// The fused kernels check a run of steps for non-finite values only at its
+/// end (`backend/cpu/kernels.rs`), which finds every lane that left the
+/// finite numbers only if ±∞ and NaN, once in a state variable, never leave
+/// the state: every piece of every model with fused kernels, applied to a
+/// trajectory with one variable ±∞ or NaN and the others random (time and τ
+/// too), leaves some variable non-finite, over random sequences of pieces.
+#[test]
+fn non_finite_states_stay_non_finite() {
+    use reeb::models::lanes::Lane;
+    use reeb::models::pieces::{Pieces, PiecesVisitor};
+    use reeb::models::{Flows, MODEL_NAMES};
+
+    struct Absorbing<'a> {
+        plan: &'a Plan,
+    }
+    impl<R: Flows> PiecesVisitor<R> for Absorbing<'_> {
+        type Out = usize;
+        fn visit<P: Pieces<R>>(self) -> usize {
+            let spec = self.plan.model.spec();
+            let mut base = Lane::<R>::default();
+            for (name, src) in &self.plan.bindings {
+                if let Some(x) = base.get_mut(name) {
+                    *x = R::from_f64(src.values()[0]);
+                }
+            }
+            // xorshift64*: reproducible without a dependency.
+            let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+            let mut uniform = move |lo: f64, hi: f64| {
+                seed ^= seed >> 12;
+                seed ^= seed << 25;
+                seed ^= seed >> 27;
+                let u =
+                    (seed.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64;
+                lo + (hi - lo) * u
+            };
+            let pieces: Vec<char> = spec.pieces.chars().collect();
+            let mut checked = 0;
+            for bad_var in spec.vars {
+                for bad in [f64::INFINITY, f64::NEG_INFINITY, f64::NAN] {
+                    for trial in 0..200 {
+                        let mut x = base;
+                        for v in spec.vars {
+                            // Every tenth trial, the others exactly 0.
+                            let value = if trial % 10 == 0 {
+                                0.0
+                            } else {
+                                uniform(-4.0, 4.0)
+                            };
+                            *x.get_mut(v).unwrap() = R::from_f64(value);
+                        }
+                        *x.get_mut(bad_var).unwrap() = R::from_f64(bad);
+                        x.t = R::from_f64(uniform(0.01, 20.0));
+                        P::time(&mut x);
+                        for _ in 0..7 {
+                            let piece = pieces[uniform(0.0, pieces.len() as f64) as usize];
+                            x.tau = R::from_f64(uniform(0.0, 0.5));
+                            match trial % 2 {
+                                0 => P::piece::<true>(piece, &mut x),
+                                _ => P::piece::<false>(piece, &mut x),
+                            }
+                            assert!(
+                                !P::finite(&x),
+                                "{}: {bad_var} = {bad} became finite after piece {piece} (trial {trial})",
+                                spec.name
+                            );
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+            checked
+        }
+    }
+    let mut models = 0;
+    for model in MODEL_NAMES {
+        let Some(p) = common::problem(model, "s2") else {
+            continue;
+        };
+        let plan = Plan::new(&p).unwrap();
+        let f64s = plan.model.with_pieces::<f64, _>(Absorbing { plan: &plan });
+        let f32s = plan.model.with_pieces::<f32, _>(Absorbing { plan: &plan });
+        if let (Some(a), Some(b)) = (f64s, f32s) {
+            assert!(a > 0 && b > 0, "{model}");
+            models += 1;
+        }
+    }
+    assert!(models >= 6, "{models} models with fused kernels");
 }

@@ -3,8 +3,15 @@
 //! [`Pieces`] implementation that applies them to one trajectory, from which
 //! the CPU backend builds its fused S2 stages (`backend/cpu/kernels.rs`).
 
-use super::lanes::Lane;
+use super::lanes::{Lane, Lanes, LANES};
 use crate::num::precision::Real;
+
+/// Most state variables a model with pieces has (Kepler's q₁, q₂, p₁, p₂, s).
+pub const MAX_VARS: usize = 5;
+
+/// A block's state variables, in the model's order (the start of a run of
+/// steps, to which a run that left the finite numbers returns).
+pub type Saved<R> = [[R; LANES]; MAX_VARS];
 
 /// Applies a model's pieces and time terms to one trajectory in precision `R`.
 pub trait Pieces<R: Real> {
@@ -17,6 +24,10 @@ pub trait Pieces<R: Real> {
     fn piece<const OPT: bool>(piece: char, x: &mut Lane<R>);
     /// Are the model's state variables finite?
     fn finite(x: &Lane<R>) -> bool;
+    /// Copies the block's state variables into `to`.
+    fn save(l: &Lanes<R>, to: &mut Saved<R>);
+    /// Puts back the state variables [`Pieces::save`] copied.
+    fn restore(l: &mut Lanes<R>, from: &Saved<R>);
 }
 
 /// Something done with a model's [`Pieces`] type, e.g. building its CPU
@@ -89,6 +100,19 @@ macro_rules! pieces {
                 // costs a mask each (and `&&` a conditional load).
                 let zero = R::from_f64(0.0);
                 zero $(+ x.$var * zero)* == zero
+            }
+            #[inline(always)]
+            fn save(l: &$crate::models::lanes::Lanes<R>, to: &mut $crate::models::pieces::Saved<R>) {
+                const _: () = assert!([$(stringify!($var)),*].len() <= $crate::models::pieces::MAX_VARS);
+                let mut k = 0;
+                $( to[k] = l.$var; k += 1; )*
+                let _ = k;
+            }
+            #[inline(always)]
+            fn restore(l: &mut $crate::models::lanes::Lanes<R>, from: &$crate::models::pieces::Saved<R>) {
+                let mut k = 0;
+                $( l.$var = from[k]; k += 1; )*
+                let _ = k;
             }
         }
     };
