@@ -68,21 +68,21 @@ fn compare<R: Real>(label: &str, g: &Observations<R>, c: &Observations<R>, tol: 
 }
 
 /// Runs `plan` on the GPU with `opts` in f32, and in f64 where the adapter
-/// has it, and compares each with the CPU (tolerances 2e-4 and `tol64`);
+/// has it, and compares each with the CPU (tolerances `tol32` and `tol64`);
 /// returns the f32 run's number of dispatches.
 fn agrees_with_cpu(
     ctx: &gpu::GpuContext,
     label: &str,
     plan: &Plan,
     opts: &gpu::GpuOptions,
-    tol64: f64,
+    (tol32, tol64): (f64, f64),
 ) -> u64 {
     let g = gpu::run_with::<f32>(ctx, plan, None, opts).unwrap_or_else(|e| panic!("{label}: {e}"));
     compare(
         &format!("{label} f32"),
         &g.observations,
         &cpu::run::<f32>(plan, None),
-        2e-4,
+        tol32,
     );
     if ctx.shader_f64 {
         let g64 =
@@ -210,7 +210,13 @@ fn stroboscopic_sections_agree() {
             max_points: 100,
         });
         let plan = Plan::new(&p).unwrap();
-        agrees_with_cpu(ctx, "spin-orbit strobe", &plan, &Default::default(), 1e-10);
+        agrees_with_cpu(
+            ctx,
+            "spin-orbit strobe",
+            &plan,
+            &Default::default(),
+            (2e-4, 1e-10),
+        );
     }
 }
 
@@ -382,7 +388,7 @@ fn shared_time_terms_come_from_a_table_per_window() {
                     max_steps_per_dispatch: window,
                 };
                 let label = format!("{model} {scheme} window {window:?}");
-                agrees_with_cpu(ctx, &label, &plan, &opts, 1e-10);
+                agrees_with_cpu(ctx, &label, &plan, &opts, (2e-4, 1e-10));
             }
         }
     }
@@ -403,7 +409,15 @@ fn shared_time_terms_come_from_a_table_per_window() {
     let mut p = shared_ensemble("spin_orbit", "s2").unwrap();
     p.steps = 9000;
     let plan = Plan::new(&p).unwrap();
-    let windows = agrees_with_cpu(ctx, "long windows", &plan, &Default::default(), 1e-9);
+    // 9000 f32 steps: round-off (FMAs contract differently on the two
+    // sides) grows to ~2e-4; a wrong row would be O(1).
+    let windows = agrees_with_cpu(
+        ctx,
+        "long windows",
+        &plan,
+        &Default::default(),
+        (1e-3, 1e-9),
+    );
     assert!(windows >= 3, "{windows} windows");
     // A t0 along an axis: every trajectory its own time terms.
     let mut p = ensemble("spin_orbit", "s2").unwrap();

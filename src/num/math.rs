@@ -19,10 +19,13 @@ crate::shared_fns! {
     concrete, wgsl MATH_F32_WGSL;
 
     /// e^x in f32: x = n ln 2 + r with |r| ≤ ln2/2, e^r = 1 + r·P(r) with P
-    /// the Taylor polynomial of degree 6 (truncation 5·10⁻⁹, below half an
-    /// ULP) by Estrin's scheme, 2^n applied in two halves so that results down
-    /// to the subnormal range round once. Estrin and the fused reduction keep
-    /// the dependent chain short: a lane's step is mostly this chain.
+    /// of degree 5 fitted to (e^r − 1)/r on Chebyshev nodes with P(0) = 1 (error
+    /// 5·10⁻⁹ relative, a tenth of an ULP; Taylor's needs degree 6), by
+    /// Horner's scheme (fewer operations than Estrin's: the AVX2 step is bound
+    /// by the multiply units), 2^n applied in two halves so that results down
+    /// to the subnormal range round once. Every f32 in (−103, 88.7) is within
+    /// 0.98 ULP of the exact value (checked exhaustively; Taylor's degree 7
+    /// by Estrin: 1.23).
     fn exp_f32(x: f32) -> f32 {
         // Clamp by select, not min/max, so that NaN passes through.
         let lo: f32 = f32::select(x, -104.0, x < -104.0);
@@ -35,14 +38,11 @@ crate::shared_fns! {
         // nf·0.693359375 is exact (9 bits times at most 8); fma would cost the
         // baseline kernels, which call libm for it, two more calls.
         let r: f32 = (xc - nf * 0.693359375) - nf * -0.000212194442;
-        let r2: f32 = r * r;
-        let r4: f32 = r2 * r2;
-        let e01: f32 = f32::fma(r, 0.5, 1.0);
-        let e23: f32 = f32::fma(r, 0.0416666679, 0.166666672);
-        let e45: f32 = f32::fma(r, 0.00138888892, 0.00833333377);
-        let f0: f32 = f32::fma(r2, e23, e01);
-        let f1: f32 = f32::fma(r2, 0.000198412701, e45);
-        let pr: f32 = f32::fma(r4, f1, f0);
+        let h4: f32 = f32::fma(r, 0.00139336439, 0.00836317521);
+        let h3: f32 = f32::fma(r, h4, 0.0416664667);
+        let h2: f32 = f32::fma(r, h3, 0.166665763);
+        let h1: f32 = f32::fma(r, h2, 0.5);
+        let pr: f32 = f32::fma(r, h1, 1.0);
         // (1 + r·P)·2^⌊n/2⌋ without leaving the normal range, then ·2^⌈n/2⌉:
         // one rounding into the subnormals, and e^-104 < 2^-150 rounds to 0
         // (so the clamp needs no underflow select).
@@ -77,8 +77,11 @@ crate::shared_fns! {
     concrete, wgsl MATH_F64_WGSL;
 
     /// e^x in f64: x = n ln 2 + r (fdlibm's two-part ln 2), e^r = 1 + r·P(r)
-    /// with P the Taylor polynomial of degree 12 (truncation 4·10⁻¹⁸) by
-    /// Estrin's scheme, 2^n in two halves (as `exp_f32`).
+    /// with P of degree 10 fitted to (e^r − 1)/r in 50 digits on Chebyshev
+    /// nodes with P(0) = 1 (error 1.2·10⁻¹⁷, a tenth of an ULP; Taylor's needs
+    /// degree 12), by Horner's scheme (as `exp_f32`), 2^n in two halves. On
+    /// 2·10⁸ random arguments, within 1 ULP of glibc's `exp` (off by one in
+    /// 5.6 %; Taylor's degree 12 by Estrin: 8.6 %).
     fn exp_f64(x: f64) -> f64 {
         let lo: f64 = f64::select(x, -746.0, x < -746.0);
         let xc: f64 = f64::select(lo, 710.0, lo > 710.0);
@@ -88,21 +91,16 @@ crate::shared_fns! {
         let mut s2: f64 = 0.0;
         f64::pow2_halves(y, &mut s1, &mut s2);
         let r: f64 = (xc - nf * 6.93147180369123816490e-01) - nf * 1.90821492927058770002e-10;
-        let r2: f64 = r * r;
-        let r4: f64 = r2 * r2;
-        let r8: f64 = r4 * r4;
-        let e01: f64 = f64::fma(r, 0.5, 1.0);
-        let e23: f64 = f64::fma(r, 0.041666666666666664, 0.16666666666666666);
-        let e45: f64 = f64::fma(r, 0.001388888888888889, 0.008333333333333333);
-        let e67: f64 = f64::fma(r, 2.48015873015873e-05, 0.0001984126984126984);
-        let e89: f64 = f64::fma(r, 2.755731922398589e-07, 2.7557319223985893e-06);
-        let e1011: f64 = f64::fma(r, 2.08767569878681e-09, 2.505210838544172e-08);
-        let f0: f64 = f64::fma(r2, e23, e01);
-        let f1: f64 = f64::fma(r2, e67, e45);
-        let f2: f64 = f64::fma(r2, e1011, e89);
-        let g0: f64 = f64::fma(r4, f1, f0);
-        let g1: f64 = f64::fma(r4, 1.6059043836821613e-10, f2);
-        let pr: f64 = f64::fma(r8, g1, g0);
+        let h8: f64 = f64::fma(r, 2.50246452096493e-08, 2.7631125446226205e-07);
+        let h7: f64 = f64::fma(r, h8, 2.755750728541229e-06);
+        let h6: f64 = f64::fma(r, h7, 2.480149034623507e-05);
+        let h5: f64 = f64::fma(r, h6, 0.00019841269597118904);
+        let h4: f64 = f64::fma(r, h5, 0.0013888888946678828);
+        let h3: f64 = f64::fma(r, h4, 0.008333333333451433);
+        let h2: f64 = f64::fma(r, h3, 0.04166666666651632);
+        let h1: f64 = f64::fma(r, h2, 0.16666666666666483);
+        let h0: f64 = f64::fma(r, h1, 0.5000000000000012);
+        let pr: f64 = f64::fma(r, h0, 1.0);
         // As in exp_f32: e^-746 < 2^-1075 rounds to 0.
         return f64::fma(r * s1, pr, s1) * s2;
     }
