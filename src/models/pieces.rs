@@ -15,6 +15,8 @@ pub type Saved<R> = [[R; LANES]; MAX_VARS];
 
 /// Applies a model's pieces and time terms to one trajectory in precision `R`.
 pub trait Pieces<R: Real> {
+    /// How many state variables the model has.
+    const VARS: usize;
     /// The time terms at `x.t`.
     fn time(x: &mut Lane<R>);
     /// Takes the time terms, their inputs, `t`, `t0` and `dt` from `from`
@@ -64,6 +66,7 @@ macro_rules! pieces {
         /// The pieces applied to one trajectory (for the fused CPU kernels).
         pub struct $ty;
         impl<R: $crate::num::precision::Real $(+ $optr)*> $crate::models::pieces::Pieces<R> for $ty {
+            const VARS: usize = [$(stringify!($var)),*].len();
             #[inline(always)]
             fn time(x: &mut $crate::models::lanes::Lane<R>) {
                 $( #[allow(unused_imports)] use $($opmod)::+::scalar::*; )*
@@ -103,7 +106,7 @@ macro_rules! pieces {
             }
             #[inline(always)]
             fn save(l: &$crate::models::lanes::Lanes<R>, to: &mut $crate::models::pieces::Saved<R>) {
-                const _: () = assert!([$(stringify!($var)),*].len() <= $crate::models::pieces::MAX_VARS);
+                const { assert!(<Self as $crate::models::pieces::Pieces<R>>::VARS <= $crate::models::pieces::MAX_VARS) };
                 let mut k = 0;
                 $( to[k] = l.$var; k += 1; )*
                 let _ = k;

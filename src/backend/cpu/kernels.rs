@@ -156,25 +156,33 @@ fn fused_stage_body<
         }
     }
     let mut bad = R::Flag::default();
-    // Two lanes, half a block apart, per iteration: once vectorised, two
-    // independent chains that the core overlaps (one stage is a long
-    // dependent chain, exp's polynomial most of it).
-    for i in 0..LANES / 2 {
-        let j = i + LANES / 2;
-        let mut x = Lane::gather(l, i);
-        let mut y = Lane::gather(l, j);
-        if TIME == time::SHARED {
-            P::share_time(&mut x, &shared);
-            P::share_time(&mut y, &shared);
-        }
-        let bx = stage::<R, P, P1, P2, P3, OPT, TIME>(&mut x, half, full, c, nf);
-        let by = stage::<R, P, P1, P2, P3, OPT, TIME>(&mut y, half, full, c, nf);
-        if CHECK {
-            bad |= bx.into();
-            bad |= by.into();
-        }
-        x.scatter_state(l, i);
-        y.scatter_state(l, j);
+    // Several lanes, a fraction of a block apart, per iteration: once
+    // vectorised, independent chains that the core overlaps (one stage is a
+    // long dependent chain, exp's polynomial most of it). Four where the
+    // state is small (van der Pol at AVX2: +5 %), two where four would
+    // spill (Kepler's five variables: −9 % with four).
+    macro_rules! interleaved {
+        ($($x:ident $k:literal),*) => {{
+            const WAYS: usize = [$($k),*].len();
+            for i in 0..LANES / WAYS {
+                $( let mut $x = Lane::gather(l, i + $k * LANES / WAYS); )*
+                if TIME == time::SHARED {
+                    $( P::share_time(&mut $x, &shared); )*
+                }
+                $(
+                    let b = stage::<R, P, P1, P2, P3, OPT, TIME>(&mut $x, half, full, c, nf);
+                    if CHECK {
+                        bad |= b.into();
+                    }
+                )*
+                $( $x.scatter_state(l, i + $k * LANES / WAYS); )*
+            }
+        }};
+    }
+    if P::VARS <= 3 {
+        interleaved!(x 0, y 1, z 2, w 3);
+    } else {
+        interleaved!(x 0, y 1);
     }
     CHECK && bad != R::Flag::default()
 }
