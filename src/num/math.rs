@@ -21,8 +21,9 @@ crate::shared_fns! {
     /// e^x in f32: x = n ln 2 + r with |r| ≤ ln2/2, e^r = 1 + r·P(r) with P
     /// of degree 5 fitted to (e^r − 1)/r on Chebyshev nodes with P(0) = 1 (error
     /// 5·10⁻⁹ relative, a tenth of an ULP; Taylor's needs degree 6), by
-    /// Horner's scheme (fewer operations than Estrin's: the AVX2 step is bound
-    /// by the multiply units), 2^n applied in two halves so that results down
+    /// Horner's scheme (fewer operations than Estrin's; its chain is short
+    /// enough: the even/odd split of `exp_f64` was 5 % slower here at AVX2,
+    /// 10 % at AVX-512), 2^n applied in two halves so that results down
     /// to the subnormal range round once. Every f32 in (−103, 88.7) is within
     /// 0.98 ULP of the exact value (checked exhaustively; Taylor's degree 7
     /// by Estrin: 1.23).
@@ -79,9 +80,13 @@ crate::shared_fns! {
     /// e^x in f64: x = n ln 2 + r (fdlibm's two-part ln 2), e^r = 1 + r·P(r)
     /// with P of degree 10 fitted to (e^r − 1)/r in 50 digits on Chebyshev
     /// nodes with P(0) = 1 (error 1.2·10⁻¹⁷, a tenth of an ULP; Taylor's needs
-    /// degree 12), by Horner's scheme (as `exp_f32`), 2^n in two halves. On
-    /// 2·10⁸ random arguments, within 1 ULP of glibc's `exp` (off by one in
-    /// 5.6 %; Taylor's degree 12 by Estrin: 8.6 %).
+    /// degree 12), 2^n in two halves. P as E(r²) + r·O(r²), each half by
+    /// Horner's scheme: one operation more than Horner's on P and a dependent
+    /// chain of 7 instead of 10, which is what bounds the AVX2 step in f64
+    /// (van der Pol S2 +12 % at AVX2 on Zen 4, AVX-512 −2 %; Estrin's scheme
+    /// in r² as well: AVX2 the same, AVX-512 −6 %). On 2·10⁷ random
+    /// arguments within 1 ULP of glibc's `exp` (off by one in 8.7 %; Horner's
+    /// on P: 6.1 %; Taylor's degree 12 by Estrin: 8.6 % of 2·10⁸).
     fn exp_f64(x: f64) -> f64 {
         let lo: f64 = f64::select(x, -746.0, x < -746.0);
         let xc: f64 = f64::select(lo, 710.0, lo > 710.0);
@@ -91,16 +96,18 @@ crate::shared_fns! {
         let mut s2: f64 = 0.0;
         f64::pow2_halves(y, &mut s1, &mut s2);
         let r: f64 = (xc - nf * 6.93147180369123816490e-01) - nf * 1.90821492927058770002e-10;
-        let h8: f64 = f64::fma(r, 2.50246452096493e-08, 2.7631125446226205e-07);
-        let h7: f64 = f64::fma(r, h8, 2.755750728541229e-06);
-        let h6: f64 = f64::fma(r, h7, 2.480149034623507e-05);
-        let h5: f64 = f64::fma(r, h6, 0.00019841269597118904);
-        let h4: f64 = f64::fma(r, h5, 0.0013888888946678828);
-        let h3: f64 = f64::fma(r, h4, 0.008333333333451433);
-        let h2: f64 = f64::fma(r, h3, 0.04166666666651632);
-        let h1: f64 = f64::fma(r, h2, 0.16666666666666483);
-        let h0: f64 = f64::fma(r, h1, 0.5000000000000012);
-        let pr: f64 = f64::fma(r, h0, 1.0);
+        // P(r) = E(z) + r·O(z), z = r².
+        let z: f64 = r * r;
+        let e4: f64 = f64::fma(z, 2.50246452096493e-08, 2.755750728541229e-06);
+        let e3: f64 = f64::fma(z, e4, 0.00019841269597118904);
+        let e2: f64 = f64::fma(z, e3, 0.008333333333451433);
+        let e1: f64 = f64::fma(z, e2, 0.16666666666666483);
+        let e0: f64 = f64::fma(z, e1, 1.0);
+        let o3: f64 = f64::fma(z, 2.7631125446226205e-07, 2.480149034623507e-05);
+        let o2: f64 = f64::fma(z, o3, 0.0013888888946678828);
+        let o1: f64 = f64::fma(z, o2, 0.04166666666651632);
+        let o0: f64 = f64::fma(z, o1, 0.5000000000000012);
+        let pr: f64 = f64::fma(r, o0, e0);
         // As in exp_f32: e^-746 < 2^-1075 rounds to 0.
         return f64::fma(r * s1, pr, s1) * s2;
     }
