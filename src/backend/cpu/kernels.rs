@@ -58,7 +58,6 @@ fn fused_steps_body<
     const P3: char,
     const OPT: bool,
     const TIME: u8,
-    const VEC: usize,
 >(
     l: &mut Lanes<R>,
     stages: &[Weights<R>],
@@ -72,9 +71,7 @@ fn fused_steps_body<
         for j in 0..k {
             let nf = R::from_f64((n + j) as f64);
             for &(h, f, c) in stages {
-                fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, VEC, false>(
-                    l, h, f, c, nf, time_terms,
-                );
+                fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, false>(l, h, f, c, nf, time_terms);
             }
         }
         if all_finite::<R, P>(l) {
@@ -82,7 +79,7 @@ fn fused_steps_body<
         }
         P::restore(l, &start);
     }
-    checked_steps::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, stages, n, k, time_terms)
+    checked_steps::<R, P, P1, P2, P3, OPT, TIME>(l, stages, n, k, time_terms)
 }
 
 /// [`fused_steps_body`] checking after every step.
@@ -95,7 +92,6 @@ fn checked_steps<
     const P3: char,
     const OPT: bool,
     const TIME: u8,
-    const VEC: usize,
 >(
     l: &mut Lanes<R>,
     stages: &[Weights<R>],
@@ -110,11 +106,9 @@ fn checked_steps<
     for j in 0..k {
         let nf = R::from_f64((n + j) as f64);
         for &(h, f, c) in rest {
-            fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, VEC, false>(l, h, f, c, nf, time_terms);
+            fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, false>(l, h, f, c, nf, time_terms);
         }
-        if fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, VEC, true>(
-            l, half, full, c, nf, time_terms,
-        ) {
+        if fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, true>(l, half, full, c, nf, time_terms) {
             return (j + 1, true);
         }
     }
@@ -144,7 +138,6 @@ fn fused_stage_body<
     const P3: char,
     const OPT: bool,
     const TIME: u8,
-    const VEC: usize,
     const CHECK: bool,
 >(
     l: &mut Lanes<R>,
@@ -165,8 +158,9 @@ fn fused_stage_body<
     let mut bad = R::Flag::default();
     // Several lanes, a fraction of a block apart, per iteration: once
     // vectorised, independent chains that the core overlaps (one stage is a
-    // long dependent chain, exp's polynomial most of it). How many: see
-    // [`interleave`].
+    // long dependent chain, exp's polynomial most of it). Four where the
+    // state is small (van der Pol at AVX2: +5 %), two where four would
+    // spill (Kepler's five variables: −9 % with four).
     macro_rules! interleaved {
         ($($x:ident $k:literal),*) => {{
             const WAYS: usize = [$($k),*].len();
@@ -185,41 +179,12 @@ fn fused_stage_body<
             }
         }};
     }
-    match interleave::<R>(P::VARS, VEC, OPT || TIME == time::PER_LANE) {
-        8 => interleaved!(x 0, y 1, z 2, w 3, a 4, b 5, d 6, e 7),
-        4 => interleaved!(x 0, y 1, z 2, w 3),
-        _ => interleaved!(x 0, y 1),
+    if P::VARS <= 3 {
+        interleaved!(x 0, y 1, z 2, w 3);
+    } else {
+        interleaved!(x 0, y 1);
     }
     CHECK && bad != R::Flag::default()
-}
-
-/// Lanes per iteration of a fused stage (see [`fused_stage_body`]) for a
-/// model of `vars` state variables in vectors of `vec` bytes; `heavy`: the
-/// stage also carries the optional variable or evaluates the time terms
-/// per trajectory. One whole vector per lane's chain, up to eight chains,
-/// where the state is small. Measured on Zen 4, van der Pol S2: eight
-/// against four, AVX2 f32 +8.5 %, AVX-512 f64 +13 % (spin–orbit +11 %,
-/// +15 %); AVX2 f64 keeps four (16 registers, twice exp's constants: eight
-/// spill, 2 % slower), AVX-512 f32 four (eight would split its vectors:
-/// −25 %), and so do the heavy stages (more live values; eight everywhere
-/// doubled the build time of the kernels). Two where more would spill
-/// (Kepler's five variables: −9 % with four); four in the baseline build
-/// (two: van der Pol f32 −5 %).
-const fn interleave<R>(vars: usize, vec: usize, heavy: bool) -> usize {
-    let per_vector = vec / std::mem::size_of::<R>();
-    let chains = LANES / per_vector;
-    let avx2_f64 = vec == 32 && std::mem::size_of::<R>() == 8;
-    if vars > 3 {
-        2
-    } else if vec <= 16 {
-        4
-    } else if chains >= 8 && !heavy && !avx2_f64 {
-        8
-    } else if chains >= 4 {
-        4
-    } else {
-        2
-    }
 }
 
 /// The stage on one trajectory; whether its state is non-finite after it.
@@ -257,7 +222,7 @@ fn stage<
 /// Declares a [`StepsFn`] variant of [`fused_steps_body`], compiled with
 /// the given attributes (its instruction-set level).
 macro_rules! steps_variant {
-    ($(#[$m:meta])* $name:ident, $vec:literal) => {
+    ($(#[$m:meta])* $name:ident) => {
         $(#[$m])*
         pub unsafe fn $name<
             R: Real,
@@ -274,7 +239,7 @@ macro_rules! steps_variant {
             k: u64,
             time_terms: bool,
         ) -> (u64, bool) {
-            fused_steps_body::<R, P, P1, P2, P3, OPT, TIME, $vec>(l, stages, n, k, time_terms)
+            fused_steps_body::<R, P, P1, P2, P3, OPT, TIME>(l, stages, n, k, time_terms)
         }
     };
 }
@@ -284,7 +249,7 @@ steps_variant! {
     ///
     /// # Safety
     /// None required; `unsafe` only to share [`StepsFn`] with the wide variants.
-    fused_steps, 16
+    fused_steps
 }
 
 steps_variant! {
@@ -294,7 +259,7 @@ steps_variant! {
     /// The CPU must support AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fused_steps_v3, 32
+    fused_steps_v3
 }
 
 steps_variant! {
@@ -305,7 +270,7 @@ steps_variant! {
     /// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
-    fused_steps_v4, 64
+    fused_steps_v4
 }
 
 /// The values `REEB_CPU_ISA` may take.
