@@ -3,8 +3,11 @@
 //! model's [`Pieces`]; a run of steps of such stages in one call, compiled for
 //! three instruction-set levels and chosen at run time.
 
+use std::any::{Any, TypeId};
+
 use crate::models::lanes::{Lane, Lanes, LANES};
 use crate::models::pieces::{Pieces, PiecesVisitor, Saved, MAX_VARS};
+use crate::models::Model;
 pub use crate::num::isa::Isa;
 use crate::num::precision::Real;
 
@@ -46,9 +49,13 @@ pub mod time {
 /// piece moves a variable by adding to it or scaling it (`v + x`, `v·x`,
 /// `(v ⊕ x)/d`), so ±∞ and NaN stay non-finite
 /// (`tests/cpu.rs::non_finite_states_stay_non_finite`). Only then is the run
-/// repeated from a copy of its start, checking each step, to find the step:
-/// the same operations, so the same bits and the same verdict as checking
-/// every step.
+/// repeated from a copy of its start, checking after each step, to find the
+/// step: the same operations, so the same bits and the same verdict as
+/// checking every step. The check reads the block after the step, not
+/// inside the stage, so each kernel holds the stage's code twice, not three
+/// times (with eight lanes per iteration, three copies and every lane count
+/// compiled made the library's build take 15 GB and 7 minutes; now 3.9 GB
+/// and under 3). One loop for both passes was 10 % slower (AVX-512 f32).
 #[inline(always)]
 fn fused_steps_body<
     R: Real,
@@ -58,6 +65,7 @@ fn fused_steps_body<
     const P3: char,
     const OPT: bool,
     const TIME: u8,
+    const VEC: usize,
 >(
     l: &mut Lanes<R>,
     stages: &[Weights<R>],
@@ -71,7 +79,7 @@ fn fused_steps_body<
         for j in 0..k {
             let nf = R::from_f64((n + j) as f64);
             for &(h, f, c) in stages {
-                fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, false>(l, h, f, c, nf, time_terms);
+                fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, h, f, c, nf, time_terms);
             }
         }
         if all_finite::<R, P>(l) {
@@ -79,10 +87,11 @@ fn fused_steps_body<
         }
         P::restore(l, &start);
     }
-    checked_steps::<R, P, P1, P2, P3, OPT, TIME>(l, stages, n, k, time_terms)
+    checked_steps::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, stages, n, k, time_terms)
 }
 
-/// [`fused_steps_body`] checking after every step.
+/// [`fused_steps_body`] checking after every step: a single step's run,
+/// and the search for the step that left the finite numbers.
 #[inline(always)]
 fn checked_steps<
     R: Real,
@@ -92,6 +101,7 @@ fn checked_steps<
     const P3: char,
     const OPT: bool,
     const TIME: u8,
+    const VEC: usize,
 >(
     l: &mut Lanes<R>,
     stages: &[Weights<R>],
@@ -99,16 +109,12 @@ fn checked_steps<
     k: u64,
     time_terms: bool,
 ) -> (u64, bool) {
-    // Only the last stage's verdict counts: the others skip the check.
-    let Some((&(half, full, c), rest)) = stages.split_last() else {
-        return (k, false);
-    };
     for j in 0..k {
         let nf = R::from_f64((n + j) as f64);
-        for &(h, f, c) in rest {
-            fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, false>(l, h, f, c, nf, time_terms);
+        for &(h, f, c) in stages {
+            fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, h, f, c, nf, time_terms);
         }
-        if fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, true>(l, half, full, c, nf, time_terms) {
+        if !all_finite::<R, P>(l) {
             return (j + 1, true);
         }
     }
@@ -126,9 +132,7 @@ fn all_finite<R: Real, P: Pieces<R>>(l: &Lanes<R>) -> bool {
 }
 
 /// One stage `D½ P1½ P2½ P3 P2½ P1½ D½` of weight w on every lane:
-/// `half = w/2`, `full = w` (times dt), time terms at `t0 + (n + c) dt`;
-/// with `CHECK`, whether some lane's state is non-finite after it (else
-/// false).
+/// `half = w/2`, `full = w` (times dt), time terms at `t0 + (n + c) dt`.
 #[inline(always)]
 fn fused_stage_body<
     R: Real,
@@ -138,7 +142,7 @@ fn fused_stage_body<
     const P3: char,
     const OPT: bool,
     const TIME: u8,
-    const CHECK: bool,
+    const VEC: usize,
 >(
     l: &mut Lanes<R>,
     half: R,
@@ -146,7 +150,7 @@ fn fused_stage_body<
     c: R,
     nf: R,
     time_terms: bool,
-) -> bool {
+) {
     let mut shared = Lane::default();
     if TIME == time::SHARED {
         shared = Lane::gather(l, 0);
@@ -155,12 +159,10 @@ fn fused_stage_body<
             P::time(&mut shared);
         }
     }
-    let mut bad = R::Flag::default();
     // Several lanes, a fraction of a block apart, per iteration: once
     // vectorised, independent chains that the core overlaps (one stage is a
-    // long dependent chain, exp's polynomial most of it). Four where the
-    // state is small (van der Pol at AVX2: +5 %), two where four would
-    // spill (Kepler's five variables: −9 % with four).
+    // long dependent chain, exp's polynomial most of it). How many: see
+    // [`interleave`].
     macro_rules! interleaved {
         ($($x:ident $k:literal),*) => {{
             const WAYS: usize = [$($k),*].len();
@@ -169,25 +171,49 @@ fn fused_stage_body<
                 if TIME == time::SHARED {
                     $( P::share_time(&mut $x, &shared); )*
                 }
-                $(
-                    let b = stage::<R, P, P1, P2, P3, OPT, TIME>(&mut $x, half, full, c, nf);
-                    if CHECK {
-                        bad |= b.into();
-                    }
-                )*
+                $( stage::<R, P, P1, P2, P3, OPT, TIME>(&mut $x, half, full, c, nf); )*
                 $( $x.scatter_state(l, i + $k * LANES / WAYS); )*
             }
         }};
     }
-    if P::VARS <= 3 {
-        interleaved!(x 0, y 1, z 2, w 3);
-    } else {
-        interleaved!(x 0, y 1);
+    // A constant block: only the arm taken is compiled.
+    match const { interleave::<R>(P::VARS, VEC, OPT || TIME == time::PER_LANE) } {
+        8 => interleaved!(x 0, y 1, z 2, w 3, a 4, b 5, d 6, e 7),
+        4 => interleaved!(x 0, y 1, z 2, w 3),
+        _ => interleaved!(x 0, y 1),
     }
-    CHECK && bad != R::Flag::default()
 }
 
-/// The stage on one trajectory; whether its state is non-finite after it.
+/// Lanes per iteration of a fused stage (see [`fused_stage_body`]) for a
+/// model of `vars` state variables in vectors of `vec` bytes; `heavy`: the
+/// stage also carries the optional variable or evaluates the time terms
+/// per trajectory. One whole vector per lane's chain, up to eight chains,
+/// where the state is small. Measured on Zen 4, van der Pol S2: eight
+/// against four, AVX2 f32 +8.5 %, AVX-512 f64 +13 % (spin–orbit +11 %,
+/// +15 %); AVX2 f64 keeps four (16 registers, twice exp's constants: eight
+/// spill, 2 % slower), AVX-512 f32 four (eight would split its vectors:
+/// −25 %), and so do the heavy stages (more live values; eight everywhere
+/// doubled the build time of the kernels). Two where more would spill
+/// (Kepler's five variables: −9 % with four); four in the baseline build
+/// (two: van der Pol f32 −5 %).
+const fn interleave<R>(vars: usize, vec: usize, heavy: bool) -> usize {
+    let per_vector = vec / std::mem::size_of::<R>();
+    let chains = LANES / per_vector;
+    let avx2_f64 = vec == 32 && std::mem::size_of::<R>() == 8;
+    if vars > 3 {
+        2
+    } else if vec <= 16 {
+        4
+    } else if chains >= 8 && !heavy && !avx2_f64 {
+        8
+    } else if chains >= 4 {
+        4
+    } else {
+        2
+    }
+}
+
+/// The stage on one trajectory.
 #[inline(always)]
 fn stage<
     R: Real,
@@ -203,7 +229,7 @@ fn stage<
     full: R,
     c: R,
     nf: R,
-) -> bool {
+) {
     if TIME == time::PER_LANE {
         x.t = x.t0 + nf * x.dt + c * x.dt;
         P::time(x);
@@ -216,13 +242,12 @@ fn stage<
     x.tau = half * x.dt;
     P::piece::<OPT>(P2, x);
     P::piece::<OPT>(P1, x);
-    !P::finite(x)
 }
 
 /// Declares a [`StepsFn`] variant of [`fused_steps_body`], compiled with
 /// the given attributes (its instruction-set level).
 macro_rules! steps_variant {
-    ($(#[$m:meta])* $name:ident) => {
+    ($(#[$m:meta])* $name:ident, $vec:literal) => {
         $(#[$m])*
         pub unsafe fn $name<
             R: Real,
@@ -239,7 +264,7 @@ macro_rules! steps_variant {
             k: u64,
             time_terms: bool,
         ) -> (u64, bool) {
-            fused_steps_body::<R, P, P1, P2, P3, OPT, TIME>(l, stages, n, k, time_terms)
+            fused_steps_body::<R, P, P1, P2, P3, OPT, TIME, $vec>(l, stages, n, k, time_terms)
         }
     };
 }
@@ -249,7 +274,7 @@ steps_variant! {
     ///
     /// # Safety
     /// None required; `unsafe` only to share [`StepsFn`] with the wide variants.
-    fused_steps
+    fused_steps, 16
 }
 
 steps_variant! {
@@ -259,7 +284,7 @@ steps_variant! {
     /// The CPU must support AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fused_steps_v3
+    fused_steps_v3, 32
 }
 
 steps_variant! {
@@ -270,7 +295,7 @@ steps_variant! {
     /// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
-    fused_steps_v4
+    fused_steps_v4, 64
 }
 
 /// The values `REEB_CPU_ISA` may take.
@@ -369,4 +394,41 @@ impl<R: Real> PiecesVisitor<R> for StageBuilder {
     fn visit<P: Pieces<R>>(self) -> Option<StepsFn<R>> {
         steps_fn::<R, P>(self.order, self.opt, self.time, self.isa)
     }
+}
+
+impl StageBuilder {
+    /// The fused steps of `model` in precision `R`; `None` for a formula
+    /// model, an order that is not a permutation of A, B, C, or a precision
+    /// other than f32 and f64.
+    ///
+    /// The kernels are compiled in this crate alone, through the
+    /// non-generic [`kernels_f32`] and [`kernels_f64`]: built from a generic
+    /// caller, every crate that runs a plan (each test crate) would
+    /// monomorphise all ~1300 of them again (one test crate's rustc reached
+    /// 13.7 GB). `Any` hands the pointer back as a `StepsFn<R>`.
+    pub fn build<R: Real>(self, model: &Model) -> Option<StepsFn<R>> {
+        let (f32s, f64s);
+        let out: &dyn Any = if TypeId::of::<R>() == TypeId::of::<f32>() {
+            f32s = kernels_f32(self, model);
+            &f32s
+        } else if TypeId::of::<R>() == TypeId::of::<f64>() {
+            f64s = kernels_f64(self, model);
+            &f64s
+        } else {
+            return None;
+        };
+        out.downcast_ref::<Option<StepsFn<R>>>().copied().flatten()
+    }
+}
+
+/// [`StageBuilder::build`] in f32, compiled here only.
+#[inline(never)]
+fn kernels_f32(b: StageBuilder, model: &Model) -> Option<StepsFn<f32>> {
+    model.with_pieces::<f32, _>(b).flatten()
+}
+
+/// [`StageBuilder::build`] in f64, compiled here only.
+#[inline(never)]
+fn kernels_f64(b: StageBuilder, model: &Model) -> Option<StepsFn<f64>> {
+    model.with_pieces::<f64, _>(b).flatten()
 }

@@ -125,7 +125,7 @@ impl<'p, R: Flows> Program<'p, R> {
 /// `shared`: whether the ensemble shares the time terms.
 fn fused_stages<R: Flows>(plan: &Plan, isa: Isa, shared: bool) -> Option<FusedSteps<R>> {
     let st = plan.stages.as_ref()?;
-    let kernel = plan.model.with_pieces::<R, _>(StageBuilder {
+    let kernel = StageBuilder {
         order: st.order,
         opt: st.with_optional,
         time: match (plan.time, shared) {
@@ -134,7 +134,8 @@ fn fused_stages<R: Flows>(plan: &Plan, isa: Isa, shared: bool) -> Option<FusedSt
             (true, false) => time::PER_LANE,
         },
         isa,
-    })??;
+    }
+    .build::<R>(&plan.model)?;
     Some(FusedSteps {
         kernel,
         weights: st
