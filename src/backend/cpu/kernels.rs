@@ -188,14 +188,15 @@ fn fused_stage_body<
 /// model of `vars` state variables in vectors of `vec` bytes; `heavy`: the
 /// stage also carries the optional variable or evaluates the time terms
 /// per trajectory. One whole vector per lane's chain, up to eight chains,
-/// where the state is small. Measured on Zen 4, van der Pol S2: eight
-/// against four, AVX2 f32 +8.5 %, AVX-512 f64 +13 % (spin–orbit +11 %,
-/// +15 %); AVX2 f64 keeps four (16 registers, twice exp's constants: eight
-/// spill, 2 % slower), AVX-512 f32 four (eight would split its vectors:
-/// −25 %), and so do the heavy stages (more live values; eight everywhere
-/// doubled the build time of the kernels). Two where more would spill
-/// (Kepler's five variables: −9 % with four); four in the baseline build
-/// (two: van der Pol f32 −5 %).
+/// where the state is small. Measured on Zen 4, eight against four, medians
+/// of 5 pairs: AVX2 f32 van der Pol S2 +5 %, with `p` +13 %, Yoshida 6A
+/// +19 %, spin–orbit +12 % (its time terms per trajectory: −1 %); AVX-512 f64 van der Pol S2 +9 to +13 %,
+/// spin–orbit +15 %, with `p` +1 % (so its heavy stages keep four: a
+/// smaller build). AVX2 f64 keeps four (16 registers, twice exp's
+/// constants: eight spill, 2 % slower), AVX-512 f32 four (eight would split
+/// its vectors: −25 %). Two where more would spill (Kepler's five
+/// variables: −9 % with four); four in the baseline build (two: van der Pol
+/// f32 −5 %).
 const fn interleave<R>(vars: usize, vec: usize, heavy: bool) -> usize {
     let per_vector = vec / std::mem::size_of::<R>();
     let chains = LANES / per_vector;
@@ -204,7 +205,7 @@ const fn interleave<R>(vars: usize, vec: usize, heavy: bool) -> usize {
         2
     } else if vec <= 16 {
         4
-    } else if chains >= 8 && !heavy && !avx2_f64 {
+    } else if chains >= 8 && !avx2_f64 && (!heavy || vec == 32) {
         8
     } else if chains >= 4 {
         4
