@@ -612,3 +612,66 @@ fn non_finite_states_stay_non_finite() {
     }
     assert!(models >= 6, "{models} models with fused kernels");
 }
+
+/// Every built-in model has its fused kernels in both precisions, for every
+/// piece order, optional variable and time mode, at every level: they are
+/// compiled in the library and handed back through `Any`, and a failed
+/// hand-back would silently fall back to the (slower) op interpreter.
+#[test]
+fn every_model_has_fused_kernels_in_both_precisions() {
+    use reeb::backend::cpu::kernels::{time, Isa, StageBuilder};
+    let orders = [
+        ['A', 'B', 'C'],
+        ['A', 'C', 'B'],
+        ['B', 'A', 'C'],
+        ['B', 'C', 'A'],
+        ['C', 'A', 'B'],
+        ['C', 'B', 'A'],
+    ];
+    let names = [
+        "damped_oscillator",
+        "van_der_pol",
+        "lienard",
+        "kepler",
+        "lane_emden",
+        "spin_orbit",
+        "quadratic_s",
+    ];
+    for name in names {
+        let model = Model::from_name(name).unwrap();
+        for (order, opt, t, isa) in orders.iter().flat_map(|&o| {
+            [false, true].into_iter().flat_map(move |opt| {
+                [time::NONE, time::PER_LANE, time::SHARED]
+                    .into_iter()
+                    .flat_map(move |t| {
+                        [Isa::Baseline, Isa::V3, Isa::V4].map(|isa| (o, opt, t, isa))
+                    })
+            })
+        }) {
+            let builder = || StageBuilder {
+                order,
+                opt,
+                time: t,
+                isa,
+            };
+            assert!(
+                builder().build::<f32>(&model).is_some(),
+                "{name} {order:?} f32"
+            );
+            assert!(
+                builder().build::<f64>(&model).is_some(),
+                "{name} {order:?} f64"
+            );
+        }
+        let bad = StageBuilder {
+            order: ['A', 'A', 'C'],
+            opt: false,
+            time: time::NONE,
+            isa: Isa::V3,
+        };
+        assert!(
+            bad.build::<f64>(&model).is_none(),
+            "{name}: not a permutation"
+        );
+    }
+}
