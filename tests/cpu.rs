@@ -3,7 +3,7 @@
 
 use reeb::backend::cpu;
 use reeb::models::exact;
-use reeb::models::{lane_emden, Model};
+use reeb::models::{lane_emden, Model, MODEL_NAMES};
 use reeb::plan::observations::Status;
 use reeb::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
 use reeb::plan::{Plan, Problem, Source};
@@ -534,7 +534,7 @@ fn exact_stroboscopic_samples_are_the_states_at_those_steps() {
 fn non_finite_states_stay_non_finite() {
     use reeb::models::lanes::Lane;
     use reeb::models::pieces::{Pieces, PiecesVisitor};
-    use reeb::models::{Flows, MODEL_NAMES};
+    use reeb::models::Flows;
 
     struct Absorbing<'a> {
         plan: &'a Plan,
@@ -628,40 +628,24 @@ fn every_model_has_fused_kernels_in_both_precisions() {
         ['C', 'A', 'B'],
         ['C', 'B', 'A'],
     ];
-    let names = [
-        "damped_oscillator",
-        "van_der_pol",
-        "lienard",
-        "kepler",
-        "lane_emden",
-        "spin_orbit",
-        "quadratic_s",
-    ];
-    for name in names {
+    for name in MODEL_NAMES {
         let model = Model::from_name(name).unwrap();
-        for (order, opt, t, isa) in orders.iter().flat_map(|&o| {
-            [false, true].into_iter().flat_map(move |opt| {
-                [time::NONE, time::PER_LANE, time::SHARED]
-                    .into_iter()
-                    .flat_map(move |t| {
-                        [Isa::Baseline, Isa::V3, Isa::V4].map(|isa| (o, opt, t, isa))
-                    })
-            })
-        }) {
-            let builder = || StageBuilder {
-                order,
-                opt,
-                time: t,
-                isa,
-            };
-            assert!(
-                builder().build::<f32>(&model).is_some(),
-                "{name} {order:?} f32"
-            );
-            assert!(
-                builder().build::<f64>(&model).is_some(),
-                "{name} {order:?} f64"
-            );
+        for order in orders {
+            for opt in [false, true] {
+                for time in [time::NONE, time::PER_LANE, time::SHARED] {
+                    for isa in [Isa::Baseline, Isa::V3, Isa::V4] {
+                        let b = || StageBuilder {
+                            order,
+                            opt,
+                            time,
+                            isa,
+                        };
+                        let what = format!("{name} {order:?} opt {opt} time {time} {isa:?}");
+                        assert!(b().build::<f32>(&model).is_some(), "{what} f32");
+                        assert!(b().build::<f64>(&model).is_some(), "{what} f64");
+                    }
+                }
+            }
         }
         let bad = StageBuilder {
             order: ['A', 'A', 'C'],

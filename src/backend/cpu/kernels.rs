@@ -77,10 +77,7 @@ fn fused_steps_body<
         let mut start: Saved<R> = [[R::default(); LANES]; MAX_VARS];
         P::save(l, &mut start);
         for j in 0..k {
-            let nf = R::from_f64((n + j) as f64);
-            for &(h, f, c) in stages {
-                fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, h, f, c, nf, time_terms);
-            }
+            step::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, stages, n + j, time_terms);
         }
         if all_finite::<R, P>(l) {
             return (k, false);
@@ -110,15 +107,35 @@ fn checked_steps<
     time_terms: bool,
 ) -> (u64, bool) {
     for j in 0..k {
-        let nf = R::from_f64((n + j) as f64);
-        for &(h, f, c) in stages {
-            fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, h, f, c, nf, time_terms);
-        }
+        step::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, stages, n + j, time_terms);
         if !all_finite::<R, P>(l) {
             return (j + 1, true);
         }
     }
     (k, false)
+}
+
+/// Step `n` on every lane: each stage in order.
+#[inline(always)]
+fn step<
+    R: Real,
+    P: Pieces<R>,
+    const P1: char,
+    const P2: char,
+    const P3: char,
+    const OPT: bool,
+    const TIME: u8,
+    const VEC: usize,
+>(
+    l: &mut Lanes<R>,
+    stages: &[Weights<R>],
+    n: u64,
+    time_terms: bool,
+) {
+    let nf = R::from_f64(n as f64);
+    for &(h, f, c) in stages {
+        fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, h, f, c, nf, time_terms);
+    }
 }
 
 /// Are the model's state variables finite in every lane of the block?
@@ -190,9 +207,9 @@ fn fused_stage_body<
 /// per trajectory. One whole vector per lane's chain, up to eight chains,
 /// where the state is small. Measured on Zen 4, eight against four, medians
 /// of 5 pairs: AVX2 f32 van der Pol S2 +5 %, with `p` +13 %, Yoshida 6A
-/// +19 %, spin–orbit +12 % (its time terms per trajectory: −1 %); AVX-512 f64 van der Pol S2 +9 to +13 %,
-/// spin–orbit +15 %, with `p` +1 % (so its heavy stages keep four: a
-/// smaller build). AVX2 f64 keeps four (16 registers, twice exp's
+/// +19 %, spin–orbit +12 % (its time terms per trajectory: −1 %); AVX-512
+/// f64 van der Pol S2 +9 to +13 %, spin–orbit +15 %, with `p` +1 % (so its
+/// heavy stages keep four: a smaller build). AVX2 f64 keeps four (16 registers, twice exp's
 /// constants: eight spill, 2 % slower), AVX-512 f32 four (eight would split
 /// its vectors: −25 %). Two where more would spill (Kepler's five
 /// variables: −9 % with four); four in the baseline build (two: van der Pol
