@@ -3,11 +3,6 @@
 
 alias R = f32;
 
-// 2^n, exact, for n in [-126, 127].
-fn pow2i(n: i32) -> f32 {
-    return bitcast<f32>(u32(n + 127) << 23u);
-}
-
 fn to_i32(x: f32) -> i32 {
     return i32(x);
 }
@@ -17,13 +12,10 @@ fn rint(x: f32) -> f32 {
     return round(x);
 }
 
-// 2^n in two normal halves for n = round(y): lo = 2^floor(n/2), hi = 2^(n - floor(n/2))
-// (the CPU's twin reads n from the bits of y + 1.5·2^mantissa).
-fn pow2_halves(y: f32, lo: ptr<function, f32>, hi: ptr<function, f32>) {
-    let n = i32(round(y));
-    let n1 = n >> 1u;
-    *lo = pow2i(n1);
-    *hi = pow2i(n - n1);
+// 2^n for an integer-valued n in [-127, 128]: +0 at -127, +inf at 128 (the
+// CPU's twin puts n + 127 in the low bits of n + 1.5·2^23 + 127 and shifts).
+fn pow2(n: f32) -> f32 {
+    return bitcast<f32>(u32(i32(n) + 127) << 23u);
 }
 
 fn from_i32(n: i32) -> f32 {

@@ -27,13 +27,11 @@ fn rint(x: f64) -> f64 {
     return round(x);
 }
 
-// 2^n in two normal halves for n = round(y): lo = 2^floor(n/2), hi = 2^(n - floor(n/2))
-// (the CPU's twin reads n from the bits of y + 1.5·2^mantissa).
-fn pow2_halves(y: f64, lo: ptr<function, f64>, hi: ptr<function, f64>) {
-    let n = i32(round(y));
-    let n1 = n >> 1u;
-    *lo = pow2i(n1);
-    *hi = pow2i(n - n1);
+// 2^n for an integer-valued n in [-1023, 1024]: +0 at -1023 (pow2i would
+// give the subnormal), +inf at 1024 (the CPU's twin: bits, as for f32).
+fn pow2(n: f64) -> f64 {
+    let m = i32(n);
+    return select(pow2i(m), 0.0, m < -1022);
 }
 
 fn from_i32(n: i32) -> f64 {

@@ -13,7 +13,7 @@
 //! arithmetic, comparisons, `&`, `>>`, `<<` on `i32`; calls to other shared
 //! functions and to the primitives as `R::name(..)`: `sqrt`, `floor`, `abs`,
 //! `min`, `max` (inherent on `f32`/`f64`, builtins in WGSL), `select`,
-//! `pow2_halves`, `to_i32`, `rint`, `from_i32`, `inf` ([`crate::num::prims::Prims`] on the CPU,
+//! `pow2`, `to_i32`, `rint`, `from_i32`, `inf` ([`crate::num::prims::Prims`] on the CPU,
 //! `shaders/prelude_*.wgsl` on the GPU). Every function ends in `return`.
 //! The naga test in `tests/shaders.rs` rejects anything outside this subset.
 

@@ -8,8 +8,8 @@
 //! branch-free, so the CPU loop over lanes vectorises.
 //!
 //! Accuracy (tested in `tests/math.rs` against the platform libm in f64):
-//! `exp` ≤ 2 ULP over the whole finite range (f32 and f64), overflow to +∞,
-//! underflow to 0, NaN propagates. `sin`/`cos` ≤ 2 ULP for |x| ≤ 8192 (f32) and
+//! `exp` ≤ 2 ULP wherever its result is a normal number (f32 and f64), +∞
+//! above that, 0 below (no gradual underflow), NaN propagates. `sin`/`cos` ≤ 2 ULP for |x| ≤ 8192 (f32) and
 //! |x| ≤ 10⁶ (f64), where the Cody–Waite reduction by π/2 is exact enough;
 //! beyond that accuracy degrades gradually, and the result stays in [−1, 1].
 
@@ -18,36 +18,37 @@ use crate::num::prims::Prims;
 crate::shared_fns! {
     concrete, wgsl MATH_F32_WGSL;
 
-    /// e^x in f32: x = n ln 2 + r with |r| ≤ ln2/2, e^r = 1 + r·P(r) with P
-    /// of degree 5 fitted to (e^r − 1)/r on Chebyshev nodes with P(0) = 1 (error
-    /// 5·10⁻⁹ relative, a tenth of an ULP; Taylor's needs degree 6), by
-    /// Horner's scheme (fewer operations than Estrin's; its chain is short
-    /// enough: the even/odd split of `exp_f64` was 5 % slower here at AVX2,
-    /// 10 % at AVX-512), 2^n applied in two halves so that results down
-    /// to the subnormal range round once. Every f32 in (−103, 88.7) is within
-    /// 0.98 ULP of the exact value (checked exhaustively; Taylor's degree 7
-    /// by Estrin: 1.23).
+    /// e^x in f32: x = n ln 2 + r with |r| ≤ ln2/2, e^r = 1 + w with
+    /// w = r + r²·(½ + r/6) + r⁴·(c₄ + c₅r + c₆r²), the coefficients of a degree-5
+    /// P fitted to (e^r − 1)/r on Chebyshev nodes with P(0) = 1 (error 5·10⁻⁹
+    /// relative, a tenth of an ULP; Taylor's needs degree 6), by Estrin's
+    /// scheme with the 1 added last: a dependent chain of 4 operations instead
+    /// of Horner's 6, which is what bounds the AVX2 step (van der Pol S2 +13 %
+    /// at AVX2 on Zen 4). Then times 2^n in one scale, which costs five
+    /// operations fewer than two halves (+11 % at AVX2, +5 % at AVX-512 with
+    /// Estrin's). Every f32 result in the normal range is within 1.32 ULP of
+    /// the exact value (checked exhaustively; Horner's: 0.98). Below that
+    /// range the result flushes to 0, as GPUs flush subnormals anyway
+    /// (x < −87.68; between there and −87.34 it is subnormal, rounded once
+    /// from the normal scale 2⁻¹²⁶), and from x > 88.376 (n = 128) it is +∞
+    /// (the exact values up to 88.72 are finite).
     fn exp_f32(x: f32) -> f32 {
-        // Clamp by select, not min/max, so that NaN passes through.
-        let lo: f32 = f32::select(x, -104.0, x < -104.0);
+        // Clamp by select, not min/max, so that NaN passes through: to where
+        // n = −127 (scale +0) and n = 128 (scale +∞; the scale is applied
+        // last, since w·∞ + ∞ would be NaN where w < 0).
+        let lo: f32 = f32::select(x, -88.0, x < -88.0);
         let xc: f32 = f32::select(lo, 89.0, lo > 89.0);
-        let y: f32 = xc * 1.44269502;
-        let nf: f32 = f32::rint(y);
-        let mut s1: f32 = 0.0;
-        let mut s2: f32 = 0.0;
-        f32::pow2_halves(y, &mut s1, &mut s2);
+        let nf: f32 = f32::rint(xc * 1.44269502);
+        let s: f32 = f32::pow2(nf);
         // nf·0.693359375 is exact (9 bits times at most 8); fma would cost the
         // baseline kernels, which call libm for it, two more calls.
         let r: f32 = (xc - nf * 0.693359375) - nf * -0.000212194442;
-        let h4: f32 = f32::fma(r, 0.00139336439, 0.00836317521);
-        let h3: f32 = f32::fma(r, h4, 0.0416664667);
-        let h2: f32 = f32::fma(r, h3, 0.166665763);
-        let h1: f32 = f32::fma(r, h2, 0.5);
-        let pr: f32 = f32::fma(r, h1, 1.0);
-        // (1 + r·P)·2^⌊n/2⌋ without leaving the normal range, then ·2^⌈n/2⌉:
-        // one rounding into the subnormals, and e^-104 < 2^-150 rounds to 0
-        // (so the clamp needs no underflow select).
-        return f32::fma(r * s1, pr, s1) * s2;
+        let z: f32 = r * r;
+        let a1: f32 = f32::fma(r, 0.166665763, 0.5);
+        let a2: f32 = f32::fma(r, 0.00836317521, 0.0416664667);
+        let b1: f32 = f32::fma(z, 0.00139336439, a2);
+        let w: f32 = f32::fma(z * z, b1, f32::fma(z, a1, r));
+        return (1.0 + w) * s;
     }
 
     /// sin x and cos x in f32: k = round(2x/π), r = x − kπ/2 in three parts
@@ -80,21 +81,21 @@ crate::shared_fns! {
     /// e^x in f64: x = n ln 2 + r (fdlibm's two-part ln 2), e^r = 1 + r·P(r)
     /// with P of degree 10 fitted to (e^r − 1)/r in 50 digits on Chebyshev
     /// nodes with P(0) = 1 (error 1.2·10⁻¹⁷, a tenth of an ULP; Taylor's needs
-    /// degree 12), 2^n in two halves. P as E(r²) + r·O(r²), each half by
+    /// degree 12), 2^n in one scale as in `exp_f32` (AVX2 +4 %, AVX-512 +8 %):
+    /// 0 below the normal range (x < −708.74; subnormal, rounded once, up to
+    /// −708.40), +∞ from x > 709.44 (n = 1024). P as E(r²) + r·O(r²), each half by
     /// Horner's scheme: one operation more than Horner's on P and a dependent
     /// chain of 7 instead of 10, which is what bounds the AVX2 step in f64
     /// (van der Pol S2 +12 % at AVX2 on Zen 4, AVX-512 −2 %; Estrin's scheme
     /// in r² as well: AVX2 the same, AVX-512 −6 %). On 2·10⁷ random
-    /// arguments within 1 ULP of glibc's `exp` (off by one in 8.7 %; Horner's
+    /// arguments within 1 ULP of glibc's `exp` (off by one in 8.9 %; Horner's
     /// on P: 6.1 %; Taylor's degree 12 by Estrin: 8.6 % of 2·10⁸).
     fn exp_f64(x: f64) -> f64 {
-        let lo: f64 = f64::select(x, -746.0, x < -746.0);
+        // As in exp_f32: n = −1023 gives the scale +0, n = 1024 +∞.
+        let lo: f64 = f64::select(x, -709.0, x < -709.0);
         let xc: f64 = f64::select(lo, 710.0, lo > 710.0);
-        let y: f64 = xc * 1.4426950408889634;
-        let nf: f64 = f64::rint(y);
-        let mut s1: f64 = 0.0;
-        let mut s2: f64 = 0.0;
-        f64::pow2_halves(y, &mut s1, &mut s2);
+        let nf: f64 = f64::rint(xc * 1.4426950408889634);
+        let s: f64 = f64::pow2(nf);
         let r: f64 = (xc - nf * 6.93147180369123816490e-01) - nf * 1.90821492927058770002e-10;
         // P(r) = E(z) + r·O(z), z = r².
         let z: f64 = r * r;
@@ -108,8 +109,7 @@ crate::shared_fns! {
         let o1: f64 = f64::fma(z, o2, 0.04166666666651632);
         let o0: f64 = f64::fma(z, o1, 0.5000000000000012);
         let pr: f64 = f64::fma(r, o0, e0);
-        // As in exp_f32: e^-746 < 2^-1075 rounds to 0.
-        return f64::fma(r * s1, pr, s1) * s2;
+        return f64::fma(r, pr, 1.0) * s;
     }
 
     /// sin x and cos x in f64: Cody–Waite reduction by π/2 with fdlibm's

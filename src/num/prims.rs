@@ -13,14 +13,14 @@ pub trait Prims: Sized {
     /// The nearest integer, ties to even (WGSL's `round`; one instruction
     /// on SSE4.1 and later).
     fn rint(x: Self) -> Self;
-    /// `2^n` in two normal halves for n = round(y) (ties to even), |n| within
-    /// the exponent range: `lo = 2^⌊n/2⌋`, `hi = 2^(n − ⌊n/2⌋)`, so that
-    /// `v·lo·hi` rounds once even where `2^n` is subnormal. On the CPU one
-    /// addition of 1.5·2^mantissa puts n in the low bits, and integer shifts
-    /// make both exponents: no rounding instruction, no float-to-int
-    /// conversion and none of its range checks. NaN `y` gives some values
-    /// (callers carry the NaN on their float path).
-    fn pow2_halves(y: Self, lo: &mut Self, hi: &mut Self);
+    /// `2^n` for an integer-valued `n` from one below the smallest normal
+    /// exponent to one above the largest (f32: −127 … 128, f64: −1023 …
+    /// 1024): the normal powers exactly, `+0` at the low end and `+∞` at the
+    /// high end. On the CPU one addition of 1.5·2^mantissa + bias puts the
+    /// biased exponent in the low bits and one shift moves it into place: no
+    /// float-to-int conversion and none of its range checks. NaN `n` gives
+    /// some value (callers carry the NaN on their float path).
+    fn pow2(n: Self) -> Self;
     /// Exact conversion of small integers.
     fn from_i32(n: i32) -> Self;
     /// Positive infinity.
@@ -57,13 +57,11 @@ impl Prims for f32 {
         x.round_ties_even()
     }
     #[inline(always)]
-    fn pow2_halves(y: f32, lo: &mut f32, hi: &mut f32) {
-        // y + 1.5·2²³ has bits 0x4b40_0000 + n; u = n + 254 ≥ 0 makes the
-        // halves' biased exponents u >> 1 = ⌊n/2⌋ + 127 and u − (u >> 1).
-        let u = (y + 12582912.0).to_bits().wrapping_sub(0x4b40_0000 - 254);
-        let e = u >> 1;
-        *lo = f32::from_bits(e << 23);
-        *hi = f32::from_bits(u.wrapping_sub(e) << 23);
+    fn pow2(n: f32) -> f32 {
+        // n + 1.5·2²³ + 127 (exact) has bits 0x4b40_0000 + n + 127: shifted
+        // left by 23, the low nine bits become sign and exponent, n + 127 in
+        // 0 …= 255, and the constant's own bits fall off the top.
+        f32::from_bits((n + 12583039.0).to_bits() << 23)
     }
     #[inline(always)]
     fn from_i32(n: i32) -> f32 {
@@ -104,14 +102,9 @@ impl Prims for f64 {
         x.round_ties_even()
     }
     #[inline(always)]
-    fn pow2_halves(y: f64, lo: &mut f64, hi: &mut f64) {
-        // As for f32, with 1.5·2⁵² and the bias 1023: u = n + 2046.
-        let u = (y + 6755399441055744.0)
-            .to_bits()
-            .wrapping_sub(0x4338_0000_0000_0000 - 2046);
-        let e = u >> 1;
-        *lo = f64::from_bits(e << 52);
-        *hi = f64::from_bits(u.wrapping_sub(e) << 52);
+    fn pow2(n: f64) -> f64 {
+        // As for f32: 1.5·2⁵² + 1023, n + 1023 in 0 …= 2047 shifted by 52.
+        f64::from_bits((n + 6755399441056767.0).to_bits() << 52)
     }
     #[inline(always)]
     fn from_i32(n: i32) -> f64 {
