@@ -9,9 +9,10 @@
 //!
 //! Accuracy (tested in `tests/math.rs` against the platform libm in f64):
 //! `exp` ≤ 2 ULP wherever its result is a normal number (f32 and f64), +∞
-//! above that, 0 below (no gradual underflow), NaN propagates. `sin`/`cos` ≤ 2 ULP for |x| ≤ 8192 (f32) and
-//! |x| ≤ 10⁶ (f64), where the Cody–Waite reduction by π/2 is exact enough;
-//! beyond that accuracy degrades gradually, and the result stays in [−1, 1].
+//! above that, 0 below (no gradual underflow), NaN propagates. `sin`/`cos`
+//! ≤ 2 ULP for |x| ≤ 8192 (f32) and |x| ≤ 10⁶ (f64), where the Cody–Waite
+//! reduction by π/2 is exact enough; beyond that accuracy degrades
+//! gradually, and the result stays in [−1, 1].
 
 use crate::num::prims::Prims;
 
