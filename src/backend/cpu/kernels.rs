@@ -51,11 +51,18 @@ pub mod time {
 /// (`tests/cpu.rs::non_finite_states_stay_non_finite`). Only then is the run
 /// repeated from a copy of its start, checking after each step, to find the
 /// step: the same operations, so the same bits and the same verdict as
-/// checking every step. The check reads the block after the step, not
-/// inside the stage, so each kernel holds the stage's code twice, not three
-/// times (with eight lanes per iteration, three copies and every lane count
-/// compiled made the library's build take 15 GB and 7 minutes; now 3.9 GB
-/// and under 3). One loop for both passes was 10 % slower (AVX-512 f32).
+/// checking every step.
+///
+/// A scheme of one stage (S2, the sweeps' workhorse) runs its unchecked
+/// steps in a loop of its own: the stage's weights are then loop
+/// invariants, so what the pieces compute from them and the lanes' fixed
+/// inputs (τ, τε, τ·forcing) is computed once per run instead of once per
+/// step (van der Pol S2 +4.5 % at AVX2 f32 on Zen 5). Every other run — a
+/// scheme of several stages, the checked pass — goes through one loop,
+/// [`steps`], which checks after each step only when asked. So each kernel
+/// holds the stage's code twice, not three times (three copies and every
+/// lane count compiled made the library's build take 15 GB and 7 minutes;
+/// a third copy for the single-stage loop alone, a minute more).
 #[inline(always)]
 fn fused_steps_body<
     R: Real,
@@ -73,24 +80,51 @@ fn fused_steps_body<
     k: u64,
     time_terms: bool,
 ) -> (u64, bool) {
-    if k > 1 {
-        let mut start: Saved<R> = [[R::default(); LANES]; MAX_VARS];
-        P::save(l, &mut start);
-        for j in 0..k {
-            step::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, stages, n + j, time_terms);
+    let mut start = Start([[R::default(); LANES]; MAX_VARS]);
+    // A single step's run is checked as it goes; a longer one first runs
+    // unchecked, and again from its start, checked, only if it ended with
+    // some lane non-finite.
+    let mut check = k == 1;
+    if !check {
+        P::save(l, &mut start.0);
+        if let [(h, f, c)] = *stages {
+            for j in 0..k {
+                let nf = R::from_f64((n + j) as f64);
+                fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, h, f, c, nf, time_terms);
+            }
+            if all_finite::<R, P>(l) {
+                return (k, false);
+            }
+            P::restore(l, &start.0);
+            check = true;
         }
-        if all_finite::<R, P>(l) {
-            return (k, false);
-        }
-        P::restore(l, &start);
     }
-    checked_steps::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, stages, n, k, time_terms)
+    // One call site, `check` known only at run time: the loop is compiled
+    // once (a call with `false` and one with `true` would be two copies).
+    loop {
+        let done = steps::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, stages, n, k, time_terms, check);
+        if check || all_finite::<R, P>(l) {
+            return done;
+        }
+        P::restore(l, &start.0);
+        check = true;
+    }
 }
 
-/// [`fused_steps_body`] checking after every step: a single step's run,
-/// and the search for the step that left the finite numbers.
+/// The start of a run, 64-byte aligned. A local of that alignment makes
+/// the kernel realign its stack frame, so the vector spill slots of the
+/// stage loops are aligned too; without it their alignment followed the
+/// caller's stack pointer, and 32-byte spills straddling cache lines made
+/// the same loop 2–4 % slower or faster from one build to the next (AVX2
+/// f32 on Zen 5).
+#[repr(C, align(64))]
+struct Start<R>(Saved<R>);
+
+/// Steps `n … n+k−1`, each the stages in order; `check`: look for
+/// non-finite lanes after every step and stop after the first step that
+/// left some (a single step's run, and the search for that step).
 #[inline(always)]
-fn checked_steps<
+fn steps<
     R: Real,
     P: Pieces<R>,
     const P1: char,
@@ -105,10 +139,11 @@ fn checked_steps<
     n: u64,
     k: u64,
     time_terms: bool,
+    check: bool,
 ) -> (u64, bool) {
     for j in 0..k {
         step::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, stages, n + j, time_terms);
-        if !all_finite::<R, P>(l) {
+        if check && !all_finite::<R, P>(l) {
             return (j + 1, true);
         }
     }
