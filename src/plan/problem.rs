@@ -52,6 +52,32 @@ impl Source {
             Source::Axis { axis, values } => values[(index / strides[*axis]) % values.len()],
         }
     }
+    /// [`Source::value_at`] for trajectories `first`, `first + 1`, … in
+    /// turn: one division for the first, then counting (a division per
+    /// trajectory and input was 2 % of a van der Pol run on the CPU).
+    pub fn values_from<'a>(
+        &'a self,
+        first: usize,
+        strides: &[usize],
+    ) -> impl Iterator<Item = f64> + 'a {
+        let (values, stride) = match self {
+            Source::Const(v) => (std::slice::from_ref(v), usize::MAX),
+            Source::Axis { axis, values } => (&values[..], strides[*axis]),
+        };
+        let (mut k, mut within) = (first / stride % values.len(), first % stride);
+        std::iter::repeat_with(move || {
+            let v = values[k];
+            within += 1;
+            if within == stride {
+                within = 0;
+                k += 1;
+                if k == values.len() {
+                    k = 0;
+                }
+            }
+            v
+        })
+    }
     /// The same source with every value mapped by `f`.
     pub fn map(&self, f: impl Fn(f64) -> f64) -> Source {
         match self {
@@ -337,4 +363,38 @@ pub fn check_coefficients(model: &Model) -> Result<(), PlanError> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Source;
+
+    #[test]
+    fn values_from_counts_as_value_at_divides() {
+        let strides = [1, 3, 12];
+        let sources = [
+            Source::Const(2.5),
+            Source::Axis {
+                axis: 0,
+                values: vec![1.0, 2.0, 3.0],
+            },
+            Source::Axis {
+                axis: 1,
+                values: vec![4.0, 5.0, 6.0, 7.0],
+            },
+            Source::Axis {
+                axis: 2,
+                values: vec![8.0, 9.0],
+            },
+        ];
+        for src in &sources {
+            for first in [0, 1, 2, 3, 11, 12, 13, 23, 24, 100] {
+                let got: Vec<f64> = src.values_from(first, &strides).take(30).collect();
+                let want: Vec<f64> = (first..first + 30)
+                    .map(|i| src.value_at(i, &strides))
+                    .collect();
+                assert_eq!(got, want, "{src:?} from {first}");
+            }
+        }
+    }
 }

@@ -441,9 +441,13 @@ fn run_block<R: Flows>(
 /// lanes repeat the block's last trajectory and their results are dropped.
 fn load_inputs<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, base: usize, count: usize) {
     for &(k, src) in &p.bindings {
-        let a = l.at_mut(k);
-        for (i, x) in a.iter_mut().enumerate() {
-            *x = R::from_f64(src.value_at(p.plan.first + base + i.min(count - 1), &p.plan.strides));
+        let mut values = src.values_from(p.plan.first + base, &p.plan.strides);
+        let mut v = 0.0;
+        for (i, x) in l.at_mut(k).iter_mut().enumerate() {
+            if i < count {
+                v = values.next().unwrap_or_default();
+            }
+            *x = R::from_f64(v);
         }
     }
 }
