@@ -80,13 +80,19 @@ fn fused_steps_body<
     k: u64,
     time_terms: bool,
 ) -> (u64, bool) {
-    let mut start = Start([[R::default(); LANES]; MAX_VARS]);
     // A single step's run is checked as it goes; a longer one first runs
     // unchecked, and again from its start, checked, only if it ended with
-    // some lane non-finite.
+    // some lane non-finite. Only a longer run copies its start (a copy on
+    // every single step would cost the runs that observers stop at each step).
+    let mut frame = FrameAlign([0; 64]);
+    std::hint::black_box(&mut frame);
     let mut check = k == 1;
+    let mut start: Option<Start<R>> = None;
     if !check {
-        P::save(l, &mut start.0);
+        P::save(
+            l,
+            &mut start.insert(Start([[R::default(); LANES]; MAX_VARS])).0,
+        );
         if let [(h, f, c)] = *stages {
             for j in 0..k {
                 let nf = R::from_f64((n + j) as f64);
@@ -95,7 +101,7 @@ fn fused_steps_body<
             if all_finite::<R, P>(l) {
                 return (k, false);
             }
-            P::restore(l, &start.0);
+            restore::<R, P>(l, &start);
             check = true;
         }
     }
@@ -106,19 +112,30 @@ fn fused_steps_body<
         if check || all_finite::<R, P>(l) {
             return done;
         }
-        P::restore(l, &start.0);
+        restore::<R, P>(l, &start);
         check = true;
     }
 }
 
-/// The start of a run, 64-byte aligned. A local of that alignment makes
+/// Puts back the block's state at the start of the run, if it was copied.
+#[inline(always)]
+fn restore<R: Real, P: Pieces<R>>(l: &mut Lanes<R>, start: &Option<Start<R>>) {
+    if let Some(s) = start {
+        P::restore(l, &s.0);
+    }
+}
+
+/// The block's state at the start of a run.
+struct Start<R>(Saved<R>);
+
+/// A 64-byte-aligned local that the kernel must keep in memory: it makes
 /// the kernel realign its stack frame, so the vector spill slots of the
-/// stage loops are aligned too; without it their alignment followed the
+/// stage loops are aligned too. Without it their alignment followed the
 /// caller's stack pointer, and 32-byte spills straddling cache lines made
 /// the same loop 2–4 % slower or faster from one build to the next (AVX2
 /// f32 on Zen 5).
 #[repr(C, align(64))]
-struct Start<R>(Saved<R>);
+struct FrameAlign([u8; 64]);
 
 /// Steps `n … n+k−1`, each the stages in order; `check`: look for
 /// non-finite lanes after every step and stop after the first step that
