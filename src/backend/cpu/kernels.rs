@@ -87,12 +87,9 @@ fn fused_steps_body<
     let mut frame = FrameAlign([0; 64]);
     std::hint::black_box(&mut frame);
     let mut check = k == 1;
-    let mut start: Option<Start<R>> = None;
+    let mut start: Option<Saved<R>> = None;
     if !check {
-        P::save(
-            l,
-            &mut start.insert(Start([[R::default(); LANES]; MAX_VARS])).0,
-        );
+        P::save(l, start.insert([[R::default(); LANES]; MAX_VARS]));
         if let [(h, f, c)] = *stages {
             for j in 0..k {
                 let nf = R::from_f64((n + j) as f64);
@@ -119,14 +116,11 @@ fn fused_steps_body<
 
 /// Puts back the block's state at the start of the run, if it was copied.
 #[inline(always)]
-fn restore<R: Real, P: Pieces<R>>(l: &mut Lanes<R>, start: &Option<Start<R>>) {
+fn restore<R: Real, P: Pieces<R>>(l: &mut Lanes<R>, start: &Option<Saved<R>>) {
     if let Some(s) = start {
-        P::restore(l, &s.0);
+        P::restore(l, s);
     }
 }
-
-/// The block's state at the start of a run.
-struct Start<R>(Saved<R>);
 
 /// A 64-byte-aligned local that the kernel must keep in memory: it makes
 /// the kernel realign its stack frame, so the vector spill slots of the
