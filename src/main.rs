@@ -1,8 +1,8 @@
 //! The `reeb` command line.
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Result;
@@ -12,6 +12,7 @@ use reeb::backend::gpu::{list_adapters, GpuContext};
 use reeb::backend::Engine;
 use reeb::num::precision::Precision;
 use reeb::output::run::{gates, run_scene, Gated, RunOptions};
+use reeb::output::stream::Watch;
 use reeb::scene::{BackendChoice, Scene};
 use reeb::verify::{run_all, Target};
 
@@ -352,11 +353,13 @@ fn run(
     if preview {
         scene = scene.preview(4, 2000);
     }
+    let watch = Arc::new(Watch::default());
+    interrupt::forward_to(watch.stop.clone());
     let opts = RunOptions {
         out,
         backend,
         precision,
-        progress: std::io::stderr().is_terminal(),
+        progress: true,
         max_output_bytes: None,
         force,
         resume: stream.resume,
@@ -367,11 +370,97 @@ fn run(
         adapter: stream.adapter,
         format: stream.format,
         checkpoint_every: Some(stream.checkpoint_every),
-        watch: None,
+        watch: Some(watch),
     };
-    let report = run_scene(&scene, &opts)?;
+    let report = match run_scene(&scene, &opts) {
+        Ok(report) => report,
+        Err(e) => match interrupt::received() {
+            Some(signal) => {
+                eprintln!("error: {e:#}");
+                eprintln!(
+                    "interrupted by {}; to continue where it stopped:\n  {}",
+                    interrupt::name(signal),
+                    interrupt::resume_command()
+                );
+                return Ok(ExitCode::from(128 + signal as u8));
+            }
+            None => return Err(e),
+        },
+    };
     println!("{}", report.line);
     Ok(ExitCode::SUCCESS)
+}
+
+/// Ctrl-C and SIGTERM (`kill`, a batch system's time limit) during `reeb
+/// run`: the run is asked to stop where it can keep its work (a checkpoint
+/// of the chunk in progress), and says how to continue. A second one ends
+/// the process at once.
+mod interrupt {
+    use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
+    use std::sync::Arc;
+    use std::time::Duration;
+
+    static RECEIVED: AtomicI32 = AtomicI32::new(0);
+
+    extern "C" fn on_signal(signal: libc::c_int) {
+        RECEIVED.store(signal, Ordering::SeqCst);
+        // SAFETY: signal() is async-signal-safe; the next one kills.
+        unsafe {
+            libc::signal(signal, libc::SIG_DFL);
+        }
+    }
+
+    /// Installs the handlers; a thread sets `stop` once a signal came.
+    pub fn forward_to(stop: Arc<AtomicBool>) {
+        let handler = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+        // SAFETY: the handler only stores to an atomic and calls signal().
+        unsafe {
+            libc::signal(libc::SIGINT, handler);
+            libc::signal(libc::SIGTERM, handler);
+        }
+        std::thread::spawn(move || loop {
+            if received().is_some() {
+                stop.store(true, Ordering::SeqCst);
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        });
+    }
+
+    /// The signal received, if one was.
+    pub fn received() -> Option<i32> {
+        Some(RECEIVED.load(Ordering::SeqCst)).filter(|s| *s != 0)
+    }
+
+    pub fn name(signal: i32) -> &'static str {
+        match signal {
+            libc::SIGINT => "SIGINT (Ctrl-C)",
+            libc::SIGTERM => "SIGTERM",
+            _ => "a signal",
+        }
+    }
+
+    /// This command line with `--resume`, as a shell reads it.
+    pub fn resume_command() -> String {
+        let mut args: Vec<String> = std::env::args().collect();
+        if !args.iter().any(|a| a == "--resume") {
+            args.push("--resume".into());
+        }
+        args.iter()
+            .map(|a| shell_word(a))
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+
+    fn shell_word(a: &str) -> String {
+        let plain = !a.is_empty()
+            && a.chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c));
+        match plain {
+            true => a.to_string(),
+            false => format!("'{}'", a.replace('\'', r"'\''")),
+        }
+    }
 }
 
 /// `reeb slurm`: the scene checked as `reeb check` does, then its jobs.

@@ -99,6 +99,15 @@ impl Engine {
         }
     }
 
+    /// The CPU kernels' instruction set (`x86-64-v3`, …) when this engine
+    /// is the CPU: what makes its results differ in the last bits.
+    pub fn cpu_isa(&self) -> Option<String> {
+        match self {
+            Engine::Cpu => Some(cpu::kernels::isa().name().to_string()),
+            Engine::Gpu(_) => None,
+        }
+    }
+
     pub fn describe(&self) -> String {
         match self {
             Engine::Cpu => format!("cpu ({} threads)", cpu::threads()),

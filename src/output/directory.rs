@@ -72,6 +72,7 @@ pub fn claim(out: &Path, keep: &[&Path], force: bool) -> Result<Claim> {
 
 /// [`claim`] in a [`Mode`].
 pub fn claim_as(out: &Path, keep: &[&Path], force: bool, mode: Mode) -> Result<Claim> {
+    let out = &lexical(out);
     let abs = absolute(out, true)?;
     refuse_protected(out, &abs, keep)?;
     classify(out, force)?;
@@ -90,6 +91,7 @@ pub fn claim_as(out: &Path, keep: &[&Path], force: bool, mode: Mode) -> Result<C
 /// The refusals of [`claim`], without creating or changing anything (for
 /// `reeb check`): `Ok` when a run could write `out`.
 pub fn check(out: &Path, keep: &[&Path], force: bool) -> Result<()> {
+    let out = &lexical(out);
     let abs = absolute(out, false)?;
     refuse_protected(out, &abs, keep)?;
     classify(out, force)?;
@@ -98,6 +100,12 @@ pub fn check(out: &Path, keep: &[&Path], force: bool) -> Result<()> {
         stale_partial(&partial)?;
     }
     Ok(())
+}
+
+/// `DIR.partial` of `out`, where a run in progress (or its shards) writes,
+/// without creating or changing anything.
+pub fn partial_of(out: &Path) -> Result<PathBuf> {
+    Ok(partial_path(&absolute(&lexical(out), false)?))
 }
 
 impl Claim {
@@ -119,7 +127,7 @@ impl Claim {
         };
         if need > free {
             bail!(
-                "{}: the outputs need about {} on disk and {} is free there; free some space, choose another --out, or {RECORD_LESS}",
+                "{}: the outputs need about {} on disk and {} is free there; free some space, choose another output folder, or {RECORD_LESS}",
                 self.out.display(),
                 bytes(need),
                 bytes(free)
@@ -174,22 +182,28 @@ impl Drop for Claim {
     }
 }
 
+/// `out` without `.` components and trailing slashes (`./x/.` is `./x`):
+/// the folder the user means, which a rename can target.
+fn lexical(out: &Path) -> PathBuf {
+    out.components().collect()
+}
+
 /// `path` made absolute through the existing folders (created if missing
 /// and `create`, so that an unwritable location fails before any work).
 fn absolute(out: &Path, create: bool) -> Result<PathBuf> {
     if out.as_os_str().is_empty() {
-        bail!("--out is empty: name a directory");
+        bail!("the output folder is empty: name a directory (--out)");
     }
     if let Ok(meta) = std::fs::symlink_metadata(out) {
         if meta.file_type().is_symlink() {
             bail!(
-                "{} is a symbolic link; reeb replaces only real directories: pass the directory it points to, or another --out",
+                "{} is a symbolic link; reeb replaces only real directories: pass the directory it points to, or another output folder",
                 out.display()
             );
         }
         if !meta.is_dir() {
             bail!(
-                "{} is a file, not a directory; reeb writes a directory of results: choose another --out",
+                "{} is a file, not a directory; reeb writes a directory of results: choose another output folder",
                 out.display()
             );
         }
@@ -233,7 +247,7 @@ fn refuse_protected(out: &Path, abs: &Path, keep: &[&Path]) -> Result<()> {
                 format!("an ancestor of the working directory {}", cwd.display())
             };
             bail!(
-                "--out {} is {what}; reeb replaces its output directory as a whole: choose a new folder, e.g. --out {}",
+                "the output folder {} is {what}; reeb replaces its output directory as a whole: choose a new folder, e.g. --out {}",
                 out.display(),
                 Path::new("runs").join("NAME").display()
             );
@@ -245,7 +259,7 @@ fn refuse_protected(out: &Path, abs: &Path, keep: &[&Path]) -> Result<()> {
         };
         if file.starts_with(abs) {
             bail!(
-                "--out {} holds {}, which replacing it would delete; choose another --out",
+                "the output folder {} holds {}, which replacing it would delete; choose another output folder",
                 out.display(),
                 file.display()
             );
@@ -262,7 +276,10 @@ fn classify(out: &Path, force: bool) -> Result<Existing> {
         Ok(m) => m,
     };
     if !meta.is_dir() || meta.file_type().is_symlink() {
-        bail!("{} is not a directory; choose another --out", out.display());
+        bail!(
+            "{} is not a directory; choose another output folder",
+            out.display()
+        );
     }
     let names = entries(out)?;
     if names.is_empty() {
@@ -274,7 +291,14 @@ fn classify(out: &Path, force: bool) -> Result<Existing> {
         None => names.iter().collect(),
     };
     if extra.is_empty() {
-        return Ok(Existing::ReebOutput(names));
+        match (foreign_kind(out, &names), force) {
+            (None, _) => return Ok(Existing::ReebOutput(names)),
+            (Some(_), true) => return Ok(Existing::Forced),
+            (Some(why), false) => bail!(
+                "{}: {why}; reeb replaces only the files it wrote: move it away, or pass --force to replace the folder with all it holds",
+                out.display()
+            ),
+        }
     }
     if force {
         return Ok(Existing::Forced);
@@ -287,16 +311,41 @@ fn classify(out: &Path, force: bool) -> Result<Existing> {
     };
     match listed {
         None => bail!(
-            "{} exists and is not a reeb output (no readable summary.json); it holds {}{more}. Pass --force to replace it with all it holds, or choose another --out",
+            "{} exists and is not a reeb output (no readable summary.json); it holds {}{more}. Pass --force to replace it with all it holds, or choose another output folder",
             out.display(),
             shown.join(", ")
         ),
         Some(_) => bail!(
-            "{} holds files that reeb did not write ({}{more}); pass --force to replace it with all it holds, or choose another --out",
+            "{} holds files that reeb did not write ({}{more}); pass --force to replace it with all it holds, or choose another output folder",
             out.display(),
             shown.join(", ")
         ),
     }
+}
+
+/// The first listed name of a reeb output that is no longer what reeb
+/// wrote there: every one is a regular file but the Zarr store, a real
+/// folder (a symbolic link, or a folder where a file was, may hold the
+/// user's files, which replacing the output must not delete).
+fn foreign_kind(dir: &Path, names: &BTreeSet<String>) -> Option<String> {
+    names.iter().find_map(|n| {
+        let meta = std::fs::symlink_metadata(dir.join(n)).ok()?;
+        let kind = meta.file_type();
+        let (want_dir, ok) = if n == crate::output::zarr::STORE {
+            (true, kind.is_dir())
+        } else {
+            (false, kind.is_file())
+        };
+        let now = if kind.is_symlink() {
+            "a symbolic link"
+        } else if kind.is_dir() {
+            "a folder"
+        } else {
+            "not a regular file"
+        };
+        let was = if want_dir { "a folder" } else { "a file" };
+        (!ok).then(|| format!("{n} was {was} reeb wrote and is now {now}"))
+    })
 }
 
 /// The names directly inside `dir`.
@@ -396,7 +445,7 @@ fn join_shared(partial: &Path) -> Result<File> {
     must_be_folder(partial)?;
     let Some(f) = open_locked(partial, true)? else {
         bail!(
-            "{} is being written by a reeb run that is not a shard ({}); wait for it to finish, or choose another --out",
+            "{} is being written by a reeb run that is not a shard ({}); wait for it to finish, or choose another output folder",
             partial.display(),
             std::fs::read_to_string(partial.join(OWNER_FILE)).unwrap_or_default().trim()
         );
@@ -415,7 +464,7 @@ fn stale_partial(partial: &Path) -> Result<(File, String)> {
     let owner = std::fs::read_to_string(partial.join(OWNER_FILE)).ok();
     let Some(lock) = open_locked(partial, false)? else {
         bail!(
-            "{} is being written by another reeb run ({}); wait for it to finish, or choose another --out",
+            "{} is being written by another reeb run ({}); wait for it to finish, or choose another output folder",
             partial.display(),
             owner.as_deref().map(str::trim).unwrap_or("owner unknown")
         );
@@ -428,7 +477,7 @@ fn stale_partial(partial: &Path) -> Result<(File, String)> {
 fn must_be_folder(partial: &Path) -> Result<()> {
     if !std::fs::symlink_metadata(partial).is_ok_and(|m| m.is_dir()) {
         bail!(
-            "{} exists and is not a folder reeb left; remove it or choose another --out",
+            "{} exists and is not a folder reeb left; remove it or choose another output folder",
             partial.display()
         );
     }
@@ -438,7 +487,7 @@ fn must_be_folder(partial: &Path) -> Result<()> {
 /// The refusal of a `partial` without reeb's owner file.
 fn not_reeb(partial: &Path) -> anyhow::Error {
     anyhow::anyhow!(
-        "{} exists but was not made by reeb (no {OWNER_FILE}); remove it or choose another --out",
+        "{} exists but was not made by reeb (no {OWNER_FILE}); remove it or choose another output folder",
         partial.display()
     )
 }
@@ -521,10 +570,11 @@ fn remove_old(old: &Path, existing: &Existing) {
     let result = match existing {
         Existing::Forced => std::fs::remove_dir_all(old),
         // A listed folder is reeb's too (the Zarr store `run.zarr`).
+        // `classify` checked their kinds: files, and the Zarr store.
         Existing::ReebOutput(names) => names
             .iter()
             .try_for_each(|n| match old.join(n) {
-                p if p.is_dir() && !p.is_symlink() => std::fs::remove_dir_all(p),
+                p if n == crate::output::zarr::STORE => std::fs::remove_dir_all(p),
                 p => std::fs::remove_file(p),
             })
             .and_then(|()| std::fs::remove_dir(old)),
@@ -604,6 +654,22 @@ fn renameat2(from: &Path, to: &Path, flags: libc::c_uint) -> std::io::Result<()>
     } else {
         Err(std::io::Error::last_os_error())
     }
+}
+
+/// The disk space the files under `dir` take (their allocated blocks:
+/// the unwritten parts of a run's sparse arrays take none); 0 if absent.
+pub fn disk_usage(dir: &Path) -> u64 {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(list) = std::fs::read_dir(dir) else {
+        return 0;
+    };
+    list.flatten()
+        .map(|e| match e.metadata() {
+            Ok(m) if m.is_dir() => disk_usage(&e.path()),
+            Ok(m) => m.blocks() * 512,
+            Err(_) => 0,
+        })
+        .sum()
 }
 
 /// Free bytes for an unprivileged user on the filesystem of `path`.

@@ -37,7 +37,7 @@ pub struct Record {
     pub chunks: Chunks,
 }
 
-/// A finished chunk: what the summary adds up.
+/// A finished chunk: what the summary adds up, and what it wrote.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Done {
     /// Trajectories that finished with a finite state.
@@ -46,6 +46,45 @@ pub struct Done {
     pub seconds: f64,
     /// How `seconds` was measured (GPU timestamps or the wall clock).
     pub timing: String,
+    /// The chunk's bytes in every array, checked before the chunk is
+    /// trusted (empty in a marker of a reeb before 0.3: not trusted).
+    #[serde(default)]
+    pub arrays: Vec<Written>,
+    /// The CPU kernels' instruction set, if the CPU integrated the chunk.
+    #[serde(default)]
+    pub cpu_isa: Option<String>,
+}
+
+/// What a chunk wrote into one array: its size and CRC-32.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Written {
+    pub file: String,
+    pub bytes: u64,
+    pub crc32: u32,
+}
+
+impl Written {
+    pub fn of(file: &str, bytes: &[u8]) -> Written {
+        Written {
+            file: file.into(),
+            bytes: bytes.len() as u64,
+            crc32: crc32fast::hash(bytes),
+        }
+    }
+
+    /// Why `found` (the array's bytes read back) is not what was written.
+    pub fn differs(&self, found: &[u8]) -> Option<String> {
+        if found.len() as u64 != self.bytes {
+            return Some(format!(
+                "{} holds {} of its {} bytes",
+                self.file,
+                found.len(),
+                self.bytes
+            ));
+        }
+        (crc32fast::hash(found) != self.crc32)
+            .then(|| format!("{}'s bytes differ from those written", self.file))
+    }
 }
 
 impl Record {
@@ -53,9 +92,12 @@ impl Record {
     pub fn read(dir: &Path) -> Result<Option<Record>> {
         let path = dir.join(RECORD_FILE);
         match std::fs::read_to_string(&path) {
-            Ok(text) => serde_json::from_str(&text)
-                .map(Some)
-                .with_context(|| format!("reading {}", path.display())),
+            Ok(text) => serde_json::from_str(&text).map(Some).map_err(|e| {
+                anyhow::anyhow!(
+                    "{} is not the record of a reeb run ({e}): it was damaged or replaced; run the scene again without --resume to start over (its chunks are then integrated again)",
+                    path.display()
+                )
+            }),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
             Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
         }
@@ -156,36 +198,133 @@ pub fn mark_done(dir: &Path, k: usize, done: &Done) -> Result<()> {
     write_atomic(&marker(dir, k), text.as_bytes())
 }
 
-/// The finished chunk `k` of `dir`, if it is.
+/// The finished chunk `k` of `dir`, if it is (its marker reads as one).
 pub fn done(dir: &Path, k: usize) -> Option<Done> {
     let text = std::fs::read_to_string(marker(dir, k)).ok()?;
     serde_json::from_str(&text).ok()
+}
+
+/// Takes back chunk `k`'s marker: its data is to be integrated again.
+pub fn unmark(dir: &Path, k: usize) -> Result<()> {
+    let path = marker(dir, k);
+    match std::fs::remove_file(&path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+            Err(e).with_context(|| format!("removing {}", path.display()))
+        }
+        _ => Ok(()),
+    }
 }
 
 fn state(dir: &Path, k: usize) -> PathBuf {
     dir.join(CHUNKS_DIR).join(format!("{k}.state"))
 }
 
+/// The end of a checkpoint file: its length and CRC-32 before this
+/// trailer, then this tag. A file that does not end so (cut short by a
+/// full disk, damaged) is not continued.
+const STATE_TAG: &[u8; 8] = b"reeb-cp1";
+const TRAILER: u64 = 8 + 4 + 8;
+
+/// A writer that counts and checksums what passes through.
+struct Summed<'w> {
+    inner: &'w mut dyn Write,
+    crc: crc32fast::Hasher,
+    len: u64,
+}
+
+impl Write for Summed<'_> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.crc.update(&buf[..n]);
+        self.len += n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
 /// Replaces chunk `k`'s checkpoint (the integrator's state inside the
-/// chunk) with what `write` writes, durably and atomically: a kill while
-/// writing leaves the previous one.
+/// chunk) with what `write` writes and its trailer, durably and
+/// atomically: a kill while writing leaves the previous one.
 pub fn save_state(dir: &Path, k: usize, write: Contents) -> std::io::Result<()> {
     let path = state(dir, k);
-    let tmp = write_temporary(&path, write)?;
+    let tmp = write_temporary(&path, &|w| {
+        let mut summed = Summed {
+            inner: w,
+            crc: crc32fast::Hasher::new(),
+            len: 0,
+        };
+        write(&mut summed)?;
+        let (len, crc) = (summed.len, summed.crc.finalize());
+        w.write_all(&len.to_le_bytes())?;
+        w.write_all(&crc.to_le_bytes())?;
+        w.write_all(STATE_TAG)
+    })?;
     std::fs::rename(&tmp, &path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         std::io::Error::new(e.kind(), format!("writing {}: {e}", path.display()))
     })
 }
 
-/// Chunk `k`'s checkpoint, if it has one.
+/// Chunk `k`'s checkpoint, if it has one that is whole: one that is not
+/// (cut short, damaged, unreadable) is set aside with a warning, and the
+/// chunk starts over.
 pub fn open_state(dir: &Path, k: usize) -> Result<Option<BufReader<std::fs::File>>> {
     let path = state(dir, k);
-    match std::fs::File::open(&path) {
-        Ok(f) => Ok(Some(BufReader::with_capacity(1 << 20, f))),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-        Err(e) => Err(e).with_context(|| format!("reading {}", path.display())),
+    let f = match std::fs::File::open(&path) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(e).with_context(|| format!("reading {}", path.display())),
+    };
+    match whole(&f) {
+        Ok(()) => {
+            let mut f = f;
+            std::io::Seek::rewind(&mut f).with_context(|| format!("reading {}", path.display()))?;
+            Ok(Some(BufReader::with_capacity(1 << 20, f)))
+        }
+        Err(why) => {
+            eprintln!(
+                "warning: chunk {k}'s checkpoint {} cannot be continued ({why}); it is discarded and the chunk starts over",
+                path.display()
+            );
+            drop(f);
+            remove_state(dir, k)?;
+            Ok(None)
+        }
     }
+}
+
+/// Whether a checkpoint file ends in its trailer and its bytes before it
+/// have the length and checksum the trailer records.
+fn whole(f: &std::fs::File) -> std::result::Result<(), String> {
+    use std::io::Read;
+    use std::os::unix::fs::FileExt;
+    let size = f.metadata().map_err(|e| e.to_string())?.len();
+    let mut trailer = [0u8; TRAILER as usize];
+    if size < TRAILER || f.read_exact_at(&mut trailer, size - TRAILER).is_err() {
+        return Err(format!("{size} bytes: shorter than its trailer"));
+    }
+    let len = u64::from_le_bytes(trailer[..8].try_into().expect("8 bytes"));
+    let crc = u32::from_le_bytes(trailer[8..12].try_into().expect("4 bytes"));
+    if &trailer[12..] != STATE_TAG || len != size - TRAILER {
+        return Err(format!("{size} bytes: cut short or not a reeb checkpoint"));
+    }
+    let mut hasher = crc32fast::Hasher::new();
+    let mut r = BufReader::with_capacity(1 << 20, f).take(len);
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        match r.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => hasher.update(&buf[..n]),
+            Err(e) => return Err(e.to_string()),
+        }
+    }
+    if hasher.finalize() != crc {
+        return Err("its bytes differ from those written".into());
+    }
+    Ok(())
 }
 
 /// Removes chunk `k`'s checkpoint (once the chunk is marked finished).

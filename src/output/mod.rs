@@ -8,6 +8,7 @@ pub mod journal;
 pub mod npy;
 pub mod pictures;
 pub mod plot;
+pub mod progress;
 pub mod run;
 pub mod slurm;
 pub mod stream;

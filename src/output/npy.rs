@@ -89,6 +89,15 @@ impl Slabs {
             .with_context(|| format!("writing {}", path.display()))
     }
 
+    /// Reads `count` rows from row `first` on (to check what was written).
+    pub fn read_rows(&self, first: u64, count: u64, path: &Path) -> Result<Vec<u8>> {
+        let mut out = vec![0u8; (count * self.row_bytes) as usize];
+        self.file
+            .read_exact_at(&mut out, self.header + first * self.row_bytes)
+            .with_context(|| format!("reading {}", path.display()))?;
+        Ok(out)
+    }
+
     /// Makes the rows written so far durable.
     pub fn sync(&self, path: &Path) -> Result<()> {
         self.file

@@ -111,7 +111,13 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
         subs,
         estimate,
         out,
-    } = gates(scene, precision, opts.out.as_deref(), opts.max_output_bytes)?;
+    } = gates_crediting(
+        scene,
+        precision,
+        opts.out.as_deref(),
+        opts.max_output_bytes,
+        opts.resume || opts.shard.is_some(),
+    )?;
     let mode = match (opts.shard, opts.resume) {
         (Some(_), _) => Mode::Shared,
         (None, true) => Mode::Resume,
@@ -121,7 +127,12 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
         bail!("--adapter pins a GPU adapter, and this run's backend is cpu; leave out one or the other");
     }
     let claim = directory::claim_as(&out, &[&scene.path], opts.force, mode)?;
-    claim.check_space(estimate.bytes)?;
+    // A run continued needs room only for what it has not written yet.
+    let written = match mode {
+        Mode::Fresh => 0,
+        _ => directory::disk_usage(claim.dir()),
+    };
+    claim.check_space(estimate.bytes.saturating_sub(written))?;
     let (engine, notice) = Engine::resolve_on(choice, precision, opts.adapter)?;
     if let Some(n) = notice {
         eprintln!("{n}");
@@ -157,13 +168,30 @@ pub fn gates(
     out: Option<&Path>,
     max_output_bytes: Option<u64>,
 ) -> Result<Gated> {
+    gates_crediting(scene, precision, out, max_output_bytes, false)
+}
+
+/// [`gates`]; with `continued` (`--resume`, a shard), the free disk is
+/// counted with what `DIR.partial` already holds, which the run keeps.
+fn gates_crediting(
+    scene: &Scene,
+    precision: Precision,
+    out: Option<&Path>,
+    max_output_bytes: Option<u64>,
+    continued: bool,
+) -> Result<Gated> {
     let warnings = scene.checks(precision)?;
     for w in &warnings {
         eprintln!("warning: {w}");
     }
     let subs = scene.sub_runs()?;
     let out = out.map_or_else(|| Path::new("runs").join(&scene.name), Path::to_path_buf);
-    let limit = max_output_bytes.or_else(|| directory::free_space_for(&out));
+    let written = match continued {
+        true => directory::partial_of(&out).map_or(0, |p| directory::disk_usage(&p)),
+        false => 0,
+    };
+    let limit = max_output_bytes
+        .or_else(|| directory::free_space_for(&out).map(|free| free.saturating_add(written)));
     let estimate = scene.size_gate(&subs, precision, Some(limit.unwrap_or(u64::MAX)))?;
     Ok(Gated {
         warnings,
@@ -200,7 +228,7 @@ fn run_typed<R: Flows>(
     let target = Target {
         scene,
         subs,
-        engine,
+        engine: Some(engine),
         chunks: &record.chunks,
         dir: &dir,
         format: format_of(&record)?,
@@ -282,16 +310,20 @@ fn format_of(record: &Record) -> Result<Format> {
 /// `DIR.partial` finished (every shard), then writes the pictures and
 /// `summary.json` and puts the directory in place.
 pub fn merge(out: &Path, force: bool) -> Result<RunReport> {
-    let claim = directory::claim_as(out, &[], force, Mode::Resume)?;
-    let dir = claim.dir().to_path_buf();
-    let Some(record) = Record::read(&dir)? else {
+    // Looked at before claiming, which would leave a partial behind.
+    let partial = directory::partial_of(out)?;
+    if Record::read(&partial)?.is_none() {
         bail!(
-            "{} holds no sharded run to merge (no {}): run the shards first with reeb run SCENE --out {} --shard K/N",
-            dir.display(),
+            "reeb merge {}: there is no run to merge ({} holds no {}); run the shards first with reeb run SCENE --out {} --shard K/N",
+            out.display(),
+            partial.display(),
             journal::RECORD_FILE,
             out.display()
         );
-    };
+    }
+    let claim = directory::claim_as(out, &[], force, Mode::Resume)?;
+    let dir = claim.dir().to_path_buf();
+    let record = Record::read(&dir)?.context("the run's record vanished")?;
     let mut scene = Scene::parse(Path::new(&record.scene_path), &record.scene_text)
         .with_context(|| format!("the scene recorded in {}", dir.display()))?;
     if let Some((values, steps)) = record.preview {
@@ -309,9 +341,59 @@ pub fn merge(out: &Path, force: bool) -> Result<RunReport> {
         warnings: &warnings,
     };
     match precision {
-        Precision::F32 => finish::<f32>(&scene, &subs, claim, &record, &made),
-        Precision::F64 => finish::<f64>(&scene, &subs, claim, &record, &made),
+        Precision::F32 => merge_typed::<f32>(&scene, &subs, claim, &record, &made),
+        Precision::F64 => merge_typed::<f64>(&scene, &subs, claim, &record, &made),
     }
+}
+
+/// [`merge`] in precision `R`: every chunk finished, each checked against
+/// its marker; one whose data is not what it wrote is integrated again, on
+/// the run's backend, before the run is finished.
+fn merge_typed<R: Flows>(
+    scene: &Scene,
+    subs: &[SubRun],
+    claim: Claim,
+    record: &Record,
+    made: &Made,
+) -> Result<RunReport> {
+    let dir = claim.dir().to_path_buf();
+    stream::finished(&dir, &record.chunks)?;
+    let mut target = Target {
+        scene,
+        subs,
+        engine: None,
+        chunks: &record.chunks,
+        dir: &dir,
+        format: format_of(record)?,
+        checkpoint_every: Some(CHECKPOINT_EVERY),
+        watch: None,
+    };
+    let bad = stream::damaged::<R>(&target, 0..record.chunks.count())?;
+    if bad.is_empty() {
+        return finish::<R>(scene, subs, claim, record, made);
+    }
+    let choice: BackendChoice = record.backend.parse().map_err(anyhow::Error::msg)?;
+    let (engine, _) = Engine::resolve_on(choice, made.precision, None).with_context(|| {
+        format!(
+            "{} chunk(s) must be integrated again on the run's backend ({}), which this machine lacks; run the shards that hold them again with --resume where it is",
+            bad.len(),
+            record.backend
+        )
+    })?;
+    target.engine = Some(&engine);
+    eprintln!(
+        "integrating {} chunk(s) again on {}",
+        bad.len(),
+        engine.describe()
+    );
+    for k in bad {
+        stream::integrate::<R>(&target, k..k + 1, false)?;
+    }
+    let made = Made {
+        engine: Some(&engine),
+        ..*made
+    };
+    finish::<R>(scene, subs, claim, record, &made)
 }
 
 /// The chunks of a new run of `scene`: `rows` trajectories each, or outputs
@@ -360,6 +442,16 @@ fn finish<R: Flows>(
         Err(e) => eprintln!("warning: pictures not drawn: {e:#}"),
     }
     let max_steps = subs.iter().map(|s| s.plan.steps).max().unwrap_or(0);
+    let levels = cpu_levels(&done);
+    let mut warnings: Vec<String> = made.warnings.iter().map(|w| w.to_string()).collect();
+    if levels.len() > 1 {
+        let w = format!(
+            "the chunks were integrated at different CPU instruction-set levels ({}): they agree to round-off, not bit for bit (set REEB_CPU_ISA to one level on every node for bitwise results)",
+            levels.join(", ")
+        );
+        eprintln!("warning: {w}");
+        warnings.push(w);
+    }
     let ran = Ran {
         seconds: done.iter().map(|d| d.seconds).sum(),
         traj_steps: done.iter().map(|d| d.traj_steps).sum(),
@@ -367,6 +459,8 @@ fn finish<R: Flows>(
         timing: done.first().map_or("none".into(), |d| d.timing.clone()),
         max_steps,
         chunks: done.len(),
+        cpu_isa: (!levels.is_empty()).then(|| levels.join(" + ")),
+        warnings,
     };
     let mut summary = summary(scene, subs, made, record, &ran, &files);
     summary["dims"] = dims_of::<R>(scene, subs)?;
@@ -378,14 +472,14 @@ fn finish<R: Flows>(
     let out = claim.commit()?;
     let n = scene.ensemble_size() as u64;
     let line = format!(
-        "{}: {} trajectories × {} steps on {} ({}) in {:.3} s: {:.3e} trajectory-steps/s; {} ok, {} non-finite → {}",
+        "{}: {} trajectories × {} steps on {} ({}) in {:.3} s: {} trajectory-steps/s; {} ok, {} non-finite → {}",
         scene.name,
         n,
         ran.max_steps,
         record.backend,
         made.precision,
         ran.seconds,
-        ran.rate(),
+        crate::output::progress::sig3(ran.rate()),
         ran.ok,
         n - ran.ok,
         out.display()
@@ -407,6 +501,24 @@ fn dims_of<R: Flows>(scene: &Scene, subs: &[SubRun]) -> Result<serde_json::Value
     Ok(dims.into())
 }
 
+/// The CPU levels the chunks were integrated at, each once, with the
+/// number of chunks (`x86-64-v3 (12 chunks)`) when there are several.
+fn cpu_levels(done: &[journal::Done]) -> Vec<String> {
+    let mut count: std::collections::BTreeMap<&str, usize> = Default::default();
+    for d in done {
+        if let Some(level) = &d.cpu_isa {
+            *count.entry(level).or_default() += 1;
+        }
+    }
+    match count.len() {
+        0 | 1 => count.keys().map(|l| l.to_string()).collect(),
+        _ => count
+            .iter()
+            .map(|(l, n)| format!("{l} ({n} chunk{})", if *n == 1 { "" } else { "s" }))
+            .collect(),
+    }
+}
+
 /// The integration of a run, added up over its chunks.
 struct Ran {
     seconds: f64,
@@ -415,6 +527,10 @@ struct Ran {
     timing: String,
     max_steps: u64,
     chunks: usize,
+    /// The level(s) the CPU kernels ran at (`None`: not the CPU).
+    cpu_isa: Option<String>,
+    /// The scene's warnings, and the run's own.
+    warnings: Vec<String>,
 }
 
 impl Ran {
@@ -493,11 +609,15 @@ fn summary(
         "evaluations_per_step": Some(scene.scheme.evaluations()),
         "status": {"ok": ran.ok, "non_finite": n - ran.ok},
         "chunks": {"count": ran.chunks, "trajectories": record.chunks.largest(), "format": record.format},
-        "warnings": made.warnings.iter().map(|w| w.to_string()).collect::<Vec<_>>(),
+        "warnings": ran.warnings,
         "files": files,
     });
     if let serde_json::Value::Object(map) = &mut value {
         map.extend(provenance(record.backend == "cpu"));
+        // The chunks' own levels: a merge may run on another node.
+        if ran.cpu_isa.is_some() {
+            map.insert("cpu_isa".into(), ran.cpu_isa.clone().into());
+        }
     }
     value
 }

@@ -35,6 +35,9 @@ pub fn submit(scene: &Path, name: &str, o: &SlurmOptions) -> Result<Jobs> {
     let abs = |p: &Path| std::path::absolute(p).with_context(|| format!("{}", p.display()));
     let (scene, out) = (abs(scene)?, abs(&o.out)?);
     let reeb = std::env::current_exe().context("the path of this reeb")?;
+    script_safe("the scene file's path", &scene)?;
+    script_safe("--out", &out)?;
+    script_safe("the path of this reeb", &reeb)?;
     let mut dir = out.clone().into_os_string();
     dir.push(".slurm");
     let dir = PathBuf::from(dir);
@@ -49,8 +52,8 @@ pub fn submit(scene: &Path, name: &str, o: &SlurmOptions) -> Result<Jobs> {
             "wrote {} and {}; submit with: sbatch --parsable {} and then sbatch --dependency=afterok:<its id> {}",
             array.display(),
             merge.display(),
-            array.display(),
-            merge.display()
+            quote(&array.display().to_string()),
+            quote(&merge.display().to_string())
         );
         return Ok(Jobs {
             dir,
@@ -104,6 +107,38 @@ fn check(o: &SlurmOptions) -> Result<()> {
     Ok(())
 }
 
+/// Refuses a path that a script cannot carry safely: control characters
+/// (a newline would end the `#SBATCH` line or comment it sits in, and the
+/// rest would run as a command) and backslashes (Slurm reads one in an
+/// `--output` path as "no replacement symbols", so `%a` would stay as is).
+/// Everything else is quoted where it is written.
+fn script_safe(field: &str, path: &Path) -> Result<()> {
+    let Some(text) = path.to_str() else {
+        bail!(
+            "{field}: {:?} is not valid UTF-8, which a Slurm batch script cannot carry faithfully; choose another path",
+            path.display().to_string()
+        );
+    };
+    if let Some(c) = text.chars().find(|c| c.is_control() || *c == '\\') {
+        bail!(
+            "{field}: {:?} holds the character {:?}, which a Slurm batch script cannot carry safely; choose a path without control characters or backslashes",
+            path.display().to_string(),
+            c
+        );
+    }
+    Ok(())
+}
+
+/// `path` as the value of an `#SBATCH` option: in double quotes (Slurm
+/// groups a quoted value, spaces and `#` included), `"` escaped with a
+/// backslash, and `%` doubled (Slurm's filename patterns read `%%` as `%`);
+/// `pattern` is appended as is (`%a`: the array index).
+fn sbatch_path(path: &Path, pattern: &str) -> String {
+    let text = path.display().to_string();
+    let escaped = text.replace('"', "\\\"").replace('%', "%%");
+    format!("\"{escaped}{pattern}\"")
+}
+
 /// `#SBATCH` lines every job of the run shares.
 fn common(name: &str, o: &SlurmOptions) -> String {
     let mut s = format!(
@@ -151,7 +186,7 @@ fn array_script(
     s += &format!(
         "#SBATCH --array=0-{}\n#SBATCH --requeue\n#SBATCH --open-mode=append\n#SBATCH --output={}\n",
         o.shards - 1,
-        dir.join("logs").join("shard-%a.out").display()
+        sbatch_path(&dir.join("logs"), "/shard-%a.out")
     );
     if let Some(g) = o.gpus_per_task {
         s += &format!("#SBATCH --gpus-per-task={g}\n");
@@ -176,7 +211,7 @@ fn merge_script(reeb: &Path, out: &Path, dir: &Path, name: &str, o: &SlurmOption
     s += &common(name, o);
     s += &format!(
         "#SBATCH --output={}\nexec {} merge {}\n",
-        dir.join("logs").join("merge.out").display(),
+        sbatch_path(&dir.join("logs"), "/merge.out"),
         quote(&reeb.display().to_string()),
         quote(&out.display().to_string())
     );

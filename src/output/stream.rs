@@ -18,8 +18,9 @@ use crate::models::Flows;
 use crate::num::precision::Real;
 use crate::output::arrays::{arrays, Array};
 use crate::output::chunks::Chunks;
-use crate::output::journal::{self, Done};
+use crate::output::journal::{self, Done, Written};
 use crate::output::npy::{read_rows, Slabs};
+use crate::output::progress::{self, Followed};
 use crate::output::zarr;
 use crate::plan::observations::Observations;
 use crate::plan::size::bytes;
@@ -35,7 +36,8 @@ const PICTURE_BUDGET: u64 = 1 << 30;
 pub struct Target<'a> {
     pub scene: &'a Scene,
     pub subs: &'a [SubRun],
-    pub engine: &'a Engine,
+    /// The engine that integrates (`None`: the chunks are only checked).
+    pub engine: Option<&'a Engine>,
     pub chunks: &'a Chunks,
     /// `DIR.partial`.
     pub dir: &'a Path,
@@ -81,6 +83,20 @@ impl Sink {
         })
     }
 
+    /// The bytes chunk `k` holds in every array of `list` (read back).
+    fn read(&self, t: &Target, k: usize, list: &[Array]) -> Result<Vec<Vec<u8>>> {
+        match self {
+            Sink::Npy(slabs) => {
+                let rows = t.chunks.range(k);
+                slabs
+                    .iter()
+                    .map(|(path, slab)| slab.read_rows(rows.start as u64, rows.len() as u64, path))
+                    .collect()
+            }
+            Sink::Zarr(store) => store.read_chunk(t.chunks, k, list),
+        }
+    }
+
     /// Writes chunk `k` (`list` holds its rows) and makes it durable.
     fn write(&self, t: &Target, k: usize, list: &[Array]) -> Result<()> {
         match self {
@@ -101,10 +117,13 @@ impl Sink {
 pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Result<()> {
     let sink = Sink::open::<R>(t)?;
     let total: u64 = mine.clone().map(|k| traj_steps(t, k)).sum();
-    let todo: Vec<usize> = mine
-        .clone()
-        .filter(|k| journal::done(t.dir, *k).is_none())
-        .collect();
+    let list = array_list::<R>(t.scene, t.subs)?;
+    let mut todo = vec![];
+    for k in mine.clone() {
+        if !trusted(t, &sink, &list, k)? {
+            todo.push(k);
+        }
+    }
     if todo.len() < mine.len() {
         eprintln!(
             "resuming: {} of the {} chunks {}..{} already finished in {}",
@@ -122,38 +141,104 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
     watch.total.store(total, Ordering::Relaxed);
     watch.done.store(total - left, Ordering::Relaxed);
     let done = &watch.done;
-    let bar = (progress && total > 0)
-        .then(|| progress_bar(total, format!("{} on {}", t.scene.name, t.engine.name())));
     let finished = AtomicBool::new(false);
+    let followed = Followed {
+        label: format!("{} on {}", t.scene.name, engine_name(t)),
+        total,
+        start: total - left,
+        done,
+        finished: &finished,
+    };
     std::thread::scope(|scope| -> Result<()> {
-        if let Some(b) = &bar {
-            let (b, finished) = (b.clone(), &finished);
-            scope.spawn(move || {
-                while !finished.load(Ordering::Relaxed) {
-                    b.set_position(done.load(Ordering::Relaxed));
-                    std::thread::sleep(Duration::from_millis(100));
-                }
-            });
+        if progress && left > 0 {
+            scope.spawn(|| progress::follow(&followed));
         }
         let result = todo.iter().try_for_each(|k| chunk::<R>(t, *k, &sink, done));
         finished.store(true, Ordering::Relaxed);
         result
-    })?;
-    if let Some(b) = &bar {
-        b.finish_and_clear();
-    }
-    Ok(())
+    })
 }
 
-/// Integrates chunk `k`, writes its rows, makes them durable, marks it.
+/// The chunks of `range` that are marked finished but whose data is not
+/// what their markers say was written: their markers are taken back
+/// (`reeb merge` checks every chunk before it trusts one).
+pub fn damaged<R: Flows>(t: &Target, range: Range<usize>) -> Result<Vec<usize>> {
+    let sink = Sink::open::<R>(t)?;
+    let list = array_list::<R>(t.scene, t.subs)?;
+    let mut bad = vec![];
+    for k in range {
+        if journal::done(t.dir, k).is_some() && !trusted(t, &sink, &list, k)? {
+            bad.push(k);
+        }
+    }
+    Ok(bad)
+}
+
+fn engine<'a>(t: &Target<'a>) -> Result<&'a Engine> {
+    t.engine.context("chunks to integrate and no engine")
+}
+
+fn engine_name(t: &Target) -> &'static str {
+    t.engine.map_or("none", Engine::name)
+}
+
+/// Whether chunk `k` finished and its data is what its marker says was
+/// written; a marker that does not hold is taken back, saying why, and the
+/// chunk is integrated again.
+fn trusted(t: &Target, sink: &Sink, list: &[Array], k: usize) -> Result<bool> {
+    let Some(done) = journal::done(t.dir, k) else {
+        return Ok(false);
+    };
+    let found = sink.read(t, k, list);
+    let Some(why) = damage(&done, list, found) else {
+        return Ok(true);
+    };
+    eprintln!(
+        "warning: chunk {k} (trajectories {:?}) was marked finished, but {why}; integrating it again",
+        t.chunks.range(k)
+    );
+    journal::unmark(t.dir, k)?;
+    Ok(false)
+}
+
+/// Why the arrays of a finished chunk (`found`, read back) are not what its
+/// marker `done` says was written into `list`, if they are not.
+fn damage(done: &Done, list: &[Array], found: Result<Vec<Vec<u8>>>) -> Option<String> {
+    if done.arrays.len() != list.len() {
+        return Some("its marker does not list what it wrote (an older reeb's?)".into());
+    }
+    let found = match found {
+        Ok(f) => f,
+        Err(e) => return Some(format!("its data cannot be read back ({e:#})")),
+    };
+    done.arrays
+        .iter()
+        .zip(list)
+        .zip(&found)
+        .find_map(|((w, a), bytes)| {
+            if w.file != a.file {
+                return Some(format!("its marker lists {} where {} is", w.file, a.file));
+            }
+            w.differs(bytes)
+        })
+}
+
+/// Integrates chunk `k`, writes its rows, makes them durable, marks it
+/// with what it wrote.
 fn chunk<R: Flows>(t: &Target, k: usize, sink: &Sink, done: &AtomicU64) -> Result<()> {
     let (obs, seconds, timing) = integrate_rows::<R>(t, k, done)?;
-    sink.write(t, k, &arrays(t.scene, &obs)?)?;
+    let list = arrays(t.scene, &obs)?;
+    sink.write(t, k, &list)?;
     let mark = Done {
         ok: obs.count_ok() as u64,
         traj_steps: traj_steps(t, k),
         seconds,
         timing: timing.into(),
+        arrays: list
+            .iter()
+            .map(|a| Written::of(&a.file, &a.bytes))
+            .collect(),
+        cpu_isa: t.engine.and_then(Engine::cpu_isa),
     };
     journal::mark_done(t.dir, k, &mark)?;
     journal::remove_state(t.dir, k)
@@ -250,15 +335,28 @@ fn integrate_part<R: Flows>(
     resume: Option<(Header, &mut dyn Read)>,
     progress: &AtomicU64,
 ) -> Result<Integration<R>> {
+    // A checkpoint that cannot be written (a full disk) is skipped: the
+    // run goes on, and the one before stays. Said once per chunk.
+    let mut warned = false;
     let mut save = |contents: Contents| {
-        journal::save_state(t.dir, k, &|w| {
+        let saved = journal::save_state(t.dir, k, &|w| {
             put(w, &[i as u64])?;
             put(w, &[done.1])?;
             if let Some(o) = done.0 {
                 write_observations(w, o)?;
             }
             contents(w)
-        })
+        });
+        match saved {
+            Err(e) if !warned => {
+                warned = true;
+                eprintln!(
+                    "warning: chunk {k}'s checkpoint was not written ({e}); the run goes on, and a kill now would lose the work since the last one (later checkpoints of this chunk that fail are not reported)"
+                );
+            }
+            _ => {}
+        }
+        Ok(())
     };
     let mut cp = Checkpoints {
         every: t.checkpoint_every,
@@ -270,9 +368,7 @@ fn integrate_part<R: Flows>(
         stop: t.watch.map(|w| &*w.stop),
     };
     let plan = sub.plan.rows(own.clone());
-    let run = t
-        .engine
-        .run_resumable::<R>(&plan, Some(progress), Some(&mut cp))?;
+    let run = engine(t)?.run_resumable::<R>(&plan, Some(progress), Some(&mut cp))?;
     *since = cp.since;
     Ok(run)
 }
@@ -298,7 +394,7 @@ fn continued<R: Flows>(
             .get(i)
             .with_context(|| format!("a sub-run {i} of {}", parts.len()))?;
         let h = Header::read(r)?;
-        let expected = t.engine.snapshot_header::<R>(&sub.plan.rows(own.clone()))?;
+        let expected = engine(t)?.snapshot_header::<R>(&sub.plan.rows(own.clone()))?;
         h.continues(&expected).map_err(anyhow::Error::msg)?;
         Ok((i, seconds, h))
     };
@@ -467,20 +563,4 @@ fn load<R: Real>(scene: &Scene, src: &Source, obs: &mut Observations<R>) -> Resu
     let steps: Vec<i64> = src.values("status_step.npy", n, 8)?;
     obs.nonfinite_step = steps.iter().map(|s| (*s).max(0) as u32).collect();
     Ok(())
-}
-
-fn progress_bar(total: u64, message: String) -> indicatif::ProgressBar {
-    let b = indicatif::ProgressBar::with_draw_target(
-        Some(total),
-        indicatif::ProgressDrawTarget::stderr(),
-    );
-    b.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} {msg} [{bar:30}] {percent:>3}% {elapsed} (eta {eta}) {per_sec}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-        .progress_chars("=> "),
-    );
-    b.set_message(message);
-    b
 }

@@ -81,18 +81,47 @@ impl Store {
 
     /// Writes chunk `k` of the run (`list` holds its rows) into every array.
     pub fn write_chunk(&self, chunks: &Chunks, k: usize, list: &[Array]) -> Result<()> {
-        let mut index = chunks.grid_index(k);
         for (array, a) in self.arrays.iter().zip(list) {
-            index.truncate(chunks.shape.len().max(1));
-            index.resize(array.dimensionality(), 0);
-            let subset = array
-                .chunk_subset_bounded(&index)
-                .with_context(|| format!("{}: chunk {k}", self.path.display()))?;
+            let subset = self.subset(array, chunks, k)?;
             array
                 .store_array_subset(&subset, ArrayBytes::new_flen(a.bytes.to_vec()))
                 .with_context(|| format!("writing {} chunk {k}", a.file))?;
         }
         Ok(())
+    }
+
+    /// The bytes chunk `k` of the run holds in every array (a missing chunk
+    /// file reads as its fill value).
+    pub fn read_chunk(&self, chunks: &Chunks, k: usize, list: &[Array]) -> Result<Vec<Vec<u8>>> {
+        self.arrays
+            .iter()
+            .zip(list)
+            .map(|(array, a)| {
+                let subset = self.subset(array, chunks, k)?;
+                let bytes: ArrayBytes<'static> = array
+                    .retrieve_array_subset(&subset)
+                    .with_context(|| format!("reading {} chunk {k}", a.file))?;
+                Ok(bytes
+                    .into_fixed()
+                    .with_context(|| format!("reading {} chunk {k}", a.file))?
+                    .into_owned())
+            })
+            .collect()
+    }
+
+    /// The elements of chunk `k` of the run in `array`.
+    fn subset(
+        &self,
+        array: &zarrs::array::Array<FilesystemStore>,
+        chunks: &Chunks,
+        k: usize,
+    ) -> Result<zarrs::array::ArraySubset> {
+        let mut index = chunks.grid_index(k);
+        index.truncate(chunks.shape.len().max(1));
+        index.resize(array.dimensionality(), 0);
+        array
+            .chunk_subset_bounded(&index)
+            .with_context(|| format!("{}: chunk {k}", self.path.display()))
     }
 }
 

@@ -388,12 +388,19 @@ fn scene_name(p: &Parser, doc: &Doc, path: &Path) -> Result<String, SceneError> 
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "scene".into()),
     };
-    if name.is_empty() || name.contains(['/', '\\', '\0']) || name == "." || name == ".." {
+    // The name becomes a folder name and reaches shell scripts (`reeb
+    // slurm`): a control character there would end a line of the script.
+    if name.is_empty()
+        || name.contains(['/', '\\'])
+        || name.chars().any(char::is_control)
+        || name == "."
+        || name == ".."
+    {
         return Err(p.err(
             "name",
             doc.get("name").map(|v| v.span()).as_ref(),
             format!(
-                "{name:?} must be a plain file name: not empty, not . or .., without /, \\ or NUL"
+                "{name:?} must be a plain file name: not empty, not . or .., without /, \\ or control characters (newlines, tabs, NUL)"
             ),
         ));
     }

@@ -130,12 +130,17 @@ fn integrate<R: Flows>(
         let c = cp
             .as_deref_mut()
             .expect("blocks pause only for a checkpoint");
-        if c.stopped() {
+        // Stopped (Ctrl-C, SIGTERM): the work so far is kept too, unless
+        // the run takes no checkpoints.
+        let stopped = c.stopped();
+        if !stopped || c.every.is_some() {
+            header.traj_steps = traj_steps_done(plan, &blocks);
+            c.take(&header, &out, &|w| write_blocks(w, &blocks))
+                .map_err(GpuError::checkpoint)?;
+        }
+        if stopped {
             return Err(GpuError::Stopped);
         }
-        header.traj_steps = traj_steps_done(plan, &blocks);
-        c.take(&header, &out, &|w| write_blocks(w, &blocks))
-            .map_err(GpuError::checkpoint)?;
     }
 }
 

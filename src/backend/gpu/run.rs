@@ -219,18 +219,25 @@ pub fn run_resumable<R: Flows>(
         let count = sizes.cap.min(plan.n as u64 - base);
         let from = if base == start.0 { start.1 } else { 0 };
         chunks += 1;
-        let mut between = |out: &Observations<R>, step0: u64, seconds: f64| match cp.as_deref_mut()
-        {
-            Some(c) if c.stopped() => Err(GpuError::Stopped),
-            Some(c) if c.due() => {
+        // Stopped (Ctrl-C, SIGTERM): the work so far is kept too, unless
+        // the run takes no checkpoints.
+        let mut between = |out: &Observations<R>, step0: u64, seconds: f64| {
+            let Some(c) = cp.as_deref_mut() else {
+                return Ok(());
+            };
+            let stopped = c.stopped();
+            if c.due() || (stopped && c.every.is_some()) {
                 let h = Header {
                     seconds: totals.0 + seconds,
                     traj_steps: base * plan.steps + count * step0,
                     ..header.clone()
                 };
-                run.checkpoint(c, &h, out, base, step0)
+                run.checkpoint(c, &h, out, base, step0)?;
             }
-            _ => Ok(()),
+            match stopped {
+                true => Err(GpuError::Stopped),
+                false => Ok(()),
+            }
         };
         let (s, d) = run.chunk(
             &mut out,
