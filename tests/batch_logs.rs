@@ -105,3 +105,35 @@ fn sigterm_keeps_the_work_and_says_how_to_continue() {
 fn ctrl_c_keeps_the_work_and_says_how_to_continue() {
     stopped_and_continued(libc::SIGINT, "sigint");
 }
+
+#[test]
+fn on_a_terminal_the_bar_leaves_no_trailing_spaces_and_a_short_rate() {
+    let d = common::runs::tmp("logs", "terminal");
+    let scene = grid_scene(&d, 4_000.0, 10_000, "cpu");
+    let log = d.join("tty.log");
+    let command = format!("{REEB} run {} --out {}", s(&scene), s(&d.join("run")));
+    // `script` runs the command on a pseudo-terminal and keeps what it drew.
+    let o = Command::new("script")
+        .args(["-q", "-e", "-c", &command, s(&log)])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let drawn = std::fs::read_to_string(&log)
+        .unwrap()
+        .replace("\x1b[2K", "");
+    let redraws: Vec<&str> = drawn
+        .split(['\r', '\n'])
+        .filter(|l| l.contains("grid on cpu ["))
+        .collect();
+    assert!(!redraws.is_empty(), "{drawn:?}");
+    for l in &redraws {
+        assert!(!l.ends_with("  "), "trailing spaces: {l:?}");
+        let rate = l.split_whitespace().last().unwrap();
+        assert!(!rate.contains(','), "{l:?}");
+        let digits = rate.trim_end_matches("/s").split('e').next().unwrap();
+        assert!(
+            rate == "0/s" || digits.replace('.', "").len() == 3,
+            "not 3 significant digits: {l:?}"
+        );
+    }
+}

@@ -135,3 +135,28 @@ fn a_task_killed_and_requeued_resumes_its_chunks() {
     ok(&["run", s(&scene), "--out", s(&one)]);
     same_arrays(&one, &out);
 }
+
+#[test]
+fn a_folder_with_spaces_quotes_and_percent_signs_runs_through_slurm() {
+    if !slurm() {
+        return;
+    }
+    let d = tmp("hostile");
+    let scene = grid_scene(&d, 40.0, 500, "cpu");
+    let one = d.join("one");
+    ok(&["run", s(&scene), "--out", s(&one)]);
+    // Slurm's #SBATCH parser reads quotes, `#` and `%` patterns; bash reads
+    // `$( )` and quotes: every one of them stays a plain character.
+    let out = d.join("my run's \"100%\" #1 $(touch pwned) %j");
+    let line = ok(&["slurm", s(&scene), "--shards", "2", "--out", s(&out)]);
+    assert!(line.contains("merge job"), "{line}");
+    let mut slurm = out.clone().into_os_string();
+    slurm.push(".slurm");
+    let logs = PathBuf::from(slurm).join("logs");
+    wait_for_merge(&out, &logs);
+    same_arrays(&one, &out);
+    for f in ["shard-0.out", "shard-1.out", "merge.out"] {
+        assert!(logs.join(f).is_file(), "no {f} in {}", logs.display());
+    }
+    assert!(!d.join("pwned").exists() && !Path::new("pwned").exists());
+}

@@ -36,6 +36,8 @@ pub fn follow(f: &Followed) {
     }
 }
 
+/// The bar spans the terminal (`wide_bar`): indicatif pads a shorter line
+/// with spaces to the terminal's width on every redraw.
 fn bar(f: &Followed) {
     let b = indicatif::ProgressBar::with_draw_target(
         Some(f.total),
@@ -43,7 +45,7 @@ fn bar(f: &Followed) {
     );
     let start = f.start;
     let style = indicatif::ProgressStyle::with_template(
-        "{spinner} {msg} [{bar:30}] {percent:>3}% {elapsed} (eta {eta}) {rate}",
+        "{spinner} {msg} [{wide_bar}] {percent:>3}% {elapsed} (eta {eta}) {rate}",
     )
     .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
     .with_key(
