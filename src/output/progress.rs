@@ -154,7 +154,7 @@ mod tests {
 
     #[test]
     fn rates_have_three_significant_digits() {
-        assert_eq!(sig3(17_600_844.2762), "1.76e7");
+        assert_eq!(sig3(17_600_844.276_2), "1.76e7");
         assert_eq!(sig3(942.4), "942");
         assert_eq!(sig3(17.64), "17.6");
         assert_eq!(sig3(0.5123), "0.512");
