@@ -234,14 +234,14 @@ fn merge_on_a_folder_that_is_no_run_leaves_nothing_behind() {
     std::fs::create_dir(&x).unwrap();
     std::fs::write(x.join("mine.txt"), "mine").unwrap();
     let err = refused(&["merge", s(&x)]);
-    assert!(err.contains("there is no run to merge"), "{err}");
+    assert!(err.contains("there is no sharded run to merge"), "{err}");
     assert!(
         !err.contains("--out X") && !err.contains("another --out"),
         "{err}"
     );
     assert!(!partial(&x).exists(), "left {}", partial(&x).display());
     let err = refused(&["merge", s(&d.join("never"))]);
-    assert!(err.contains("there is no run to merge"), "{err}");
+    assert!(err.contains("there is no sharded run to merge"), "{err}");
     assert!(!partial(&d.join("never")).exists());
 }
 

@@ -22,6 +22,10 @@ use reeb::scene::Scene;
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
+mod common;
+
+use common::runs::toml_string as quoted;
+
 /// Deterministic runs (fixed seed, no regression files): CI reproduces them.
 /// `REEB_FUZZ_CASES` and `REEB_FUZZ_SEED` run more, or others (long runs).
 fn config(cases: u32) -> ProptestConfig {
@@ -70,21 +74,6 @@ fn check(text: &str) -> Result<Option<Scene>, String> {
 
 // ---------------------------------------------------------------------------
 // Generated scenes
-
-/// A TOML basic string.
-fn quoted(s: &str) -> String {
-    let mut out = String::from("\"");
-    for c in s.chars() {
-        match c {
-            '"' => out.push_str("\\\""),
-            '\\' => out.push_str("\\\\"),
-            c if c.is_control() => out.push_str(&format!("\\u{:04X}", c as u32)),
-            c => out.push(c),
-        }
-    }
-    out.push('"');
-    out
-}
 
 /// The entries with the first of each key only (a repeated key is a TOML
 /// error, which the mutation test covers).

@@ -9,7 +9,7 @@ use std::process::Command;
 
 mod common;
 
-use common::runs::{grid_scene, ok, reeb, s, same_arrays, REEB};
+use common::runs::{grid_scene, ok, reeb, s, same_arrays, toml_string, REEB};
 
 fn tmp(name: &str) -> PathBuf {
     common::runs::tmp("slurm-scripts", name)
@@ -30,19 +30,6 @@ fn named_scene(path: &Path, name: &str) {
         toml_string(name)
     );
     std::fs::write(path, text).unwrap();
-}
-
-fn toml_string(s: &str) -> String {
-    let mut out = String::from("\"");
-    for c in s.chars() {
-        match c {
-            '"' => out.push_str("\\\""),
-            '\\' => out.push_str("\\\\"),
-            c if c.is_control() => out.push_str(&format!("\\u{:04X}", c as u32)),
-            c => out.push(c),
-        }
-    }
-    out + "\""
 }
 
 #[test]

@@ -314,7 +314,7 @@ pub fn merge(out: &Path, force: bool) -> Result<RunReport> {
     let partial = directory::partial_of(out)?;
     if Record::read(&partial)?.is_none() {
         bail!(
-            "reeb merge {}: there is no run to merge ({} holds no {}); run the shards first with reeb run SCENE --out {} --shard K/N",
+            "reeb merge {}: there is no sharded run to merge ({} holds no {}); run the shards first with reeb run SCENE --out {} --shard K/N",
             out.display(),
             partial.display(),
             journal::RECORD_FILE,
