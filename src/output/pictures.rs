@@ -9,17 +9,9 @@ use std::path::Path;
 use anyhow::Result;
 
 use crate::num::precision::Real;
-use crate::output::plot::{self, Figure, Series};
+use crate::output::plot::{self, fmt_significant, Figure, HeatMap, Rgb, Series};
 use crate::plan::observations::Observations;
 use crate::scene::Scene;
-
-/// Is the grid geometric (so a log axis shows it evenly)?
-fn is_log_spaced(v: &[f64]) -> bool {
-    v.len() >= 3 && v.iter().all(|x| *x > 0.0) && {
-        let r = v[1] / v[0];
-        r > 1.0 + 1e-9 && v.windows(2).all(|w| ((w[1] / w[0]) / r - 1.0).abs() < 1e-6)
-    }
-}
 
 fn f64s<R: Real>(v: &[R]) -> Vec<f64> {
     v.iter().map(|x| x.to_f64()).collect()
@@ -61,7 +53,7 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &Observations<R>) -> Result<V
         .title
         .clone()
         .unwrap_or_else(|| format!("{} ({}, {})", scene.name, scene.model.name(), scene.scheme));
-    let pictures = Pictures::new(scene, dir, &title);
+    let pictures = Pictures::new(scene, dir, &title, (R::NAME, R::UNIT_ROUNDOFF));
     let stats = statistics(d);
     // The first two axes with more than one value span the maps; the others
     // are held at their first value.
@@ -76,48 +68,99 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &Observations<R>) -> Result<V
     Ok(files)
 }
 
+/// Why a trajectory has no value of a statistic: the grey of its cell in
+/// a heat map (`UNDEFINED[why as usize]`), never a colour of the scale.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Undefined {
+    /// The trajectory stopped on a non-finite state.
+    NonFinite,
+    /// Fewer than two upward crossings of the cycle level in the window:
+    /// neither a period nor an amplitude of a cycle.
+    NoCycle,
+    /// `status_step` of a trajectory that never stopped.
+    RanToEnd,
+}
+
+/// What each `Undefined` means, and its grey.
+const UNDEFINED: [(&str, Rgb); 3] = [
+    ("non-finite (stopped)", (100, 100, 100)),
+    ("no cycle found", (200, 200, 200)),
+    ("ran to the end", (200, 200, 200)),
+];
+
+/// A statistic's value for trajectory `i`, or why it has none.
+type Value<'a> = Box<dyn Fn(usize) -> Result<f64, Undefined> + 'a>;
+
 /// A statistic of the run: file stem, label, and its value for trajectory
 /// `i`. Accessors on the run's arrays: the pictures read only the slice
 /// they draw, never a copy of a whole (possibly 10⁷-long) array.
-type Stat<'a> = (String, String, Box<dyn Fn(usize) -> f64 + 'a>);
+type Stat<'a> = (String, String, Value<'a>);
 
 /// The statistics drawn over the axes: every final value, the cycle's
-/// amplitude and period if observed, and where trajectories stopped if any did.
+/// amplitude and period if observed, and where trajectories stopped if any
+/// did. A trajectory that stopped has no final value and no cycle; one
+/// whose cycle variable did not cross its level twice has no cycle (its
+/// amplitude array still holds the half-range of a transient or a rest).
 fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
+    let stopped = move |i: usize| d.nonfinite_step[i] != 0;
     let mut stats: Vec<Stat> = vec![];
     for (name, v) in &d.final_values {
+        let value = move |i| {
+            if stopped(i) {
+                Err(Undefined::NonFinite)
+            } else {
+                Ok(v[i].to_f64())
+            }
+        };
         stats.push((
             format!("final_{name}"),
             format!("final {name}"),
-            Box::new(move |i| v[i].to_f64()),
+            Box::new(value),
         ));
     }
     if !d.cycle_amplitude.is_empty() {
+        let cycle = move |i: usize, v: &[R]| {
+            if stopped(i) {
+                Err(Undefined::NonFinite)
+            } else if !d.cycle_period[i].to_f64().is_finite() {
+                Err(Undefined::NoCycle)
+            } else {
+                Ok(v[i].to_f64())
+            }
+        };
+        let amplitude = move |i| cycle(i, &d.cycle_amplitude);
+        let period = move |i| cycle(i, &d.cycle_period);
         stats.push((
             "cycle_amplitude".into(),
             "cycle amplitude".into(),
-            Box::new(|i| d.cycle_amplitude[i].to_f64()),
+            Box::new(amplitude),
         ));
         stats.push((
             "cycle_period".into(),
             "cycle period".into(),
-            Box::new(|i| d.cycle_period[i].to_f64()),
+            Box::new(period),
         ));
     }
     if d.nonfinite_step.iter().any(|s| *s != 0) {
+        let step = move |i| {
+            if stopped(i) {
+                Ok(f64::from(d.nonfinite_step[i]))
+            } else {
+                Err(Undefined::RanToEnd)
+            }
+        };
         stats.push((
             "status_step".into(),
-            "step at which it stopped (NaN: ran to the end)".into(),
-            Box::new(|i| {
-                if d.nonfinite_step[i] == 0 {
-                    f64::NAN
-                } else {
-                    d.nonfinite_step[i] as f64
-                }
-            }),
+            "step at which it stopped".into(),
+            Box::new(step),
         ));
     }
     stats
+}
+
+/// A statistic's value as drawn: NaN where it has none.
+fn or_nan(v: Result<f64, Undefined>) -> f64 {
+    v.unwrap_or(f64::NAN)
 }
 
 /// What every picture of a run needs: the scene, where its trajectories
@@ -132,10 +175,17 @@ struct Pictures<'a> {
     /// The axes with more than one value.
     varying: Vec<usize>,
     strides: Vec<usize>,
+    /// The run's precision and its unit round-off.
+    precision: (&'static str, f64),
 }
 
 impl<'a> Pictures<'a> {
-    fn new(scene: &'a Scene, dir: &'a Path, title: &'a str) -> Self {
+    fn new(
+        scene: &'a Scene,
+        dir: &'a Path,
+        title: &'a str,
+        precision: (&'static str, f64),
+    ) -> Self {
         let shape = scene.shape();
         let n: usize = shape.iter().product();
         let varying: Vec<usize> = (0..shape.len()).filter(|k| shape[*k] > 1).collect();
@@ -147,6 +197,7 @@ impl<'a> Pictures<'a> {
             n,
             varying,
             strides: scene.strides(),
+            precision,
         }
     }
 
@@ -164,13 +215,16 @@ impl<'a> Pictures<'a> {
         let ax = &self.scene.axes[k];
         let mut files = vec![];
         for (file, label, v) in stats {
-            let (x, y) = envelope(&ax.values, |i| v(i * self.strides[k]));
+            let at = |i: usize| v(i * self.strides[k]);
+            let (x, y) = envelope(&ax.values, |i| or_nan(at(i)));
+            let label = &gaps_label(label, (0..ax.values.len()).map(at));
+            let label = &round_off_label(label, &y, self.precision);
             let name = format!("{file}.png");
             plot::lines(
                 &self.dir.join(&name),
                 &self.figure(&ax.name, label),
                 &[Series::new(label, &x, &y)],
-                is_log_spaced(&ax.values),
+                plot::log_scale(&ax.values),
                 false,
             )?;
             files.push(name);
@@ -185,23 +239,34 @@ impl<'a> Pictures<'a> {
         let mut files = vec![];
         for (file, label, v) in stats {
             let mut grid = vec![f64::NAN; shape[kx] * shape[ky]];
+            let mut why = vec![u8::MAX; grid.len()];
             for ix in 0..shape[kx] {
                 for iy in 0..shape[ky] {
-                    grid[ix * shape[ky] + iy] = v(ix * strides[kx] + iy * strides[ky]);
+                    let k = ix * shape[ky] + iy;
+                    match v(ix * strides[kx] + iy * strides[ky]) {
+                        Ok(x) => grid[k] = x,
+                        Err(u) => why[k] = u as u8,
+                    }
                 }
             }
+            let label = &round_off_label(label, &grid, self.precision);
             let label = &clip_outliers(&mut grid, label);
             let name = format!("{file}.png");
-            plot::heatmap(
+            let map = HeatMap {
+                x: &ax.values,
+                y: &ay.values,
+                values: &grid,
+                label,
+                log_color: log_colour(&grid),
+                x_log: plot::log_scale(&ax.values),
+                y_log: plot::log_scale(&ay.values),
+                why: &why,
+                undefined: &UNDEFINED,
+            };
+            plot::heat_map(
                 &self.dir.join(&name),
                 &self.figure(&ax.name, &ay.name),
-                &ax.values,
-                &ay.values,
-                &grid,
-                label,
-                log_colour(&grid),
-                is_log_spaced(&ax.values),
-                is_log_spaced(&ay.values),
+                &map,
             )?;
             files.push(name);
         }
@@ -229,12 +294,28 @@ impl<'a> Pictures<'a> {
             self.lienard_plane(&chosen, &xs, &mut ys);
             y_label = "q − q³/3 − s/ε".into();
         }
-        let labels: Vec<String> = chosen
-            .iter()
-            .map(|i| trajectory_label(self.scene, *i, &self.strides))
-            .collect();
+        // Few trajectories: a colour and a legend entry each. More than the
+        // palette has: a colour per band of the last varying axis, so
+        // that no two bands share a colour and the legend names each.
+        let bands = Bands::of(chosen.len(), &self.varying, &self.shape);
+        let (labels, colours): (Vec<String>, Vec<Option<Rgb>>) = if bands.per_orbit {
+            let label = |i: &usize| trajectory_label(self.scene, *i, &self.strides);
+            (chosen.iter().map(label).collect(), vec![None; chosen.len()])
+        } else {
+            let band = |i: &usize| bands.of_orbit(*i, &self.shape, &self.strides);
+            let label = |b: usize| bands.label(b, self.scene, &self.strides, n);
+            let b: Vec<usize> = chosen.iter().map(band).collect();
+            let colour = |b: &usize| Some(plot::palette(*b));
+            (
+                b.iter().map(|b| label(*b)).collect(),
+                b.iter().map(colour).collect(),
+            )
+        };
         let series: Vec<Series> = (0..chosen.len())
-            .map(|c| Series::new(&labels[c], &xs[c], &ys[c]))
+            .map(|c| Series {
+                color: colours[c],
+                ..Series::new(&labels[c], &xs[c], &ys[c])
+            })
             .collect();
         let fig = self.figure(names[jx], &y_label);
         plot::lines(
@@ -266,7 +347,7 @@ impl<'a> Pictures<'a> {
         let names: Vec<&str> = d.poincare.iter().map(|(v, _)| v.as_str()).collect();
         let (jx, jy) = poincare_pair(self.scene, &names);
         let wrap_x = self.scene.plot.wrap_x.as_deref();
-        let bands = Bands::of(self.n, &self.varying);
+        let bands = Bands::of(self.n, &self.varying, &self.shape);
         let mut xs: Vec<Vec<f64>> = vec![vec![]; bands.count];
         let mut ys: Vec<Vec<f64>> = vec![vec![]; bands.count];
         for i in 0..self.n {
@@ -324,6 +405,42 @@ impl<'a> Pictures<'a> {
             None,
         )?;
         Ok(Some("bifurcation.png".into()))
+    }
+}
+
+/// A curve's label, saying what its gaps mean where it has any.
+fn gaps_label(label: &str, values: impl Iterator<Item = Result<f64, Undefined>>) -> String {
+    let mut seen: Vec<&str> = vec![];
+    for v in values {
+        let gap = match v {
+            Err(u) => UNDEFINED[u as usize].0,
+            Ok(x) if !x.is_finite() => "NaN",
+            Ok(_) => continue,
+        };
+        if !seen.contains(&gap) {
+            seen.push(gap);
+        }
+    }
+    if seen.is_empty() {
+        label.to_string()
+    } else {
+        format!("{label} (gaps: {})", seen.join(", "))
+    }
+}
+
+/// Values that differ by no more than round-off (64 units in the last
+/// place of the run's precision) are noise, however far a colour scale or
+/// a curve's axis stretches them: the label says so.
+fn round_off_label(label: &str, values: &[f64], (name, unit): (&str, f64)) -> String {
+    let finite = values.iter().copied().filter(|v| v.is_finite());
+    let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+        (a.min(v), b.max(v))
+    });
+    let spread = hi - lo;
+    if spread > 0.0 && spread <= 128.0 * unit * lo.abs().max(hi.abs()) {
+        format!("{label} (spread {spread:.1e}: {name} round-off)")
+    } else {
+        label.to_string()
     }
 }
 
@@ -423,10 +540,10 @@ fn wrap(wrap_x: Option<&str>, x: f64) -> f64 {
     }
 }
 
-/// The colours of a Poincaré portrait. Few orbits: one colour each. Many:
-/// ten colour bands along the last varying axis (the orbits of an
-/// area-preserving map fill the plane evenly, so a single density would
-/// show no structure).
+/// The colours of a portrait. Few orbits: one colour each. More than the
+/// palette's ten: up to ten colour bands along the last varying axis (the
+/// orbits of an area-preserving map fill the plane evenly, so a single
+/// density would show no structure).
 struct Bands {
     per_orbit: bool,
     axis: Option<usize>,
@@ -434,15 +551,13 @@ struct Bands {
 }
 
 impl Bands {
-    fn of(n: usize, varying: &[usize]) -> Self {
-        let per_orbit = n <= 12;
+    fn of(n: usize, varying: &[usize], shape: &[usize]) -> Self {
+        let per_orbit = n <= 10;
         let axis = varying.last().copied();
-        let count = if per_orbit {
-            n
-        } else if axis.is_some() {
-            10
-        } else {
-            1
+        let count = match (per_orbit, axis) {
+            (true, _) => n,
+            (false, Some(k)) => shape[k].min(10),
+            (false, None) => 1,
         };
         Self {
             per_orbit,
@@ -466,15 +581,33 @@ impl Bands {
             (true, _) => trajectory_label(scene, b, strides),
             (false, Some(k)) => {
                 let v = &scene.axes[k].values;
-                let (lo, hi) = (
-                    v[b * v.len() / self.count],
-                    v[((b + 1) * v.len() / self.count).max(1) - 1],
-                );
-                format!("{} ∈ [{lo:.3}, {hi:.3}]", scene.axes[k].name)
+                let (first, last) = (b * v.len() / self.count, (b + 1) * v.len() / self.count - 1);
+                let (lo, hi) = (axis_value(v, v[first]), axis_value(v, v[last]));
+                if first == last {
+                    format!("{} = {lo}", scene.axes[k].name)
+                } else {
+                    format!("{} ∈ [{lo}, {hi}]", scene.axes[k].name)
+                }
             }
             (false, None) => format!("{n} orbits"),
         }
     }
+}
+
+/// Value `v` of an axis over `values`, with four significant digits or as
+/// many more as tell the axis's values apart (1.121 and 1.1209, not 1.121
+/// twice).
+fn axis_value(values: &[f64], v: f64) -> String {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted.dedup();
+    let distinct = |d: usize| {
+        let mut s: Vec<String> = sorted.iter().map(|x| fmt_significant(*x, d)).collect();
+        s.dedup();
+        s.len() == sorted.len()
+    };
+    let digits = (4..=15).find(|d| distinct(*d)).unwrap_or(17);
+    fmt_significant(v, digits)
 }
 
 /// "epsilon = 0.5, q = 2" for trajectory `i`.
@@ -485,15 +618,41 @@ fn trajectory_label(scene: &Scene, i: usize, strides: &[usize]) -> String {
         .enumerate()
         .filter(|(_, a)| a.values.len() > 1)
         .map(|(k, a)| {
-            format!(
-                "{} = {:.4}",
-                a.name,
-                a.values[(i / strides[k]) % a.values.len()]
-            )
-            .trim_end_matches('0')
-            .trim_end_matches('.')
-            .to_string()
+            let v = a.values[(i / strides[k]) % a.values.len()];
+            format!("{} = {}", a.name, axis_value(&a.values, v))
         })
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_spread_of_round_off_is_named() {
+        let f32s = ("f32", f64::from(f32::EPSILON) / 2.0);
+        let f64s = ("f64", f64::EPSILON / 2.0);
+        // lienard_quartic's cycle periods in f32: 8 units in the last place.
+        let period = [5.745556, 5.745554, 5.745558, 5.745555];
+        let label = round_off_label("cycle period", &period, f32s);
+        assert_eq!(label, "cycle period (spread 4.0e-6: f32 round-off)");
+        assert_eq!(
+            round_off_label("cycle period", &period, f64s),
+            "cycle period"
+        );
+        let flat = [2.0, 2.0, f64::NAN];
+        assert_eq!(round_off_label("q", &flat, f32s), "q");
+    }
+
+    #[test]
+    fn axis_values_keep_the_digits_that_tell_them_apart() {
+        // spin_orbit_resonant_lambda0.001's initial p: 1.121 twice at 4 digits.
+        let p = [1.137, 1.121, 1.1209, 1.112, 1.0, 0.96, 0.91, 0.876375, 0.86];
+        assert_eq!(axis_value(&p, 1.1209), "1.1209");
+        assert_eq!(axis_value(&p, 1.121), "1.121");
+        assert_eq!(axis_value(&p, 1.0), "1");
+        assert_eq!(axis_value(&[0.01, 2.0, 5.0], 0.01), "0.01");
+        assert_eq!(axis_value(&[1e-4, 5e-4], 1e-4), "1e-4");
+    }
 }

@@ -403,11 +403,6 @@ fn grids(map: &Map, cells: &Cells) -> (Vec<u8>, Vec<f64>) {
     (grid_c, grid_e)
 }
 
-/// Is the axis geometric (so a log axis shows it evenly)?
-fn log_axis(v: &[f64]) -> bool {
-    v.len() >= 3 && v.iter().all(|x| *x > 0.0) && ((v[2] / v[1]) / (v[1] / v[0]) - 1.0).abs() < 1e-6
-}
-
 /// `stability_{p}.png` (the class map) and `stability_error_{p}.png` (the
 /// error), over the two axes.
 fn draw_maps(
@@ -439,7 +434,7 @@ fn draw_maps(
         ("distorted", (255, 165, 0)),
         ("diverged", (214, 39, 40)),
     ];
-    let (log_a, log_b) = (log_axis(&xa.values), log_axis(&xb.values));
+    let (log_a, log_b) = (plot::log_scale(&xa.values), plot::log_scale(&xb.values));
     plot::class_map(
         &out.join(format!("stability_{p}.png")),
         &fig,

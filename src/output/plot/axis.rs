@@ -61,6 +61,36 @@ impl Ranged for TickAxis {
     }
 }
 
+/// Whether an axis over grid `values` should be logarithmic: every value
+/// positive and finite, and either geometric (a `logspace`, in either
+/// order) or spanning two decades or more with steps at least as even in
+/// `log10` as in value (the list 10⁻², 5·10⁻³, …, 10⁻⁴). An evenly spaced
+/// grid (a `linspace`) stays linear whatever its span: a log axis would
+/// crowd its cells at one end.
+pub fn log_scale(values: &[f64]) -> bool {
+    let mut v: Vec<f64> = values.to_vec();
+    if v.is_empty() || !v.iter().all(|x| x.is_finite() && *x > 0.0) {
+        return false;
+    }
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    let logs: Vec<f64> = v.iter().map(|x| x.log10()).collect();
+    let (lin, log) = (unevenness(&v), unevenness(&logs));
+    let decades = logs[logs.len() - 1] - logs[0];
+    (v.len() >= 3 && log < 1.0 + 1e-6) || (decades >= 2.0 - 1e-9 && log <= lin)
+}
+
+/// The largest step of sorted distinct `v` over its smallest (1: even).
+fn unevenness(v: &[f64]) -> f64 {
+    let steps = v.windows(2).map(|w| w[1] - w[0]);
+    let (lo, hi) = steps.fold((f64::INFINITY, 0.0f64), |(a, b), d| (a.min(d), b.max(d)));
+    if lo > 0.0 {
+        hi / lo
+    } else {
+        1.0
+    }
+}
+
 /// Maps a data value to axis coordinates: `log10` on log axes. `None` for
 /// values that cannot be shown (non-finite, or ≤ 0 on a log axis).
 pub(super) fn tf(log: bool, v: f64) -> Option<f64> {
@@ -223,7 +253,12 @@ fn superscript(k: i64) -> String {
 /// A short, exact-looking rendering of a single number: up to four
 /// significant digits, trailing zeros trimmed, scientific notation far from 1
 /// (so 0.1 + 0.2 prints as "0.3").
-pub(super) fn fmt_general(v: f64) -> String {
+pub fn fmt_general(v: f64) -> String {
+    fmt_significant(v, 4)
+}
+
+/// [`fmt_general`] with up to `digits` significant digits (at least 1).
+pub fn fmt_significant(v: f64, digits: usize) -> String {
     if v == 0.0 || !v.is_finite() {
         return if v.is_nan() {
             "NaN".into()
@@ -233,11 +268,12 @@ pub(super) fn fmt_general(v: f64) -> String {
             format!("{v}")
         };
     }
+    let last = digits.max(1) - 1;
     let a = v.abs();
     if !(1e-3..1e5).contains(&a) {
-        return trim_sci(&format!("{v:.3e}"));
+        return trim_sci(&format!("{v:.last$e}"));
     }
-    let d = (3 - a.log10().floor() as i32).max(0) as usize;
+    let d = (last as i32 - a.log10().floor() as i32).max(0) as usize;
     let s = format!("{v:.d$}");
     if s.contains('.') {
         s.trim_end_matches('0').trim_end_matches('.').to_string()
@@ -292,12 +328,14 @@ fn linear_values(lo: f64, hi: f64, target: usize) -> Option<(Vec<f64>, f64)> {
     Some((v, step))
 }
 
-/// Decimals needed to show multiples of `step` exactly.
+/// Decimals needed to show multiples of `step` exactly: the first count at
+/// which the step is a whole number (not merely close to zero, so ticks
+/// 2e-7 apart around 1.67 get seven decimals, not none).
 fn decimals_for(step: f64) -> usize {
     (0..=12)
         .find(|&d| {
             let m = step * 10f64.powi(d as i32);
-            (m - m.round()).abs() < 1e-6 * m.abs().max(1.0)
+            m.round() >= 1.0 && (m - m.round()).abs() < 1e-6 * m
         })
         .unwrap_or(12)
 }

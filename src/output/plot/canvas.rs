@@ -1,37 +1,19 @@
 //! The image a figure is drawn on: the embedded font, the guard against
 //! plotters' panics, the title, and sizes that scale with the image.
 
-use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::path::Path;
-use std::sync::OnceLock;
-
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use plotters::style::register_font;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::Path;
 
 use super::figure::{Figure, PlotError};
+use super::fonts::{ensure_font, runs, FONT};
 
-const FONT: &str = "sans-serif";
-const FONT_BYTES: &[u8] = include_bytes!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/assets/DejaVuSans.ttf"
-));
 /// Smallest and largest accepted image sides: below the minimum the axis
 /// labels would not fit; above the maximum the RGB buffer gets absurd.
 const MIN_SIDE: u32 = 160;
 const MAX_SIDE: u32 = 16384;
-
-/// Registers the embedded font once per process. plotters' `ab_glyph`
-/// backend knows no system fonts, so without this no text can be drawn.
-fn ensure_font() -> Result<(), PlotError> {
-    static REGISTERED: OnceLock<bool> = OnceLock::new();
-    let ok = *REGISTERED.get_or_init(|| register_font(FONT, FontStyle::Normal, FONT_BYTES).is_ok());
-    if ok {
-        Ok(())
-    } else {
-        Err(PlotError::Font)
-    }
-}
 
 /// Runs `f`, turning a panic into `PlotError::Panic`.
 pub(super) fn guarded<F: FnOnce() -> Result<(), PlotError>>(f: F) -> Result<(), PlotError> {
@@ -71,20 +53,44 @@ where
     let body = if fig.title.is_empty() {
         root.clone()
     } else {
-        // Shrink a title that would not fit rather than clip it.
-        let mut font = st.font(23.0);
-        let avail = f64::from(w) - 2.0 * f64::from(st.px(10.0));
-        let tw = f64::from(text_width(&root, fig.title, &font).max(1));
-        if tw > avail {
-            let size = (font.font.get_size() * avail / tw).max(9.0);
-            font = TextStyle::from((FONT, size).into_font());
-        }
-        let top = root.margin(st.px(6.0), 0, 0, 0);
-        top.titled(fig.title, font)?
+        draw_title(&root.margin(st.px(6.0), 0, 0, 0), fig.title, &st)?
     };
     draw(&body, &st)?;
     root.present()?;
     Ok(())
+}
+
+/// Draws `title` centred at the top of `area`, in runs of the fonts that
+/// have its characters, shrunk to fit the width rather than clipped;
+/// returns the area below it (as plotters' `titled` would).
+fn draw_title<'b>(area: &Area<'b>, title: &str, st: &Style) -> Result<Area<'b>, PlotError> {
+    let runs = runs(title);
+    let width = |size: f64| -> f64 {
+        runs.iter()
+            .map(|(family, text)| {
+                let style = TextStyle::from((*family, size).into_font());
+                f64::from(text_width(area, text, &style))
+            })
+            .sum()
+    };
+    let (w, _) = area.dim_in_pixel();
+    let mut size = 23.0 * st.fs;
+    let avail = f64::from(w) - 2.0 * f64::from(st.px(10.0));
+    let tw = width(size).max(1.0);
+    if tw > avail {
+        size = (size * avail / tw).max(9.0);
+    }
+    // plotters' line height and padding for a title of this size.
+    let text_h = (size / 1.24) as i32;
+    let pad = (text_h / 2).min(5);
+    let mut x = ((f64::from(w) - width(size)) / 2.0).max(0.0);
+    for (family, text) in &runs {
+        let style =
+            TextStyle::from((*family, size).into_font()).pos(Pos::new(HPos::Left, VPos::Top));
+        area.draw_text(text, &style, (x.round() as i32, pad))?;
+        x += f64::from(text_width(area, text, &style));
+    }
+    Ok(area.split_vertically(2 * pad + text_h).1)
 }
 
 /// Sizes that scale with the image, so a 2000×1500 figure looks like a

@@ -76,12 +76,12 @@ fn finite_extents(series: &[Series]) -> (Extent, Extent) {
 }
 
 /// Hits per pixel of the plotting area (row-major, `w`×`h`) and, when
-/// colouring by series, the count-weighted sums of the series colours.
+/// colouring by series, the series with the most hits in each pixel.
 struct Bins {
     w: usize,
     h: usize,
     counts: Vec<u32>,
-    sums: Vec<[f64; 3]>,
+    top: Vec<u32>,
 }
 
 impl Bins {
@@ -131,7 +131,9 @@ struct Cloud<'s, 'a> {
     xa: Axis,
     ya: Axis,
     /// A single uncoloured series is shaded by density (with a colour bar);
-    /// otherwise each pixel takes the mean colour of the series hitting it.
+    /// otherwise each pixel takes the colour of the series with the most
+    /// points there. (A mean of the colours would turn every pixel that
+    /// several series share into one grey-brown that no legend entry shows.)
     density: bool,
 }
 
@@ -184,7 +186,7 @@ impl<'s, 'a> Cloud<'s, 'a> {
         }
         if let Some(side) = side {
             let height = f.h() as f64 + 110.0 * st.s;
-            let cb = ColorBar::new(count_axis(max), "points per pixel", false, height, st);
+            let cb = ColorBar::new(count_axis(max), "points per pixel", vec![], height, st);
             cb.draw(&side, st, &f)?;
         }
         Ok(())
@@ -204,7 +206,7 @@ impl<'s, 'a> Cloud<'s, 'a> {
         let probe = ColorBar::new(
             Axis::new(true, Some((0.0, 9.0)), 0.0),
             "points per pixel",
-            false,
+            vec![],
             750.0,
             st,
         );
@@ -213,33 +215,46 @@ impl<'s, 'a> Cloud<'s, 'a> {
         (m, Some(s))
     }
 
-    /// Counts the points per pixel of a `w`×`h` plotting area.
+    /// Counts the points per pixel of a `w`×`h` plotting area and, when
+    /// colouring by series, finds each pixel's most frequent series.
     fn bin(&self, w: usize, h: usize) -> Bins {
         let (xa, ya) = (&self.xa, &self.ya);
         let mut counts = vec![0u32; w * h];
-        // Count-weighted colour sums, only needed when colouring by series.
-        let mut sums: Vec<[f64; 3]> = if self.density {
-            vec![]
-        } else {
-            vec![[0.0; 3]; w * h]
-        };
-        for (s, c) in self.series.iter().zip(&self.colours) {
-            if self.density {
+        if self.density {
+            for s in self.series {
                 bin_points(s, xa, ya, w, h, |k| {
                     counts[k] = counts[k].saturating_add(1);
-                });
-            } else {
-                let cf = [f64::from(c.0), f64::from(c.1), f64::from(c.2)];
-                bin_points(s, xa, ya, w, h, |k| {
-                    counts[k] = counts[k].saturating_add(1);
-                    let acc = &mut sums[k];
-                    acc[0] += cf[0];
-                    acc[1] += cf[1];
-                    acc[2] += cf[2];
                 });
             }
+            return Bins {
+                w,
+                h,
+                counts,
+                top: vec![],
+            };
         }
-        Bins { w, h, counts, sums }
+        // Per series: its hits per pixel (and the pixels it touched, so
+        // that only those are compared and reset), then the running winner.
+        let (mut best, mut top) = (vec![0u32; w * h], vec![0u32; w * h]);
+        let mut mine = vec![0u32; w * h];
+        let mut touched: Vec<usize> = vec![];
+        for (i, s) in self.series.iter().enumerate() {
+            bin_points(s, xa, ya, w, h, |k| {
+                if mine[k] == 0 {
+                    touched.push(k);
+                }
+                mine[k] = mine[k].saturating_add(1);
+            });
+            for &k in &touched {
+                counts[k] = counts[k].saturating_add(mine[k]);
+                if mine[k] > best[k] || (mine[k] == best[k] && coin(k, i)) {
+                    (best[k], top[k]) = (mine[k], i as u32);
+                }
+                mine[k] = 0;
+            }
+            touched.clear();
+        }
+        Bins { w, h, counts, top }
     }
 
     /// Background with the major grid lines, since the blit covers the
@@ -267,8 +282,9 @@ impl<'s, 'a> Cloud<'s, 'a> {
     }
 
     /// Colour of pixel `k`, `None` when empty: viridis of the log count for
-    /// a density image, otherwise the mean series colour laid over the
-    /// background, more opaque where the count is higher.
+    /// a density image, otherwise the colour of its most frequent series
+    /// laid over the background, more opaque where the count is higher
+    /// (but at least 75 %, so a lone point keeps its hue).
     fn pixel_colour(&self, bins: &Bins, bg: &[Rgb], lmax: f64, k: usize) -> Option<Rgb> {
         let n = bins.counts[k];
         if n == 0 {
@@ -278,14 +294,8 @@ impl<'s, 'a> Cloud<'s, 'a> {
         if self.density {
             Some(viridis(t))
         } else {
-            let a = bins.sums[k];
-            let nf = f64::from(n);
-            let mean = (
-                (a[0] / nf).round() as u8,
-                (a[1] / nf).round() as u8,
-                (a[2] / nf).round() as u8,
-            );
-            Some(blend(bg[k], mean, 0.45 + 0.55 * t))
+            let c = self.colours[bins.top[k] as usize];
+            Some(blend(bg[k], c, 0.75 + 0.25 * t))
         }
     }
 
@@ -344,6 +354,14 @@ impl<'s, 'a> Cloud<'s, 'a> {
         let pos = legend_position(&occ, &names, main, st, f);
         legend_box(chart, st, pos)
     }
+}
+
+/// A fair-looking, repeatable coin for series `i` tying with an earlier one
+/// in pixel `k`: where series share a pixel evenly (orbits on one
+/// attractor), no series wins all the ties, so every colour stays in view.
+fn coin(k: usize, i: usize) -> bool {
+    let h = (((k as u64) << 16) ^ i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    h >> 63 == 1
 }
 
 pub(super) fn point_cloud_impl(

@@ -6,48 +6,51 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use super::axis::{ticks, Axis, TickAxis, TickFmt, Ticks};
 use super::canvas::{text_width, Area, Style};
 use super::chart::{blit, draw_frame, Frame};
-use super::colour::{put, rgb, viridis, NAN_GREY};
-use super::figure::PlotError;
+use super::colour::{put, rgb, viridis};
+use super::figure::{PlotError, Rgb};
 
 /// A colour bar: `axis` in transformed coordinates (log10 when `axis.log`).
 pub(super) struct ColorBar<'l> {
     axis: Axis,
     ticks: Ticks,
     label: &'l str,
-    /// Whether to show a grey "NaN" swatch under the bar.
-    nan: bool,
+    /// Swatches under the bar for the colours of cells without a value,
+    /// and what each means ("NaN", "no cycle found").
+    missing: Vec<(&'l str, Rgb)>,
 }
 
 impl<'l> ColorBar<'l> {
-    pub(super) fn new(axis: Axis, label: &'l str, nan: bool, plot_h: f64, st: &Style) -> Self {
+    pub(super) fn new(
+        axis: Axis,
+        label: &'l str,
+        missing: Vec<(&'l str, Rgb)>,
+        plot_h: f64,
+        st: &Style,
+    ) -> Self {
         let target = ((plot_h - 110.0 * st.s) / (60.0 * st.s)).clamp(2.0, 10.0) as usize;
         let ticks = ticks(&axis, target);
         Self {
             axis,
             ticks,
             label,
-            nan,
+            missing,
         }
     }
 
-    /// Widest tick label (or the "NaN" note).
+    /// Widest tick label.
     fn label_width(&self, area: &Area, st: &Style) -> i32 {
         let font = st.tick();
-        let nan = if self.nan {
-            text_width(area, "NaN", &font)
-        } else {
-            0
-        };
         self.ticks
             .major
             .iter()
             .map(|&t| text_width(area, &self.ticks.label(t), &font))
-            .fold(nan, i32::max)
+            .fold(0, i32::max)
     }
 
-    /// Width of the panel: gap, bar, tick marks, labels, title.
+    /// Width of the panel: gap, bar, tick marks, labels, title; or gap,
+    /// swatch and the widest note on a missing value, if wider.
     pub(super) fn width(&self, area: &Area, st: &Style) -> i32 {
-        Self::gap(st)
+        let bar = Self::gap(st)
             + st.fpx(Self::BAR)
             + 3 * st.px(5.0)
             + self.label_width(area, st)
@@ -57,7 +60,29 @@ impl<'l> ColorBar<'l> {
             } else {
                 st.fpx(18.0 * 1.3)
             }
-            + st.px(10.0)
+            + st.px(10.0);
+        let notes = self
+            .missing
+            .iter()
+            .map(|(note, _)| text_width(area, note, &st.tick()))
+            .max()
+            .map_or(0, |w| {
+                Self::gap(st) + st.fpx(Self::BAR) + st.px(8.0) + w + st.px(6.0)
+            });
+        bar.max(notes)
+    }
+
+    /// Height of the swatches under the bar, gap above included.
+    fn notes_height(&self, st: &Style) -> i32 {
+        match self.missing.len() {
+            0 => 0,
+            k => st.px(16.0) + k as i32 * Self::row(st),
+        }
+    }
+
+    /// One swatch and its note.
+    fn row(st: &Style) -> i32 {
+        st.fpx(Self::BAR) + st.px(6.0)
     }
 
     const BAR: f64 = 22.0;
@@ -77,10 +102,13 @@ impl<'l> ColorBar<'l> {
         let gap = Self::gap(st);
         let bar = st.fpx(Self::BAR);
         let label_area = (sw as i32 - gap - bar).max(0);
+        // The bar ends with the plot, unless the swatches under it would
+        // then run off the image.
+        let below = sy + sh as i32 - main.y1;
         let mut builder = ChartBuilder::on(side);
         builder
             .margin_top((main.y0 - sy).max(0))
-            .margin_bottom((sy + sh as i32 - main.y1).max(0))
+            .margin_bottom(below.max(self.notes_height(st)).max(0))
             .margin_left(gap)
             .margin_right(0)
             .x_label_area_size(0)
@@ -136,19 +164,19 @@ impl<'l> ColorBar<'l> {
                 .pos(Pos::new(HPos::Center, VPos::Top));
             side.draw_text(self.label, &style, (x, (f.y0 + f.y1) / 2 - sy))?;
         }
-        if self.nan {
-            let top = f.y1 + st.px(16.0) - sy;
-            let left = f.x0 - sx;
+        let left = f.x0 - sx;
+        let style = st.tick().pos(Pos::new(HPos::Left, VPos::Center));
+        for (k, (note, colour)) in self.missing.iter().enumerate() {
+            let top = f.y1 + st.px(16.0) + k as i32 * Self::row(st) - sy;
             side.draw(&Rectangle::new(
                 [(left, top), (left + bar, top + bar)],
-                rgb(NAN_GREY).filled(),
+                rgb(*colour).filled(),
             ))?;
             side.draw(&Rectangle::new(
                 [(left - 1, top - 1), (left + bar, top + bar)],
                 BLACK.stroke_width(1),
             ))?;
-            let style = st.tick().pos(Pos::new(HPos::Left, VPos::Center));
-            side.draw_text("NaN", &style, (left + bar + st.px(8.0), top + bar / 2))?;
+            side.draw_text(note, &style, (left + bar + st.px(8.0), top + bar / 2))?;
         }
         Ok(())
     }

@@ -31,6 +31,27 @@ impl<'a> Series<'a> {
     }
 }
 
+/// A scalar field over a 2-D grid, for [`heat_map`](super::heat_map).
+#[derive(Debug, Clone, Copy)]
+pub struct HeatMap<'a> {
+    pub x: &'a [f64],
+    pub y: &'a [f64],
+    /// `values[ix * y.len() + iy]` sits at `(x[ix], y[iy])`.
+    pub values: &'a [f64],
+    /// The colour bar's title.
+    pub label: &'a str,
+    /// Colours on a log scale of the positive values.
+    pub log_color: bool,
+    pub x_log: bool,
+    pub y_log: bool,
+    /// Why each cell whose value is not finite has none: an index into
+    /// `undefined`, one per cell. Empty, or an index past `undefined`: "NaN".
+    pub why: &'a [u8],
+    /// What a cell without a value means and its colour (a grey, not a
+    /// colour of the scale), listed under the colour bar where it occurs.
+    pub undefined: &'a [(&'a str, Rgb)],
+}
+
 /// Options shared by the figures. Empty strings are simply not drawn.
 #[derive(Debug, Clone, Copy)]
 pub struct Figure<'a> {

@@ -10,7 +10,7 @@ use super::canvas::{render, text_width};
 use super::chart::{blit, build_chart, draw_frame, no_data, split_side, Frame};
 use super::colorbar::ColorBar;
 use super::colour::{put, rgb, viridis, NAN_GREY};
-use super::figure::{Figure, PlotError, Rgb};
+use super::figure::{Figure, HeatMap, PlotError, Rgb};
 
 /// Cell boundaries along one grid axis (transformed coordinates): cell `k`
 /// in sorted order spans `edges[k]..edges[k + 1]` and shows grid index
@@ -115,27 +115,45 @@ fn check_grid(nx: usize, ny: usize, n: usize, what: &str) -> Result<(), PlotErro
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-pub(super) fn heatmap_impl(
-    path: &Path,
-    fig: &Figure,
-    x: &[f64],
-    y: &[f64],
-    values: &[f64],
-    value_label: &str,
-    log_color: bool,
-    x_log: bool,
-    y_log: bool,
-) -> Result<(), PlotError> {
+/// What a cell without a value shows: the map's reason for cell `k`, else
+/// the grey "NaN".
+fn undefined_of<'a>(map: &HeatMap<'a>, k: usize) -> (&'a str, Rgb) {
+    map.why
+        .get(k)
+        .and_then(|&r| map.undefined.get(usize::from(r)))
+        .copied()
+        .unwrap_or(("NaN", NAN_GREY))
+}
+
+/// The reasons that occur, in the order of `map.undefined` ("NaN" last).
+fn undefined_present<'a>(map: &HeatMap<'a>) -> Vec<(&'a str, Rgb)> {
+    let mut seen = vec![false; map.undefined.len() + 1];
+    for (k, v) in map.values.iter().enumerate() {
+        if !v.is_finite() {
+            let r = map.why.get(k).map_or(usize::MAX, |&r| usize::from(r));
+            seen[r.min(map.undefined.len())] = true;
+        }
+    }
+    let mut all = map.undefined.to_vec();
+    all.push(("NaN", NAN_GREY));
+    all.into_iter()
+        .zip(seen)
+        .filter(|(_, s)| *s)
+        .map(|(e, _)| e)
+        .collect()
+}
+
+pub(super) fn heatmap_impl(path: &Path, fig: &Figure, map: &HeatMap) -> Result<(), PlotError> {
+    let (x, y, values) = (map.x, map.y, map.values);
+    let (log_color, x_log, y_log) = (map.log_color, map.x_log, map.y_log);
     check_grid(x.len(), y.len(), values.len(), "values")?;
     let ny = y.len();
     let cells = Cells::new(x, x_log).zip(Cells::new(y, y_log));
     let crange = extent(log_color, values.iter().copied());
-    let has_nan = values.iter().any(|v| !v.is_finite());
     render(path, fig, |body, st| {
         let ca = Axis::new(log_color, crange, 0.0);
         let (_, bh) = body.dim_in_pixel();
-        let cb = ColorBar::new(ca, value_label, has_nan, f64::from(bh), st);
+        let cb = ColorBar::new(ca, map.label, undefined_present(map), f64::from(bh), st);
         let (main, side) = split_side(body, cb.width(body, st));
         let (xa, ya) = match &cells {
             Some((cx, cy)) => (cx.axis(x_log), cy.axis(y_log)),
@@ -144,9 +162,10 @@ pub(super) fn heatmap_impl(
         let (_chart, f) = build_chart(&main, st, fig, &xa, &ya, false, st.px(12.0))?;
         match &cells {
             Some((cx, cy)) if !values.is_empty() => {
-                let colour = |v: f64| -> Rgb {
+                let colour = |k: usize| -> Rgb {
+                    let v = values[k];
                     if !v.is_finite() {
-                        NAN_GREY
+                        undefined_of(map, k).1
                     } else if log_color && v <= 0.0 {
                         viridis(0.0)
                     } else {
@@ -155,7 +174,12 @@ pub(super) fn heatmap_impl(
                     }
                 };
                 let buf = grid_raster(&f, &xa, &ya, cx, cy, |ix, iy| {
-                    values.get(ix * ny + iy).map_or(NAN_GREY, |&v| colour(v))
+                    let k = ix * ny + iy;
+                    if k < values.len() {
+                        colour(k)
+                    } else {
+                        NAN_GREY
+                    }
                 });
                 blit(&main, &f, buf)?;
             }

@@ -26,15 +26,20 @@
 //!   `unwrap`s and `panic!`s, and a quick-look picture must never take down a
 //!   long ensemble run. (This guard is ineffective under `panic = "abort"`.)
 //!
-//! The font (DejaVu Sans) is embedded from `assets/DejaVuSans.ttf` at the root
-//! of the crate and registered once as plotters' `"sans-serif"` family, so the
-//! figures look the same on every machine and need no system fonts.
+//! The font (DejaVu Sans: Latin, Greek, Cyrillic, math) is embedded from
+//! `assets/DejaVuSans.ttf` at the root of the crate and registered once as
+//! plotters' `"sans-serif"` family, so the figures look the same on every
+//! machine and need no system fonts. A title with characters it lacks (CJK)
+//! draws those in a system font that has them (`REEB_FONT=FILE`, else the
+//! usual places of Noto Sans CJK, WenQuanYi, Droid Sans Fallback), else as
+//! "�" with one warning naming them: never as silent boxes.
 //!
 //! The files, bottom up: `figure` (the public vocabulary), `axis` (axes and
-//! ticks), `canvas` (image, font, title, sizes), `colour`, `chart` (a chart
-//! with its axes on an area), `colorbar`, `legend`, and one file per kind of
-//! figure: `grid` (heat and class maps), `cloud`, `lines`, `loglog`. This
-//! file holds only the public entry points, so no file below imports it.
+//! ticks), `fonts` (coverage and fallback), `canvas` (image, title, sizes),
+//! `colour`, `chart` (a chart with its axes on an area), `colorbar`,
+//! `legend`, and one file per kind of figure: `grid` (heat and class maps),
+//! `cloud`, `lines`, `loglog`. This file holds only the public entry
+//! points, so no file below imports it.
 
 mod axis;
 mod canvas;
@@ -43,6 +48,7 @@ mod cloud;
 mod colorbar;
 mod colour;
 mod figure;
+mod fonts;
 mod grid;
 mod legend;
 mod lines;
@@ -56,18 +62,12 @@ use grid::{class_map_impl, heatmap_impl};
 use lines::lines_impl;
 use loglog::loglog_impl;
 
-pub use figure::{palette, Figure, PlotError, Rgb, Series, Slope};
+pub use axis::{fmt_general, fmt_significant, log_scale};
+pub use figure::{palette, Figure, HeatMap, PlotError, Rgb, Series, Slope};
 
 /// Scalar field over a 2-D grid: `values[ix * y.len() + iy]` sits at
-/// `(x[ix], y[iy])`.
-///
-/// Cells extend to the midpoints between neighbouring grid values (in log
-/// space on log axes) so that non-uniform grids look right; the grids need not
-/// be sorted. Colours follow viridis; non-finite values are grey (and listed as
-/// "NaN" under the colour bar). With `log_color`, the colour scale is log10 of
-/// the positive values, and values ≤ 0 get the lowest colour (a zero error is
-/// "as good as it gets", not missing). Grid points that are non-finite (or
-/// ≤ 0 on a log axis) are left out.
+/// `(x[ix], y[iy])`; every non-finite value is "NaN" (grey). See
+/// [`heat_map`], which also says why a cell has no value.
 #[allow(clippy::too_many_arguments)] // The signature is the host crate's API.
 pub fn heatmap(
     path: &Path,
@@ -80,19 +80,32 @@ pub fn heatmap(
     x_log: bool,
     y_log: bool,
 ) -> Result<(), PlotError> {
-    guarded(|| {
-        heatmap_impl(
-            path,
-            fig,
-            x,
-            y,
-            values,
-            value_label,
-            log_color,
-            x_log,
-            y_log,
-        )
-    })
+    let map = HeatMap {
+        x,
+        y,
+        values,
+        label: value_label,
+        log_color,
+        x_log,
+        y_log,
+        why: &[],
+        undefined: &[],
+    };
+    heat_map(path, fig, &map)
+}
+
+/// A heat map ([`HeatMap`]).
+///
+/// Cells extend to the midpoints between neighbouring grid values (in log
+/// space on log axes) so that non-uniform grids look right; the grids need not
+/// be sorted. Colours follow viridis; a cell without a finite value takes the
+/// grey of its reason (`map.why`, `map.undefined`; "NaN" otherwise), listed
+/// with what it means under the colour bar. With `log_color`, the colour
+/// scale is log10 of the positive values, and values ≤ 0 get the lowest
+/// colour (a zero error is "as good as it gets", not missing). Grid points
+/// that are non-finite (or ≤ 0 on a log axis) are left out.
+pub fn heat_map(path: &Path, fig: &Figure, map: &HeatMap) -> Result<(), PlotError> {
+    guarded(|| heatmap_impl(path, fig, map))
 }
 
 /// Categorical map over a 2-D grid: `classes[ix * y.len() + iy]` indexes
@@ -119,8 +132,9 @@ pub fn class_map(
 ///
 /// A single series without an explicit colour is coloured by log density
 /// (viridis, with a colour bar of points per pixel). Otherwise each pixel
-/// takes the count-weighted mean of the series colours, with an opacity that
-/// grows with log density, and a legend names the series. Isolated points
+/// takes the colour of the series with the most points in it (never a mix,
+/// so every colour seen is one of the legend's), with an opacity that grows
+/// with log density, and a legend names the series. Isolated points
 /// are drawn 3×3 pixels when the image is sparse, so that a few thousand
 /// points remain visible. `x_range`/`y_range` fix the axes (points outside are
 /// dropped); otherwise the range of the finite data, padded by 3%, is used.
@@ -136,8 +150,10 @@ pub fn point_cloud(
 
 /// One polyline per series (phase portraits, error against time). A
 /// non-finite value (or ≤ 0 on a log axis) breaks the line. Two to eleven
-/// series get a legend in the emptiest corner; twelve or more are drawn thin
-/// and without a legend, since such a legend would hide the data.
+/// distinct series names get a legend in the emptiest corner, one entry per
+/// name (series of one name are one group); twelve or more series are drawn
+/// thin, and more names than eleven get no legend, since it would hide the
+/// data.
 pub fn lines(
     path: &Path,
     fig: &Figure,
@@ -461,6 +477,48 @@ mod tests {
             lines(&p, &tiny, &[], false, false),
             Err(PlotError::Input(_))
         ));
+    }
+
+    #[test]
+    fn log_axes_for_logspaces_and_lists_over_decades() {
+        let logspace = |a: f64, b: f64, n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|i| 10f64.powf(a + (b - a) * i as f64 / (n - 1) as f64))
+                .collect()
+        };
+        let linspace = |a: f64, b: f64, n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|i| a + (b - a) * i as f64 / (n - 1) as f64)
+                .collect()
+        };
+        let mut down = logspace(-4.0, 0.196, 256);
+        assert!(log_scale(&down));
+        down.reverse();
+        assert!(log_scale(&down), "a descending logspace");
+        assert!(
+            log_scale(&logspace(0.0, 0.5, 3)),
+            "geometric, under a decade"
+        );
+        assert!(log_scale(&[1e-2, 5e-3, 1e-3, 5e-4, 1e-4]));
+        assert!(log_scale(&[1e-4, 1e-2]));
+        assert!(
+            !log_scale(&linspace(0.01, 1.0, 100)),
+            "a linspace stays linear"
+        );
+        assert!(!log_scale(&linspace(2.45, 2.47, 201)), "nearly geometric");
+        assert!(!log_scale(&[0.0, 1e-3, 1.0]));
+        assert!(!log_scale(&[0.01, 2.0, 5.0]));
+        assert!(!log_scale(&[1e-3]));
+    }
+
+    #[test]
+    fn tick_labels_tell_close_values_apart() {
+        let ax = Axis::new(false, Some((1.6715893, 1.6715915)), 0.03);
+        let t = ticks(&ax, 8);
+        let labels: Vec<String> = t.major.iter().map(|&v| t.label(v)).collect();
+        let mut distinct = labels.clone();
+        distinct.dedup();
+        assert!(labels.len() >= 3 && distinct == labels, "{labels:?}");
     }
 
     #[test]
