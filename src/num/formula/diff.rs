@@ -2,8 +2,6 @@
 //! gradient ∇V, ∇K, f′ and ∂g/∂q of formula models share their nodes with
 //! the formulas themselves.
 
-use std::collections::HashMap;
-
 use super::dag::{operands, Dag, Func, Func2, Id, Node};
 
 impl Dag {
@@ -12,15 +10,16 @@ impl Dag {
     /// order a recursive walk takes: operands first, in order, each node
     /// once.
     pub fn diff(&mut self, root: Id, k: u32) -> Id {
-        let mut memo: HashMap<Id, Id> = HashMap::new();
+        // The derivative of each node done, by node id.
+        let mut memo: Vec<Option<Id>> = vec![None; root.0 as usize + 1];
         let mut todo = vec![(root, false)];
         while let Some((id, ready)) = todo.pop() {
-            if memo.contains_key(&id) {
+            if memo[id.0 as usize].is_some() {
                 continue;
             }
             if ready {
                 let d = self.derivative(id, k, &memo);
-                memo.insert(id, d);
+                memo[id.0 as usize] = Some(d);
             } else {
                 todo.push((id, true));
                 todo.extend(
@@ -31,7 +30,7 @@ impl Dag {
                 );
             }
         }
-        memo[&root]
+        memo[root.0 as usize].expect("the root differentiated")
     }
 
     /// The gradient of `root` over the variables `ks`.
@@ -40,8 +39,8 @@ impl Dag {
     }
 
     /// ∂id/∂(variable `k`), given those of its operands in `memo`.
-    fn derivative(&mut self, id: Id, k: u32, memo: &HashMap<Id, Id>) -> Id {
-        let d = |x: Id| memo[&x];
+    fn derivative(&mut self, id: Id, k: u32, memo: &[Option<Id>]) -> Id {
+        let d = |x: Id| memo[x.0 as usize].expect("operands first");
         match self.node(id) {
             Node::Const(_) => self.num(0.0),
             Node::Var(v) => self.num(if v == k { 1.0 } else { 0.0 }),

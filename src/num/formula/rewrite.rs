@@ -34,10 +34,11 @@ impl Dag {
                 }
             }
         }
-        let mut new: HashMap<Id, Id> = HashMap::new();
+        // The rebuilt id of each node reached, by node id.
+        let mut new: Vec<Id> = vec![Id(u32::MAX); reached.len()];
         for k in (0..reached.len()).filter(|k| reached[*k]) {
             let id = Id(k as u32);
-            let m = |x: Id| new[&x];
+            let m = |x: Id| new[x.0 as usize];
             let node = self.node(id);
             let rebuilt = match node {
                 Node::Const(_) | Node::Var(_) => id,
@@ -50,9 +51,9 @@ impl Dag {
                 Node::Call2(f, a, b) => self.call2(f, m(a), m(b)),
             };
             let r = rule(self, node, rebuilt);
-            new.insert(id, r);
+            new[k] = r;
         }
-        roots.iter().map(|r| new[r]).collect()
+        roots.iter().map(|r| new[r.0 as usize]).collect()
     }
 
     /// `roots` with variable `k` replaced by `values[k]`.
@@ -363,10 +364,11 @@ impl Dag {
             match self.opening(id, dep) {
                 Opening::Fixed => done.push(vec![(vec![], id)]),
                 Opening::Factor => done.push(vec![(vec![id], one)]),
-                Opening::Of(ops) => {
+                Opening::Of(a, b) => {
                     walk.opened.insert(id);
                     todo.push((id, true));
-                    todo.extend(ops.into_iter().rev().map(|o| (o, false)));
+                    todo.extend(b.map(|b| (b, false)));
+                    todo.push((a, false));
                 }
             }
         }
@@ -379,12 +381,12 @@ impl Dag {
             return Opening::Fixed;
         }
         match self.node(id) {
-            Node::Add(a, b) => Opening::Of(vec![a, b]),
-            Node::Neg(a) => Opening::Of(vec![a]),
-            Node::Mul(a, b) if !dep.varies(self, a) => Opening::Of(vec![b]),
-            Node::Mul(a, b) if !dep.varies(self, b) => Opening::Of(vec![a]),
-            Node::Mul(a, b) => Opening::Of(vec![a, b]),
-            Node::Div(a, b) if !dep.varies(self, b) => Opening::Of(vec![a]),
+            Node::Add(a, b) => Opening::Of(a, Some(b)),
+            Node::Neg(a) => Opening::Of(a, None),
+            Node::Mul(a, b) if !dep.varies(self, a) => Opening::Of(b, None),
+            Node::Mul(a, b) if !dep.varies(self, b) => Opening::Of(a, None),
+            Node::Mul(a, b) => Opening::Of(a, Some(b)),
+            Node::Div(a, b) if !dep.varies(self, b) => Opening::Of(a, None),
             _ => Opening::Factor,
         }
     }
@@ -440,11 +442,11 @@ impl Dag {
 }
 
 /// How [`Dag::terms`] treats a node: a coefficient (it does not vary), a
-/// factor, or opened into the terms of these operands.
+/// factor, or opened into the terms of one or two operands.
 enum Opening {
     Fixed,
     Factor,
-    Of(Vec<Id>),
+    Of(Id, Option<Id>),
 }
 
 /// What the walks of one [`Dag::collect`] share: the nodes opened by the
