@@ -159,6 +159,12 @@ impl FormulaModel {
         Ok(m)
     }
 
+    /// Compiles `source` anew, without the cache (the compile-time
+    /// benchmark: `benches/formula_compile.rs`).
+    pub fn build(source: &Source) -> Result<FormulaModel, ModelError> {
+        build(source)
+    }
+
     /// The op called `name`.
     pub fn op(&self, name: &str) -> Option<&FormulaOp> {
         self.ops.iter().find(|o| o.name == name)
