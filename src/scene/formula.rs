@@ -118,14 +118,37 @@ fn located(
     let message = match (text, e.column) {
         (Some(text), Some(col)) => {
             let col = text.char_indices().take_while(|(i, _)| *i < col).count();
+            let (shown, caret) = around(text, col);
             format!(
-                "column {}: {}\n    {text}\n    {}^",
+                "column {}: {}\n    {shown}\n    {}^",
                 col + 1,
                 e.message,
-                " ".repeat(col)
+                " ".repeat(caret)
             )
         }
         _ => e.message,
     };
     p.err(&e.field, span, message)
+}
+
+/// Characters of a formula shown around an error's column.
+const SHOWN: usize = 72;
+
+/// The part of `text` shown under an error at character `col` (all of it
+/// when short, else [`SHOWN`] characters around the column, cut ends marked
+/// `…`), and the caret's position in it.
+fn around(text: &str, col: usize) -> (String, usize) {
+    let n = text.chars().count();
+    if n <= SHOWN {
+        return (text.to_string(), col);
+    }
+    let start = col.saturating_sub(SHOWN / 2).min(n - SHOWN);
+    let mut shown: String = text.chars().skip(start).take(SHOWN).collect();
+    if start + SHOWN < n {
+        shown.push('…');
+    }
+    if start > 0 {
+        return (format!("…{shown}"), col - start + 1);
+    }
+    (shown, col)
 }

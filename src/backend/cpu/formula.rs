@@ -37,11 +37,11 @@ struct LaneView<'a, R> {
 
 impl<R: Real> Inputs<R, LANES> for LaneView<'_, R> {
     #[inline(always)]
-    fn array(&self, k: u16) -> &[R; LANES] {
+    fn array(&self, k: u32) -> &[R; LANES] {
         self.l.at(self.lanes[k as usize])
     }
     #[inline(always)]
-    fn scalar(&self, k: u16) -> R {
+    fn scalar(&self, k: u32) -> R {
         self.array(k)[0]
     }
 }
@@ -232,7 +232,7 @@ struct Uniform<'a, R> {
 
 impl<R: Real> Inputs<R, LANES> for Uniform<'_, R> {
     #[inline(always)]
-    fn array(&self, k: u16) -> &[R; LANES] {
+    fn array(&self, k: u32) -> &[R; LANES] {
         let k = k as usize;
         match self.s.inputs.get(k) {
             Some(In::Lane(i)) => self.l.at(*i),
@@ -241,7 +241,7 @@ impl<R: Real> Inputs<R, LANES> for Uniform<'_, R> {
         }
     }
     #[inline(always)]
-    fn scalar(&self, k: u16) -> R {
+    fn scalar(&self, k: u32) -> R {
         self.array(k)[0]
     }
 }
@@ -260,7 +260,7 @@ struct PerLane<'a, R> {
 
 impl<R: Real> Inputs<R, LANES> for PerLane<'_, R> {
     #[inline(always)]
-    fn array(&self, k: u16) -> &[R; LANES] {
+    fn array(&self, k: u32) -> &[R; LANES] {
         let k = k as usize;
         match self.s.inputs.get(k) {
             Some(In::Lane(i)) => self.l.at(*i),
@@ -268,7 +268,7 @@ impl<R: Real> Inputs<R, LANES> for PerLane<'_, R> {
         }
     }
     #[inline(always)]
-    fn scalar(&self, k: u16) -> R {
+    fn scalar(&self, k: u32) -> R {
         let k = k as usize;
         let n = self.s.inputs.len();
         match self.s.inputs.get(k) {

@@ -182,21 +182,54 @@ impl Dag {
     }
 
     /// Adds a syntax tree over the variables `names`; unknown names and
-    /// wrong argument counts are refused at their column.
+    /// wrong argument counts are refused at their column. The tree is walked
+    /// with a list of pending nodes, not by recursion (it may be as deep as
+    /// the formula is long), operands in order, each node made once its
+    /// operands are.
     pub fn add_expr(&mut self, e: &Expr, names: &[&str]) -> Result<Id, FormulaError> {
-        Ok(match e {
-            Expr::Num(v) => self.num(*v),
-            Expr::Name { name, at } => match names.iter().position(|n| n == name) {
-                Some(k) => self.var(k as u32),
-                None if name == "pi" => self.num(std::f64::consts::PI),
-                None => return Err(unknown_name(name, *at, names)),
-            },
-            Expr::Neg(a) => {
-                let a = self.add_expr(a, names)?;
+        // (node, are its operands made?), and the ids made, operands last.
+        let mut todo: Vec<(&Expr, bool)> = vec![(e, false)];
+        let mut made: Vec<Id> = vec![];
+        while let Some((e, ready)) = todo.pop() {
+            if ready {
+                let id = self.apply(e, &mut made);
+                made.push(id);
+                continue;
+            }
+            match e {
+                Expr::Num(v) => made.push(self.num(*v)),
+                Expr::Name { name, at } => made.push(self.name(name, *at, names)?),
+                Expr::Neg(a) => todo.extend([(e, true), (&**a, false)]),
+                Expr::Bin(_, a, b) => todo.extend([(e, true), (&**b, false), (&**a, false)]),
+                Expr::Call { name, at, args } => {
+                    function(name, *at, args.len())?;
+                    todo.push((e, true));
+                    todo.extend(args.iter().rev().map(|a| (a, false)));
+                }
+            }
+        }
+        Ok(made.pop().expect("the root's id"))
+    }
+
+    /// The variable, or `pi`, called `name`.
+    fn name(&mut self, name: &str, at: usize, names: &[&str]) -> Result<Id, FormulaError> {
+        match names.iter().position(|n| *n == name) {
+            Some(k) => Ok(self.var(k as u32)),
+            None if name == "pi" => Ok(self.num(std::f64::consts::PI)),
+            None => Err(unknown_name(name, at, names)),
+        }
+    }
+
+    /// The node of operator or call `e`, its operands the last of `made`.
+    fn apply(&mut self, e: &Expr, made: &mut Vec<Id>) -> Id {
+        let mut operand = || made.pop().expect("an operand made");
+        match e {
+            Expr::Neg(_) => {
+                let a = operand();
                 self.neg(a)
             }
-            Expr::Bin(op, a, b) => {
-                let (a, b) = (self.add_expr(a, names)?, self.add_expr(b, names)?);
+            Expr::Bin(op, _, _) => {
+                let (b, a) = (operand(), operand());
                 match op {
                     '+' => self.add(a, b),
                     '-' => self.sub(a, b),
@@ -205,43 +238,18 @@ impl Dag {
                     _ => self.call2(Func2::Pow, a, b),
                 }
             }
-            Expr::Call { name, at, args } => self.add_call(name, *at, args, names)?,
-        })
-    }
-
-    fn add_call(
-        &mut self,
-        name: &str,
-        at: usize,
-        args: &[Expr],
-        names: &[&str],
-    ) -> Result<Id, FormulaError> {
-        let Some((_, f1, f2)) = FUNCTIONS.iter().find(|(n, _, _)| *n == name) else {
-            let known: Vec<&str> = FUNCTIONS.iter().map(|(n, _, _)| *n).collect();
-            return Err(FormulaError {
-                column: at,
-                message: format!(
-                    "unknown function `{name}`{}; known: {}",
-                    suggest(name, &known),
-                    known.join(", ")
-                ),
-            });
-        };
-        let want = if f1.is_some() { 1 } else { 2 };
-        if args.len() != want {
-            return Err(FormulaError {
-                column: at,
-                message: format!("`{name}` takes {want} argument(s), given {}", args.len()),
-            });
-        }
-        let a = self.add_expr(&args[0], names)?;
-        match (f1, f2) {
-            (Some(f), _) => Ok(self.call(*f, a)),
-            (_, Some(f)) => {
-                let b = self.add_expr(&args[1], names)?;
-                Ok(self.call2(*f, a, b))
-            }
-            _ => unreachable!("every function has one or two arguments"),
+            Expr::Call { name, at, args } => match function(name, *at, args.len()) {
+                Ok((Some(f), _)) => {
+                    let a = operand();
+                    self.call(f, a)
+                }
+                Ok((_, Some(f))) => {
+                    let (b, a) = (operand(), operand());
+                    self.call2(f, a, b)
+                }
+                _ => unreachable!("calls are checked before their arguments"),
+            },
+            Expr::Num(_) | Expr::Name { .. } => unreachable!("leaves are made at once"),
         }
     }
 
@@ -273,6 +281,34 @@ pub fn operands(n: Node) -> Vec<Id> {
         Node::Neg(a) | Node::PowI(a, _) | Node::Call(_, a) => vec![a],
         Node::Add(a, b) | Node::Mul(a, b) | Node::Div(a, b) | Node::Call2(_, a, b) => vec![a, b],
     }
+}
+
+/// The function `name` called with `given` arguments: its one- or
+/// two-argument form, or why not.
+fn function(
+    name: &str,
+    at: usize,
+    given: usize,
+) -> Result<(Option<Func>, Option<Func2>), FormulaError> {
+    let Some((_, f1, f2)) = FUNCTIONS.iter().find(|(n, _, _)| *n == name) else {
+        let known: Vec<&str> = FUNCTIONS.iter().map(|(n, _, _)| *n).collect();
+        return Err(FormulaError {
+            column: at,
+            message: format!(
+                "unknown function `{name}`{}; known: {}",
+                suggest(name, &known),
+                known.join(", ")
+            ),
+        });
+    };
+    let want = if f1.is_some() { 1 } else { 2 };
+    if given != want {
+        return Err(FormulaError {
+            column: at,
+            message: format!("`{name}` takes {want} argument(s), given {given}"),
+        });
+    }
+    Ok((*f1, *f2))
 }
 
 fn unknown_name(name: &str, at: usize, names: &[&str]) -> FormulaError {

@@ -2,15 +2,35 @@
 //! gradient ∇V, ∇K, f′ and ∂g/∂q of formula models share their nodes with
 //! the formulas themselves.
 
-use std::collections::HashMap;
-
-use super::dag::{Dag, Func, Func2, Id, Node};
+use super::dag::{operands, Dag, Func, Func2, Id, Node};
 
 impl Dag {
-    /// ∂root/∂(variable `k`).
+    /// ∂root/∂(variable `k`). The DAG is walked with a list of pending
+    /// nodes, not by recursion (a sum of n terms is n nodes deep), in the
+    /// order a recursive walk takes: operands first, in order, each node
+    /// once.
     pub fn diff(&mut self, root: Id, k: u32) -> Id {
-        let mut memo = HashMap::new();
-        self.diff_memo(root, k, &mut memo)
+        // The derivative of each node done, by node id.
+        let mut memo: Vec<Option<Id>> = vec![None; root.0 as usize + 1];
+        let mut todo = vec![(root, false)];
+        while let Some((id, ready)) = todo.pop() {
+            if memo[id.0 as usize].is_some() {
+                continue;
+            }
+            if ready {
+                let d = self.derivative(id, k, &memo);
+                memo[id.0 as usize] = Some(d);
+            } else {
+                todo.push((id, true));
+                todo.extend(
+                    operands(self.node(id))
+                        .into_iter()
+                        .rev()
+                        .map(|o| (o, false)),
+                );
+            }
+        }
+        memo[root.0 as usize].expect("the root differentiated")
     }
 
     /// The gradient of `root` over the variables `ks`.
@@ -18,53 +38,37 @@ impl Dag {
         ks.iter().map(|k| self.diff(root, *k)).collect()
     }
 
-    fn diff_memo(&mut self, id: Id, k: u32, memo: &mut HashMap<Id, Id>) -> Id {
-        if let Some(d) = memo.get(&id) {
-            return *d;
-        }
-        let d = match self.node(id) {
+    /// ∂id/∂(variable `k`), given those of its operands in `memo`.
+    fn derivative(&mut self, id: Id, k: u32, memo: &[Option<Id>]) -> Id {
+        let d = |x: Id| memo[x.0 as usize].expect("operands first");
+        match self.node(id) {
             Node::Const(_) => self.num(0.0),
             Node::Var(v) => self.num(if v == k { 1.0 } else { 0.0 }),
-            Node::Neg(a) => {
-                let da = self.diff_memo(a, k, memo);
-                self.neg(da)
-            }
-            Node::Add(a, b) => {
-                let (da, db) = (self.diff_memo(a, k, memo), self.diff_memo(b, k, memo));
-                self.add(da, db)
-            }
+            Node::Neg(a) => self.neg(d(a)),
+            Node::Add(a, b) => self.add(d(a), d(b)),
             Node::Mul(a, b) => {
-                let (da, db) = (self.diff_memo(a, k, memo), self.diff_memo(b, k, memo));
-                let (x, y) = (self.mul(da, b), self.mul(a, db));
+                let (x, y) = (self.mul(d(a), b), self.mul(a, d(b)));
                 self.add(x, y)
             }
             // (a/b)′ = a′/b − (a/b)·b′/b
             Node::Div(a, b) => {
-                let (da, db) = (self.diff_memo(a, k, memo), self.diff_memo(b, k, memo));
-                let first = self.div(da, b);
-                let ratio = self.mul(id, db);
+                let first = self.div(d(a), b);
+                let ratio = self.mul(id, d(b));
                 let second = self.div(ratio, b);
                 self.sub(first, second)
             }
             Node::PowI(a, n) => {
-                let da = self.diff_memo(a, k, memo);
                 let lower = self.powi(a, n - 1);
                 let c = self.num(n as f64);
                 let scaled = self.mul(c, lower);
-                self.mul(scaled, da)
+                self.mul(scaled, d(a))
             }
             Node::Call(f, a) => {
-                let da = self.diff_memo(a, k, memo);
                 let outer = self.outer_derivative(f, a, id);
-                self.mul(outer, da)
+                self.mul(outer, d(a))
             }
-            Node::Call2(f, a, b) => {
-                let (da, db) = (self.diff_memo(a, k, memo), self.diff_memo(b, k, memo));
-                self.diff_call2(f, id, (a, da), (b, db))
-            }
-        };
-        memo.insert(id, d);
-        d
+            Node::Call2(f, a, b) => self.diff_call2(f, id, (a, d(a)), (b, d(b))),
+        }
     }
 
     /// f′(a) for `id` = f(a).
@@ -168,6 +172,38 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Long chains (a sum of 10⁵ terms, a tower of 10⁴ powers) are
+    /// differentiated on a 2 MiB stack (rayon's, the test harness's).
+    #[test]
+    fn chains_differentiate_without_recursion() {
+        let chains = std::thread::Builder::new()
+            .stack_size(2 << 20)
+            .spawn(|| {
+                let mut d = Dag::new();
+                let sum = (1..=100_000)
+                    .map(|k| format!("q^{}/{k}", k % 7))
+                    .collect::<Vec<_>>()
+                    .join(" + ");
+                let f = compile(&mut d, &sum, &["q"]).unwrap();
+                let df = d.diff(f, 0);
+                let tower = compile(&mut d, &vec!["q"; 10_000].join("^"), &["q"]).unwrap();
+                let dt = d.diff(tower, 0);
+                d.eval(&[df, dt], &[0.5])
+            })
+            .unwrap()
+            .join()
+            .unwrap();
+        // Σ_k (k mod 7) q^(k mod 7 − 1)/k at q = 1/2, summed as compiled.
+        let want: f64 = (1..=100_000)
+            .map(|k| (k % 7) as f64 * 0.5f64.powi(k % 7 - 1) / k as f64)
+            .sum();
+        assert!(
+            (chains[0] - want).abs() < 1e-12 * want,
+            "{chains:?} vs {want}"
+        );
+        assert!(chains[1].is_finite(), "{chains:?}");
     }
 
     #[test]

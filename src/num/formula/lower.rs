@@ -58,7 +58,7 @@ impl Prim {
 pub fn lower(dag: &Dag, roots: &[Id]) -> Lowered {
     let mut l = Lowering {
         dag,
-        done: HashMap::new(),
+        done: vec![None; dag.nodes().len()],
         made: HashMap::new(),
         out: Lowered::default(),
     };
@@ -69,7 +69,8 @@ pub fn lower(dag: &Dag, roots: &[Id]) -> Lowered {
 
 struct Lowering<'d> {
     dag: &'d Dag,
-    done: HashMap<Id, Operand>,
+    /// The operand of each node lowered, by node id.
+    done: Vec<Option<Operand>>,
     /// Instructions made, so that equal ones (the squares of a power chain
     /// shared with an explicit product) are made once.
     made: HashMap<(Prim, u64, u64), Operand>,
@@ -102,7 +103,7 @@ impl Lowering<'_> {
     fn node(&mut self, id: Id) -> Operand {
         let mut stack = vec![(id, false)];
         while let Some((n, ready)) = stack.pop() {
-            if self.done.contains_key(&n) {
+            if self.done[n.0 as usize].is_some() {
                 continue;
             }
             let deps = self.deps(n);
@@ -112,9 +113,14 @@ impl Lowering<'_> {
                 continue;
             }
             let o = self.lower_node(n);
-            self.done.insert(n, o);
+            self.done[n.0 as usize] = Some(o);
         }
-        self.done[&id]
+        self.operand(id)
+    }
+
+    /// The operand of a node already lowered.
+    fn operand(&self, id: Id) -> Operand {
+        self.done[id.0 as usize].expect("a node lowered before its users")
     }
 
     /// The nodes that lowering `n` reads (a negated addend is read through).
@@ -134,7 +140,7 @@ impl Lowering<'_> {
     }
 
     fn lower_node(&mut self, n: Id) -> Operand {
-        let v = |s: &Self, x: Id| s.done[&x];
+        let v = |s: &Self, x: Id| s.operand(x);
         let none = Operand::Const(0.0);
         match self.dag.node(n) {
             Node::Const(bits) => Operand::Const(f64::from_bits(bits)),
@@ -142,7 +148,7 @@ impl Lowering<'_> {
             Node::Neg(a) => self.emit(Prim::Neg, v(self, a), none),
             Node::Add(a, b) => {
                 let negated = |s: &Self, x: Id| match s.dag.node(x) {
-                    Node::Neg(y) => Some(s.done[&y]),
+                    Node::Neg(y) => Some(s.operand(y)),
                     _ => None,
                 };
                 match (negated(self, a), negated(self, b)) {

@@ -1,7 +1,19 @@
 //! Formula text → syntax tree (precedence climbing). Every node keeps the
 //! column where it starts, so that errors can put a caret under it.
+//!
+//! Only parentheses and function calls recurse, at most [`MAX_DEPTH`] deep;
+//! chains of operators, signs and powers are loops, so a formula of any
+//! length parses on a small stack. The tree may still be as deep as the
+//! formula is long (a sum of n terms nests n deep on its left), so it is
+//! dropped without recursion, and every pass after the parser walks it or
+//! its DAG without recursion too.
 
 use std::fmt;
+
+/// How deep parentheses and function calls may nest (a generated formula
+/// in Horner form nests as deep as its degree; the parser's recursion on a
+/// 2 MiB thread stack takes thousands).
+pub const MAX_DEPTH: usize = 256;
 
 /// A formula that cannot be read: the column (0-based, in characters) and why.
 #[derive(Debug, Clone, PartialEq)]
@@ -33,6 +45,32 @@ pub enum Expr {
         at: usize,
         args: Vec<Expr>,
     },
+}
+
+/// Drops the subtrees from a list instead of by recursion (a sum of 10⁵
+/// terms is a tree 10⁵ deep).
+impl Drop for Expr {
+    fn drop(&mut self) {
+        let mut pending = vec![];
+        take_children(self, &mut pending);
+        while let Some(mut e) = pending.pop() {
+            take_children(&mut e, &mut pending);
+        }
+    }
+}
+
+/// Moves the children of `e` to `out`, leaving leaves in their place.
+fn take_children(e: &mut Expr, out: &mut Vec<Expr>) {
+    let mut take = |b: &mut Box<Expr>| out.push(std::mem::replace(&mut **b, Expr::Num(0.0)));
+    match e {
+        Expr::Neg(a) => take(a),
+        Expr::Bin(_, a, b) => {
+            take(a);
+            take(b);
+        }
+        Expr::Call { args, .. } => out.append(args),
+        Expr::Num(_) | Expr::Name { .. } => {}
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -104,6 +142,8 @@ fn number_end(chars: &[char], mut i: usize) -> usize {
 struct Parser {
     toks: Vec<(Tok, usize)>,
     k: usize,
+    /// Parentheses and calls open at the current token.
+    depth: usize,
 }
 
 /// Parses a whole formula.
@@ -111,6 +151,7 @@ pub fn parse(text: &str) -> Result<Expr, FormulaError> {
     let mut p = Parser {
         toks: tokens(text)?,
         k: 0,
+        depth: 0,
     };
     if p.peek() == &Tok::End {
         return Err(p.error("an empty formula; write 0 for none"));
@@ -167,23 +208,46 @@ impl Parser {
             e = Expr::Bin(op, Box::new(e), Box::new(self.unary()?));
         }
     }
-    /// '-' unary | '+' unary | power
+    /// ('-' | '+')* atom ('^' unary)?: `^` binds to the right and takes
+    /// signs in its exponent (`-a^-b^c = -(a^(-(b^c)))`). A loop over the
+    /// chain, folded from its right end.
     fn unary(&mut self) -> Result<Expr, FormulaError> {
-        if self.eat('-') {
-            return Ok(Expr::Neg(Box::new(self.unary()?)));
+        let mut bases: Vec<(usize, Expr)> = vec![];
+        loop {
+            let negations = self.signs();
+            let atom = self.atom()?;
+            if self.eat('^') {
+                bases.push((negations, atom));
+                continue;
+            }
+            let mut e = negated(negations, atom);
+            while let Some((negations, base)) = bases.pop() {
+                e = negated(negations, Expr::Bin('^', Box::new(base), Box::new(e)));
+            }
+            return Ok(e);
         }
-        if self.eat('+') {
-            return self.unary();
-        }
-        self.power()
     }
-    /// atom ('^' unary)?, right-associative
-    fn power(&mut self) -> Result<Expr, FormulaError> {
-        let base = self.atom()?;
-        if self.eat('^') {
-            return Ok(Expr::Bin('^', Box::new(base), Box::new(self.unary()?)));
+    /// Eats a run of `+` and `-` signs; how many were `-`.
+    fn signs(&mut self) -> usize {
+        let mut negations = 0;
+        loop {
+            if self.eat('-') {
+                negations += 1;
+            } else if !self.eat('+') {
+                return negations;
+            }
         }
-        Ok(base)
+    }
+    /// One level deeper into parentheses or a call opened at `at`.
+    fn enter(&mut self, at: usize) -> Result<(), FormulaError> {
+        self.depth += 1;
+        if self.depth > MAX_DEPTH {
+            return Err(FormulaError {
+                column: at,
+                message: format!("parentheses and function calls nested deeper than {MAX_DEPTH}"),
+            });
+        }
+        Ok(())
     }
     fn atom(&mut self) -> Result<Expr, FormulaError> {
         let at = self.at();
@@ -195,16 +259,21 @@ impl Parser {
             Tok::Name(name) => {
                 self.k += 1;
                 if self.eat('(') {
-                    return self.call(name, at);
+                    self.enter(at)?;
+                    let call = self.call(name, at)?;
+                    self.depth -= 1;
+                    return Ok(call);
                 }
                 Ok(Expr::Name { name, at })
             }
             Tok::Sym('(') => {
                 self.k += 1;
+                self.enter(at)?;
                 let e = self.sum()?;
                 if !self.eat(')') {
                     return Err(self.error("expected `)` to close the `(`"));
                 }
+                self.depth -= 1;
                 Ok(e)
             }
             Tok::End => Err(self.error("the formula ends where a value is expected")),
@@ -227,6 +296,14 @@ impl Parser {
         }
         Ok(Expr::Call { name, at, args })
     }
+}
+
+/// `e` under `n` minus signs.
+fn negated(n: usize, mut e: Expr) -> Expr {
+    for _ in 0..n {
+        e = Expr::Neg(Box::new(e));
+    }
+    e
 }
 
 #[cfg(test)]
@@ -259,6 +336,10 @@ mod tests {
             ("max(q, 1e-3) * .5", "(max(q, 0.001) * 0.5)"),
             ("epsilon*(q^2 - 1)", "(epsilon * ((q ^ 2) - 1))"),
             ("2.5E+2", "250"),
+            ("-a^-b^c", "(-(a ^ (-(b ^ c))))"),
+            ("+-+q^2*3", "((-(q ^ 2)) * 3)"),
+            ("--q", "(-(-q))"),
+            ("(a)^b^(c)", "(a ^ (b ^ c))"),
         ] {
             assert_eq!(show(&parse(text).unwrap()), tree, "{text}");
         }
@@ -276,10 +357,46 @@ mod tests {
             ("1.2.3", 0, "is not a number"),
             ("", 0, "empty formula"),
             ("sin(q q)", 6, "expected `,` or `)`"),
+            ("q^", 2, "ends where a value"),
+            ("q^*2", 2, "expected a value, found `*`"),
         ] {
             let e = parse(text).unwrap_err();
             assert_eq!(e.column, column, "{text}: {e}");
             assert!(e.message.contains(says), "{text}: {e}");
         }
+    }
+
+    #[test]
+    fn nesting_is_limited_and_chains_are_not() {
+        let deep = |open: &str, n: usize| format!("{}q{}", open.repeat(n), ")".repeat(n));
+        assert!(parse(&deep("(", MAX_DEPTH)).is_ok());
+        assert!(parse(&deep("sin(", MAX_DEPTH)).is_ok());
+        for (open, column) in [
+            ("(", MAX_DEPTH),
+            ("sin(", 4 * MAX_DEPTH),
+            ("exp((", 5 * MAX_DEPTH / 2),
+        ] {
+            let e = parse(&deep(open, MAX_DEPTH + 1)).unwrap_err();
+            assert_eq!(e.column, column, "{e}");
+            assert!(e.message.contains("nested deeper than 256"), "{e}");
+        }
+        // Chains of operators, signs and powers are loops: a 2 MiB stack
+        // (rayon's, the test harness's) parses and drops them.
+        let chains = std::thread::Builder::new()
+            .stack_size(2 << 20)
+            .spawn(|| {
+                for text in [
+                    vec!["q"; 100_000].join(" + "),
+                    vec!["q"; 100_000].join("/"),
+                    vec!["q"; 100_000].join("^"),
+                    format!("{}q", "-".repeat(100_000)),
+                    vec!["q^-"; 100_000].join("") + "q",
+                ] {
+                    parse(&text).unwrap();
+                }
+            })
+            .unwrap()
+            .join();
+        assert!(chains.is_ok());
     }
 }

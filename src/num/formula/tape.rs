@@ -15,18 +15,18 @@ use crate::num::precision::Real;
 /// An operand resolved for the CPU.
 #[derive(Debug, Clone, Copy)]
 enum Src<R> {
-    Reg(u16),
+    Reg(u32),
     /// An input array, by its position in the caller's input list.
-    Input(u16),
+    Input(u32),
     /// An input the same in every lane (a value of the whole ensemble).
-    Scalar(u16),
+    Scalar(u32),
     Const(R),
 }
 
 #[derive(Debug, Clone, Copy)]
 struct Step<R> {
     op: Prim,
-    dst: u16,
+    dst: u32,
     a: Src<R>,
     b: Src<R>,
 }
@@ -36,7 +36,7 @@ struct Step<R> {
 pub struct Tape<R> {
     steps: Vec<Step<R>>,
     /// The register holding each output.
-    outputs: Vec<u16>,
+    outputs: Vec<u32>,
     /// Registers the program needs.
     pub registers: usize,
 }
@@ -45,17 +45,17 @@ pub struct Tape<R> {
 /// ([`Inputs::array`]) or, for the inputs the tape was built to read as
 /// scalars, as one value for every lane ([`Inputs::scalar`]).
 pub trait Inputs<R, const N: usize> {
-    fn array(&self, k: u16) -> &[R; N];
-    fn scalar(&self, k: u16) -> R;
+    fn array(&self, k: u32) -> &[R; N];
+    fn scalar(&self, k: u32) -> R;
 }
 
 /// Arrays by input index (their first lane as the scalar): tests, and
 /// callers whose inputs are one list.
 impl<R: Copy, const N: usize> Inputs<R, N> for [[R; N]] {
-    fn array(&self, k: u16) -> &[R; N] {
+    fn array(&self, k: u32) -> &[R; N] {
         &self[k as usize]
     }
-    fn scalar(&self, k: u16) -> R {
+    fn scalar(&self, k: u32) -> R {
         self[k as usize][0]
     }
 }
@@ -83,15 +83,15 @@ impl<R: Real> Tape<R> {
             });
         }
         let last = last_reads(&instrs, &outputs);
-        let mut reg = vec![0u16; instrs.len()];
-        let mut free: Vec<u16> = vec![];
+        let mut reg = vec![0u32; instrs.len()];
+        let mut free: Vec<u32> = vec![];
         let mut registers = 0usize;
         let mut steps = Vec::with_capacity(instrs.len());
         for (k, i) in instrs.iter().enumerate() {
             let src = |o: Operand| match o {
                 Operand::Val(v) => Src::Reg(reg[v as usize]),
-                Operand::Input(v) if scalar(v) => Src::Scalar(v as u16),
-                Operand::Input(v) => Src::Input(v as u16),
+                Operand::Input(v) if scalar(v) => Src::Scalar(v),
+                Operand::Input(v) => Src::Input(v),
                 Operand::Const(c) => Src::Const(R::from_f64(c)),
             };
             let (a, b) = (src(i.a), src(i.b));
@@ -99,7 +99,7 @@ impl<R: Real> Tape<R> {
             // never aliases them (the interpreter relies on that).
             let dst = free.pop().unwrap_or_else(|| {
                 registers += 1;
-                (registers - 1) as u16
+                (registers - 1) as u32
             });
             reg[k] = dst;
             steps.push(Step {
@@ -388,5 +388,46 @@ mod tests {
             }
         }
         assert!(tape.registers < roots.len() + 8, "registers are reused");
+    }
+
+    /// A long formula's program reads more than 2¹⁶ inputs (a model's
+    /// fixed values) and keeps more than 2¹⁶ values live: neither index
+    /// wraps around.
+    #[test]
+    fn programs_past_two_to_the_sixteen_inputs_and_registers_run() {
+        const N: usize = 2;
+        let n = 70_000u32;
+        let mut l = Lowered::default();
+        // v_k = x_k · (k + 1), all live until the sum of them all.
+        for k in 0..n {
+            l.instrs.push(Instr {
+                op: Prim::Mul,
+                a: Operand::Input(k),
+                b: Operand::Const(k as f64 + 1.0),
+            });
+        }
+        let mut sum = Operand::Val(0);
+        for k in 1..n {
+            l.instrs.push(Instr {
+                op: Prim::Add,
+                a: sum,
+                b: Operand::Val(k),
+            });
+            sum = Operand::Val(l.instrs.len() as u32 - 1);
+        }
+        l.outputs.push(sum);
+        let tape = Tape::<f64>::new(&l, |k| k % 2 == 1);
+        assert!(tape.registers > 1 << 16, "{} registers", tape.registers);
+        let inputs: Vec<[f64; N]> = (0..n).map(|_| [1.0, 2.0]).collect();
+        let mut regs = vec![[0.0; N]; tape.registers];
+        tape.run(&mut regs, &inputs[..], Isa::Baseline);
+        // Σ x_k (k + 1), the odd inputs read as scalars (their lane 0): in
+        // lane 1, 2 (k + 1) for even k and k + 1 for odd k.
+        let (all, even) = (
+            n as f64 * (n as f64 + 1.0) / 2.0,
+            (n / 2) as f64 * (n / 2) as f64,
+        );
+        assert_eq!(tape.output(&regs, 0)[0], all);
+        assert_eq!(tape.output(&regs, 0)[1], all + even);
     }
 }
