@@ -16,6 +16,7 @@ pub mod precision;
 pub mod problem;
 pub mod scheme;
 pub mod size;
+pub mod slots;
 pub mod snapshot;
 pub mod step;
 

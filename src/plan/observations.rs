@@ -14,29 +14,222 @@ pub enum Status {
     },
 }
 
-/// Observations of a whole ensemble. Arrays are indexed by trajectory (the
-/// row-major index over the plan's axes), then frame or point.
-#[derive(Debug, Clone)]
-pub struct Observations<R> {
-    pub n: usize,
+/// The columns of [`Observations`], each declared once: its field, whether
+/// it holds one array per observed variable (`Named`, from the plan's list)
+/// or one array (`Plain`), its element type, how many values each trajectory
+/// has in it (`per`: `one`, `frames`, `max_points`), and when the plan has
+/// it (`when`: a plain column the plan lacks is empty). From this list come
+/// the struct, its allocation, [`Observations::place_rows`],
+/// [`Observations::convert`], [`Observations::columns`] (what snapshots
+/// write and read, in this order), the CPU's [`Sink`] and
+/// [`bytes_per_trajectory`]. A new output is one line here.
+macro_rules! observations {
+    ($( $(#[$doc:meta])* $field:ident: $kind:ident $(($list:ident))? $elem:ident,
+        per $width:ident, when $when:ident; )*) => {
+        /// Observations of a whole ensemble. Arrays are indexed by trajectory
+        /// (the row-major index over the plan's axes), then frame or point.
+        #[derive(Debug, Clone)]
+        pub struct Observations<R> {
+            pub n: usize,
+            /// Frames per trajectory (`steps / every + 1`, from step 0).
+            pub frames: usize,
+            /// Poincaré points kept per trajectory.
+            pub max_points: usize,
+            $( $(#[$doc])* pub $field: $kind<$elem>, )*
+        }
+
+        /// Every column of an [`Observations`] as views that blocks fill in
+        /// disjoint rows.
+        pub struct Sink<R> {
+            $( pub $field: observations!(@rows $kind $elem), )*
+        }
+
+        impl<R: Real> Observations<R> {
+            /// Every array sized for `s`, NaN (counts 0).
+            fn allocate(plan: &Plan, s: &Shape) -> Self {
+                Observations {
+                    n: s.n,
+                    frames: s.frames as usize,
+                    max_points: s.max_points as usize,
+                    $( $field: observations!(@alloc $kind [$($list)?] $elem,
+                        plan, s.n * s.$width as usize, s.$when), )*
+                }
+            }
+
+            /// Every column in declaration order, with its values per
+            /// trajectory (a named column: one per variable).
+            pub fn columns(&self) -> Vec<(usize, Col<'_, R>)> {
+                let s = self.shape();
+                let mut out = vec![];
+                $( observations!(@col $kind $elem, out, &self.$field, s.$width as usize); )*
+                out
+            }
+
+            /// [`Self::columns`], to write.
+            pub fn columns_mut(&mut self) -> Vec<(usize, ColMut<'_, R>)> {
+                let s = self.shape();
+                let mut out = vec![];
+                $( observations!(@col_mut $kind $elem, out, &mut self.$field, s.$width as usize); )*
+                out
+            }
+
+            /// The same observations in another precision.
+            pub fn convert<S: Real>(&self) -> Observations<S> {
+                Observations {
+                    n: self.n,
+                    frames: self.frames,
+                    max_points: self.max_points,
+                    $( $field: observations!(@cast $kind $elem, &self.$field), )*
+                }
+            }
+
+            /// Views of every column, which must outlive the sink and not
+            /// move meanwhile.
+            pub fn sink(&mut self) -> Sink<R> {
+                Sink { $( $field: observations!(@view $kind $elem, &mut self.$field), )* }
+            }
+        }
+
+        /// Bytes of one trajectory's observations of `plan` in `precision`;
+        /// `None` if they do not fit in 64 bits.
+        pub fn bytes_per_trajectory(plan: &Plan, precision: Precision) -> Option<u64> {
+            let s = Shape::of(plan)?;
+            let real = precision.bytes() as u64;
+            let mut total = STATUS_ON_DISK_EXTRA;
+            $(
+                if s.$when {
+                    let vars = observations!(@count $kind [$($list)?], plan);
+                    let elem = observations!(@bytes $elem, real);
+                    total = total.checked_add(vars.checked_mul(s.$width)?.checked_mul(elem)?)?;
+                }
+            )*
+            Some(total)
+        }
+    };
+    (@rows Named R) => { Vec<Rows<R>> };
+    (@rows Plain $e:ident) => { Rows<$e> };
+    (@alloc Named [$list:ident] R, $plan:expr, $len:expr, $when:expr) => {
+        $plan.$list.iter().map(|v| (var_name($plan, *v), vec![R::nan(); $len])).collect()
+    };
+    (@alloc Plain [] $e:ident, $plan:expr, $len:expr, $when:expr) => {
+        if $when { vec![observations!(@init $e); $len] } else { vec![] }
+    };
+    (@init R) => { R::nan() };
+    (@init u32) => { 0u32 };
+    (@col Named R, $out:expr, $v:expr, $w:expr) => {
+        $out.extend($v.iter().map(|(_, x)| ($w, Col::Real(x.as_slice()))))
+    };
+    (@col Plain R, $out:expr, $v:expr, $w:expr) => { $out.push(($w, Col::Real($v.as_slice()))) };
+    (@col Plain u32, $out:expr, $v:expr, $w:expr) => { $out.push(($w, Col::Count($v.as_slice()))) };
+    (@col_mut Named R, $out:expr, $v:expr, $w:expr) => {
+        $out.extend($v.iter_mut().map(|(_, x)| ($w, ColMut::Real(x.as_mut_slice()))))
+    };
+    (@col_mut Plain R, $out:expr, $v:expr, $w:expr) => {
+        $out.push(($w, ColMut::Real($v.as_mut_slice())))
+    };
+    (@col_mut Plain u32, $out:expr, $v:expr, $w:expr) => {
+        $out.push(($w, ColMut::Count($v.as_mut_slice())))
+    };
+    (@cast Named R, $v:expr) => { $v.iter().map(|(n, x)| (n.clone(), cast(x))).collect() };
+    (@cast Plain R, $v:expr) => { cast($v) };
+    (@cast Plain u32, $v:expr) => { $v.clone() };
+    (@view Named R, $v:expr) => { $v.iter_mut().map(|(_, x)| Rows::new(x)).collect() };
+    (@view Plain $e:ident, $v:expr) => { Rows::new($v) };
+    (@count Named [$list:ident], $plan:expr) => { $plan.$list.len() as u64 };
+    (@count Plain [], $plan:expr) => { 1u64 };
+    (@bytes R, $real:expr) => { $real };
+    (@bytes u32, $real:expr) => { 4u64 };
+}
+
+observations! {
     /// `(variable, values[n])`; NaN for trajectories that did not finish.
-    pub final_values: Vec<(String, Vec<R>)>,
-    /// Frames per trajectory (`steps / every + 1`, from step 0).
-    pub frames: usize,
+    final_values: Named(final_vars) R, per one, when always;
     /// `(variable, values[n × frames])`, NaN after a trajectory stopped.
-    pub trajectory: Vec<(String, Vec<R>)>,
-    /// Points kept per trajectory.
-    pub max_points: usize,
+    trajectory: Named(trajectory_vars) R, per frames, when always;
     /// `(variable, values[n × max_points])`, NaN-padded.
-    pub poincare: Vec<(String, Vec<R>)>,
+    poincare: Named(poincare_vars) R, per max_points, when always;
     /// Points found per trajectory (may exceed `max_points`; only that many kept).
-    pub poincare_count: Vec<u32>,
+    poincare_count: Plain u32, per one, when points;
     /// Half the peak-to-peak range of the cycle variable over the measuring window.
-    pub cycle_amplitude: Vec<R>,
+    cycle_amplitude: Plain R, per one, when cycle;
     /// Mean time between upward crossings of the cycle level in the window (NaN if fewer than two).
-    pub cycle_period: Vec<R>,
+    cycle_period: Plain R, per one, when cycle;
     /// 0: ok; k > 0: non-finite at step k.
-    pub nonfinite_step: Vec<u32>,
+    nonfinite_step: Plain u32, per one, when always;
+}
+
+/// The status is written as `status.npy` (1 byte) and `status_step.npy` (8
+/// bytes): 5 more than its 4 in memory.
+const STATUS_ON_DISK_EXTRA: u64 = 5;
+
+/// A column holding one array per observed variable: `(variable, values)`.
+pub type Named<R> = Vec<(String, Vec<R>)>;
+/// A column holding one array.
+pub type Plain<T> = Vec<T>;
+
+/// One column of [`Observations`]: its values, some per trajectory.
+#[derive(Debug)]
+pub enum Col<'a, R> {
+    Real(&'a [R]),
+    Count(&'a [u32]),
+}
+
+/// [`Col`], to write.
+#[derive(Debug)]
+pub enum ColMut<'a, R> {
+    Real(&'a mut [R]),
+    Count(&'a mut [u32]),
+}
+
+/// What a plan's observations hold per trajectory, and which columns.
+struct Shape {
+    n: usize,
+    one: u64,
+    frames: u64,
+    max_points: u64,
+    always: bool,
+    points: bool,
+    cycle: bool,
+}
+
+impl Shape {
+    /// `None` if the frames per trajectory overflow.
+    fn of(plan: &Plan) -> Option<Shape> {
+        let max_points = plan.observers.poincare.as_ref().map_or(0, |p| p.max_points) as u64;
+        Some(Shape {
+            n: plan.n,
+            one: 1,
+            frames: frames_per_trajectory(plan)?,
+            max_points,
+            always: true,
+            points: max_points > 0,
+            cycle: plan.cycle_var.is_some(),
+        })
+    }
+}
+
+/// Raw view of an output array that blocks fill in disjoint rows.
+pub struct Rows<T> {
+    ptr: *mut T,
+    len: usize,
+}
+unsafe impl<T: Send> Sync for Rows<T> {}
+unsafe impl<T: Send> Send for Rows<T> {}
+
+impl<T> Rows<T> {
+    fn new(v: &mut [T]) -> Self {
+        Rows {
+            ptr: v.as_mut_ptr(),
+            len: v.len(),
+        }
+    }
+    /// SAFETY: callers write each index from one block only (rows of distinct
+    /// trajectories), and the vector outlives the run.
+    #[inline]
+    pub fn set(&self, i: usize, v: T) {
+        assert!(i < self.len);
+        unsafe { *self.ptr.add(i) = v }
+    }
 }
 
 fn var_name(plan: &Plan, v: ObsVar) -> String {
@@ -44,6 +237,11 @@ fn var_name(plan: &Plan, v: ObsVar) -> String {
         ObsVar::State(k) => plan.vars[k].to_string(),
         ObsVar::Time => "t".to_string(),
     }
+}
+
+/// `v` in another precision.
+fn cast<R: Real, S: Real>(v: &[R]) -> Vec<S> {
+    v.iter().map(|x| S::from_f64(x.to_f64())).collect()
 }
 
 impl<R: Real> Observations<R> {
@@ -59,39 +257,22 @@ impl<R: Real> Observations<R> {
 
     /// [`Self::for_plan`], or why its arrays cannot be sized.
     pub fn try_for_plan(plan: &Plan) -> Result<Self, String> {
-        let Lengths {
-            n,
-            frames,
-            max_points,
-            trajectory,
-            poincare,
-        } = Self::lengths(plan)?;
-        let nan = |len: usize| vec![R::nan(); len];
-        let has_cycle = plan.cycle_var.is_some();
-        Ok(Observations {
-            n,
-            final_values: plan
-                .final_vars
-                .iter()
-                .map(|v| (var_name(plan, *v), nan(n)))
-                .collect(),
-            frames,
-            trajectory: plan
-                .trajectory_vars
-                .iter()
-                .map(|v| (var_name(plan, *v), nan(trajectory)))
-                .collect(),
-            max_points,
-            poincare: plan
-                .poincare_vars
-                .iter()
-                .map(|v| (var_name(plan, *v), nan(poincare)))
-                .collect(),
-            poincare_count: if max_points > 0 { vec![0; n] } else { vec![] },
-            cycle_amplitude: if has_cycle { nan(n) } else { vec![] },
-            cycle_period: if has_cycle { nan(n) } else { vec![] },
-            nonfinite_step: vec![0; n],
-        })
+        Self::lengths(plan)?;
+        let shape = Shape::of(plan).ok_or("the trajectory frames per trajectory overflow")?;
+        Ok(Self::allocate(plan, &shape))
+    }
+
+    /// The shape these observations were sized for.
+    fn shape(&self) -> Shape {
+        Shape {
+            n: self.n,
+            one: 1,
+            frames: self.frames as u64,
+            max_points: self.max_points as u64,
+            always: true,
+            points: !self.poincare_count.is_empty(),
+            cycle: !self.cycle_period.is_empty(),
+        }
     }
 
     /// The lengths of the arrays of `plan`, counted with checked arithmetic
@@ -121,26 +302,13 @@ impl<R: Real> Observations<R> {
     /// Copies the rows of `src` (a sub-run's) to rows `rows` of `self` (the
     /// whole scene's); a sub-run of fewer steps fills the leading frames.
     pub fn place_rows(&mut self, src: &Observations<R>, rows: impl Iterator<Item = usize>) {
-        let (fs, mp) = (src.frames, src.max_points);
-        for (j, g) in rows.enumerate() {
-            for ((_, dst), (_, s)) in self.final_values.iter_mut().zip(&src.final_values) {
-                dst[g] = s[j];
+        let rows: Vec<usize> = rows.collect();
+        for ((wd, dst), (ws, from)) in self.columns_mut().into_iter().zip(src.columns()) {
+            match (dst, from) {
+                (ColMut::Real(d), Col::Real(s)) => place(d, wd, s, ws, &rows),
+                (ColMut::Count(d), Col::Count(s)) => place(d, wd, s, ws, &rows),
+                _ => unreachable!("observations of one plan have the same columns"),
             }
-            for ((_, dst), (_, s)) in self.trajectory.iter_mut().zip(&src.trajectory) {
-                dst[g * self.frames..g * self.frames + fs]
-                    .copy_from_slice(&s[j * fs..(j + 1) * fs]);
-            }
-            for ((_, dst), (_, s)) in self.poincare.iter_mut().zip(&src.poincare) {
-                dst[g * mp..(g + 1) * mp].copy_from_slice(&s[j * mp..(j + 1) * mp]);
-            }
-            if mp > 0 {
-                self.poincare_count[g] = src.poincare_count[j];
-            }
-            if !src.cycle_amplitude.is_empty() {
-                self.cycle_amplitude[g] = src.cycle_amplitude[j];
-                self.cycle_period[g] = src.cycle_period[j];
-            }
-            self.nonfinite_step[g] = src.nonfinite_step[j];
         }
     }
 
@@ -206,49 +374,13 @@ pub fn estimate_bytes(plan: &Plan, precision: Precision) -> Option<u64> {
     (plan.n as u64).checked_mul(bytes_per_trajectory(plan, precision)?)
 }
 
-/// Bytes of one trajectory's observations of `plan` in `precision`; `None`
-/// if they do not fit in 64 bits.
-pub fn bytes_per_trajectory(plan: &Plan, precision: Precision) -> Option<u64> {
-    let b = precision.bytes() as u64;
-    let frames = frames_per_trajectory(plan)?;
-    let points = plan
-        .observers
-        .poincare
-        .as_ref()
-        .map_or(0, |p| p.max_points as u64);
-    let vars = |k: usize, per: u64| (k as u64).checked_mul(per)?.checked_mul(b);
-    [
-        vars(plan.final_vars.len(), 1)?,
-        vars(plan.trajectory_vars.len(), frames)?,
-        vars(plan.poincare_vars.len(), points)?,
-        if points > 0 { 4 } else { 0 },
-        if plan.cycle_var.is_some() { 2 * b } else { 0 },
-        8,
-    ]
-    .into_iter()
-    .try_fold(0u64, u64::checked_add)
-}
-
-impl<R: Real> Observations<R> {
-    /// The same observations in another precision.
-    pub fn convert<S: Real>(&self) -> Observations<S> {
-        let c = |v: &Vec<R>| {
-            v.iter()
-                .map(|x| S::from_f64(x.to_f64()))
-                .collect::<Vec<S>>()
-        };
-        let cn = |v: &Vec<(String, Vec<R>)>| v.iter().map(|(n, x)| (n.clone(), c(x))).collect();
-        Observations {
-            n: self.n,
-            final_values: cn(&self.final_values),
-            frames: self.frames,
-            trajectory: cn(&self.trajectory),
-            max_points: self.max_points,
-            poincare: cn(&self.poincare),
-            poincare_count: self.poincare_count.clone(),
-            cycle_amplitude: c(&self.cycle_amplitude),
-            cycle_period: c(&self.cycle_period),
-            nonfinite_step: self.nonfinite_step.clone(),
-        }
+/// Row `j` of `src` (`ws` values each) to row `rows[j]` of `dst` (`wd`
+/// each, `wd ≥ ws`: the leading values); an empty `src` copies nothing.
+fn place<T: Copy>(dst: &mut [T], wd: usize, src: &[T], ws: usize, rows: &[usize]) {
+    if src.is_empty() {
+        return;
+    }
+    for (j, g) in rows.iter().enumerate() {
+        dst[g * wd..g * wd + ws].copy_from_slice(&src[j * ws..(j + 1) * ws]);
     }
 }

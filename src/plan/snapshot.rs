@@ -8,11 +8,12 @@
 use std::io::{self, Read, Write};
 
 use crate::num::precision::Real;
-use crate::plan::observations::Observations;
+use crate::plan::observations::{Col, ColMut, Observations};
 use crate::plan::Plan;
 
 const MAGIC: &[u8; 8] = b"REEBSNAP";
-const VERSION: u32 = 1;
+/// 2: observer slots in `plan/slots.rs` order (0.3).
+const VERSION: u32 = 2;
 
 /// Which integration a snapshot continues, and how far it had come.
 #[derive(Debug, Clone, PartialEq)]
@@ -117,37 +118,27 @@ impl Header {
     }
 }
 
-/// The arrays of `obs`, in a fixed order, each with its length.
+/// The columns of `obs` in their declared order, each with its length.
 pub fn write_observations<R: Real>(w: &mut dyn Write, obs: &Observations<R>) -> io::Result<()> {
-    for (_, v) in obs
-        .final_values
-        .iter()
-        .chain(&obs.trajectory)
-        .chain(&obs.poincare)
-    {
-        put_slice(w, v)?;
+    for (_, column) in obs.columns() {
+        match column {
+            Col::Real(v) => put_slice(w, v)?,
+            Col::Count(v) => put_slice(w, v)?,
+        }
     }
-    put_slice(w, &obs.poincare_count)?;
-    put_slice(w, &obs.cycle_amplitude)?;
-    put_slice(w, &obs.cycle_period)?;
-    put_slice(w, &obs.nonfinite_step)
+    Ok(())
 }
 
 /// Reads what [`write_observations`] wrote into `obs`, which is sized for
 /// the same plan (a length that differs is an error).
 pub fn read_observations<R: Real>(r: &mut dyn Read, obs: &mut Observations<R>) -> io::Result<()> {
-    let named = obs
-        .final_values
-        .iter_mut()
-        .chain(&mut obs.trajectory)
-        .chain(&mut obs.poincare);
-    for (_, v) in named {
-        get_into(r, v)?;
+    for (_, column) in obs.columns_mut() {
+        match column {
+            ColMut::Real(v) => get_into(r, v)?,
+            ColMut::Count(v) => get_into(r, v)?,
+        }
     }
-    get_into(r, &mut obs.poincare_count)?;
-    get_into(r, &mut obs.cycle_amplitude)?;
-    get_into(r, &mut obs.cycle_period)?;
-    get_into(r, &mut obs.nonfinite_step)
+    Ok(())
 }
 
 /// Writes `v` (plain values) as they lie in memory.

@@ -11,7 +11,6 @@ pub mod formula;
 pub mod kernels;
 pub mod observe;
 pub mod program;
-pub mod sink;
 
 use std::io::{self, Read, Write};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -24,14 +23,13 @@ use super::gpu::GpuError;
 
 use crate::models::lanes::{Lanes, LANES};
 use crate::models::Flows;
-use crate::plan::observations::Observations;
+use crate::plan::observations::{Observations, Sink};
 use crate::plan::snapshot::{get, get_array, get_one, get_vec, invalid, put, put_slice, Header};
 use crate::plan::Plan;
 use formula::StepMemory;
 pub use kernels::{isa, Isa};
 use observe::{BlockObservers, BlockStep};
 use program::{CpuOp, Program};
-use sink::Sink;
 
 /// Integrates `plan` on the CPU in precision `R`. `progress`, if given, is
 /// advanced by trajectory-steps as blocks go.
@@ -115,7 +113,7 @@ fn integrate<R: Flows>(
         let c = cp.as_deref();
         let pause = Pause::new(c.and_then(|c| c.deadline()), c.and_then(|c| c.stop));
         let started = Instant::now();
-        let sink = Sink::new(&mut out);
+        let sink = out.sink();
         blocks
             .par_iter_mut()
             .enumerate()

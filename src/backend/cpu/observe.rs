@@ -12,11 +12,12 @@ use std::io::{self, Read, Write};
 use crate::models::lanes::{Lanes, LANES};
 use crate::models::Flows;
 use crate::plan::observers::{Direction, Section};
+use crate::plan::slots;
 use crate::plan::snapshot::{get, put};
 use crate::plan::ObsVar;
 
 use super::program::Program;
-use super::sink::Sink;
+use crate::plan::observations::Sink;
 
 /// A block right after step `n1` (0: the initial state), as the observers
 /// see it: the program, the lanes, where its rows go, the state at the
@@ -43,22 +44,13 @@ impl<R> BlockStep<'_, R> {
     }
 }
 
-/// Per-lane observer state of one block (the GPU kernel keeps the same
-/// state per trajectory in `aux_r`/`aux_u`).
+/// Per-lane observer state of one block: the slots of `plan/slots.rs`
+/// (the GPU kernel keeps the same per trajectory in `aux_r`/`aux_u`).
 pub struct BlockObservers<R> {
     /// Stroboscopic section sampled exactly: `(every, first)` steps per lane.
     strobe_exact: Option<([i32; LANES], [i32; LANES])>,
-    /// Interpolated stroboscopic section: the next sample's number.
-    strobe_next: [u64; LANES],
-    points: [u32; LANES],
-    cycle_max: [R; LANES],
-    cycle_min: [R; LANES],
-    cycle_count: [R; LANES],
-    /// Time of the first crossing, and the running mean and co-moment of
-    /// (crossing index, crossing time − first) for the least-squares period.
-    cycle_first: [R; LANES],
-    cycle_mean_t: [R; LANES],
-    cycle_comoment: [R; LANES],
+    real: [[R; LANES]; slots::REAL.len()],
+    count: [[u32; LANES]; slots::COUNT.len()],
     /// First step (0-based) of the cycle statistics' measuring window.
     cycle_start: u64,
 }
@@ -78,14 +70,8 @@ impl<R: Flows> BlockObservers<R> {
             });
         BlockObservers {
             strobe_exact,
-            strobe_next: [0; LANES],
-            points: [0; LANES],
-            cycle_max: [-R::inf(); LANES],
-            cycle_min: [R::inf(); LANES],
-            cycle_count: [R::default(); LANES],
-            cycle_first: [R::nan(); LANES],
-            cycle_mean_t: [R::default(); LANES],
-            cycle_comoment: [R::default(); LANES],
+            real: slots::REAL.map(|(_, init)| [init.value(); LANES]),
+            count: [[0; LANES]; slots::COUNT.len()],
             cycle_start: plan
                 .observers
                 .cycle
@@ -94,39 +80,27 @@ impl<R: Flows> BlockObservers<R> {
         }
     }
 
-    /// Writes the state that changes as the block steps (the rest follows
-    /// from its inputs, as [`Self::new`] computes it).
+    /// Writes the slots (the rest follows from the block's inputs, as
+    /// [`Self::new`] computes it).
     pub fn write(&self, w: &mut dyn Write) -> io::Result<()> {
-        put(w, &self.strobe_next)?;
-        put(w, &self.points)?;
-        for v in [
-            &self.cycle_max,
-            &self.cycle_min,
-            &self.cycle_count,
-            &self.cycle_first,
-            &self.cycle_mean_t,
-            &self.cycle_comoment,
-        ] {
+        for v in &self.real {
             put(w, v)?;
         }
-        put(w, &[self.cycle_start])
+        for v in &self.count {
+            put(w, v)?;
+        }
+        Ok(())
     }
 
     /// Reads what [`Self::write`] wrote into observers made by [`Self::new`].
     pub fn read(&mut self, r: &mut dyn Read) -> io::Result<()> {
-        get(r, &mut self.strobe_next)?;
-        get(r, &mut self.points)?;
-        for v in [
-            &mut self.cycle_max,
-            &mut self.cycle_min,
-            &mut self.cycle_count,
-            &mut self.cycle_first,
-            &mut self.cycle_mean_t,
-            &mut self.cycle_comoment,
-        ] {
+        for v in &mut self.real {
             get(r, v)?;
         }
-        get(r, std::slice::from_mut(&mut self.cycle_start))
+        for v in &mut self.count {
+            get(r, v)?;
+        }
+        Ok(())
     }
 
     /// With a stroboscopic section sampled exactly, the first step `n1 > n`
@@ -174,7 +148,7 @@ impl<R: Flows> BlockObservers<R> {
             }
             let mut th = one;
             while R::strobe_due(
-                R::from_f64(self.strobe_next[i] as f64),
+                R::from_f64(self.count[slots::STROBE_K][i] as f64),
                 l.strobe_period[i],
                 l.strobe_phase[i],
                 l.dt[i],
@@ -183,7 +157,7 @@ impl<R: Flows> BlockObservers<R> {
                 &mut th,
             ) {
                 self.record(s, i, th, None);
-                self.strobe_next[i] += 1;
+                self.count[slots::STROBE_K][i] = self.count[slots::STROBE_K][i].wrapping_add(1);
             }
         }
     }
@@ -218,7 +192,8 @@ impl<R: Flows> BlockObservers<R> {
             .poincare
             .as_ref()
             .map_or(0, |pc| pc.max_points);
-        let k = self.points[i] as usize;
+        let points = &mut self.count[slots::NPOINTS][i];
+        let k = *points as usize;
         if k < max_points {
             for (j, v) in p.plan.poincare_vars.iter().enumerate() {
                 let x = match (crossing, v) {
@@ -228,7 +203,7 @@ impl<R: Flows> BlockObservers<R> {
                 s.sink.poincare[j].set((s.base + i) * max_points + k, x);
             }
         }
-        self.points[i] = self.points[i].saturating_add(1);
+        *points = points.saturating_add(1);
     }
 
     /// Cycle statistics over step `n → n+1`, inside the measuring window.
@@ -240,6 +215,7 @@ impl<R: Flows> BlockObservers<R> {
         }
         let level = R::from_f64(p.plan.observers.cycle.as_ref().map_or(0.0, |cy| cy.level));
         let nf = R::from_f64((s.n1 - 1) as f64);
+        let [max, min, count, first, mean, com] = &mut self.real;
         for i in s.running() {
             let x = l.at(p.var[k])[i];
             R::cycle_step(
@@ -250,12 +226,12 @@ impl<R: Flows> BlockObservers<R> {
                 l.at(p.dvar[k])[i],
                 l.dt[i],
                 l.t0[i] + nf * l.dt[i],
-                &mut self.cycle_max[i],
-                &mut self.cycle_min[i],
-                &mut self.cycle_count[i],
-                &mut self.cycle_first[i],
-                &mut self.cycle_mean_t[i],
-                &mut self.cycle_comoment[i],
+                &mut max[i],
+                &mut min[i],
+                &mut count[i],
+                &mut first[i],
+                &mut mean[i],
+                &mut com[i],
             );
         }
     }
@@ -284,25 +260,14 @@ impl<R: Flows> BlockObservers<R> {
         }
         if plan.cycle_var.is_some() {
             for i in 0..count {
-                let ok = status[i] == 0;
-                let two = R::from_f64(2.0);
-                let amp = if ok {
-                    R::cycle_amplitude(self.cycle_max[i], self.cycle_min[i])
-                } else {
-                    R::nan()
-                };
-                let per = if ok && self.cycle_count[i] >= two {
-                    R::cycle_period(self.cycle_comoment[i], self.cycle_count[i])
-                } else {
-                    R::nan()
-                };
+                let (amp, per) = slots::cycle_finish(|k| self.real[k][i], status[i] == 0);
                 sink.cycle_amplitude.set(base + i, amp);
                 sink.cycle_period.set(base + i, per);
             }
         }
         if plan.observers.poincare.is_some() {
             for i in 0..count {
-                sink.poincare_count.set(base + i, self.points[i]);
+                sink.poincare_count.set(base + i, self.count[slots::NPOINTS][i]);
             }
         }
         for i in 0..count {

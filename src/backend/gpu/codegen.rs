@@ -21,6 +21,7 @@ use crate::num::math::{
 };
 use crate::num::precision::Precision;
 use crate::plan::observers::{Direction, PoincareObs, Section};
+use crate::plan::slots;
 use crate::plan::{ObsVar, Op, Plan, Source};
 
 use super::time_table::TimeTable;
@@ -28,19 +29,6 @@ use super::time_table::TimeTable;
 const PRELUDE_F32: &str = include_str!("../../../shaders/prelude_f32.wgsl");
 const PRELUDE_F64: &str = include_str!("../../../shaders/prelude_f64.wgsl");
 const DRIVER: &str = include_str!("../../../shaders/driver.wgsl");
-
-/// Per-trajectory observer state that lives across dispatches, in `aux_r`
-/// (R) and `aux_u` (u32); the CPU twin is `BlockObservers` in
-/// `backend/cpu/observe.rs`. `run.rs` reads the slots back by position.
-pub const AUX_R: [&str; 6] = [
-    "cyc_max",
-    "cyc_min",
-    "cyc_first",
-    "cyc_mean",
-    "cyc_com",
-    "cyc_count",
-];
-pub const AUX_U: [&str; 2] = ["strobe_k", "npoints"];
 
 /// A generated kernel and what the host needs to drive it.
 #[derive(Debug, Clone)]
@@ -483,16 +471,12 @@ impl Gen<'_> {
 
     /// Observer state that lives across dispatches, loaded and stored.
     fn aux_state(&mut self) {
-        for (k, a) in AUX_R.iter().enumerate() {
-            let init = match *a {
-                "cyc_max" => "-inf()",
-                "cyc_min" => "inf()",
-                _ => "0.0",
-            };
+        for (k, (a, init)) in slots::REAL.iter().enumerate() {
+            let init = init.wgsl();
             writeln!(self.load, "    var {a}: R = {init};\n    if u.step0 != 0u {{\n        {a} = aux_r[{k}u * u.cap + i];\n    }}").unwrap();
             writeln!(self.store, "    aux_r[{k}u * u.cap + i] = {a};").unwrap();
         }
-        for (k, a) in AUX_U.iter().enumerate() {
+        for (k, a) in slots::COUNT.iter().enumerate() {
             writeln!(self.load, "    var {a}: u32 = 0u;\n    if u.step0 != 0u {{\n        {a} = aux_u[{k}u * u.cap + i];\n    }}").unwrap();
             writeln!(self.store, "    aux_u[{k}u * u.cap + i] = {a};").unwrap();
         }

@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use wgpu::util::DeviceExt;
 
-use super::codegen::{generate, AUX_R, AUX_U};
+use super::codegen::generate;
 use super::context::{GpuContext, GpuError};
 use super::time_table::{self, TimeTable};
 use crate::backend::checkpoint::Checkpoints;
@@ -18,7 +18,7 @@ use crate::models::Flows;
 use crate::num::precision::Precision;
 use crate::plan::observations::Observations;
 use crate::plan::snapshot::{get_array, get_into, invalid, put, put_slice, Header};
-use crate::plan::{ObsVar, Plan};
+use crate::plan::{slots, ObsVar, Plan};
 
 /// Wall time one dispatch aims at.
 pub const TARGET_DISPATCH_SECONDS: f64 = 0.1;
@@ -326,8 +326,8 @@ impl Sizes {
         let per_buffer = [
             nv * b,
             4,
-            AUX_R.len() as u64 * b,
-            AUX_U.len() as u64 * 4,
+            slots::REAL.len() as u64 * b,
+            slots::COUNT.len() as u64 * 4,
             points,
         ];
         let widest = *per_buffer.iter().max().expect("nonempty");
@@ -403,8 +403,8 @@ impl Buffers {
         let staging_per_trajectory = [
             s.nv * b,
             4,
-            AUX_R.len() as u64 * b,
-            AUX_U.len() as u64 * 4,
+            slots::REAL.len() as u64 * b,
+            slots::COUNT.len() as u64 * 4,
             s.max_points * s.pv * b,
             s.max_frames * s.tv * b,
         ]
@@ -437,8 +437,8 @@ impl Buffers {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
-            aux_r: storage(ctx, "aux_r", AUX_R.len() as u64 * cap * b),
-            aux_u: storage(ctx, "aux_u", AUX_U.len() as u64 * cap * 4),
+            aux_r: storage(ctx, "aux_r", slots::REAL.len() as u64 * cap * b),
+            aux_u: storage(ctx, "aux_u", slots::COUNT.len() as u64 * cap * 4),
             traj: storage(ctx, "trajectory", s.max_frames * s.tv * cap * b),
             points: storage(ctx, "points", s.max_points * s.pv * cap * b),
             staging: ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -602,8 +602,8 @@ impl Dispatcher<'_> {
         [
             (&b.state, s.nv * s.cap * s.b),
             (&b.status, 4 * s.cap),
-            (&b.aux_r, AUX_R.len() as u64 * s.cap * s.b),
-            (&b.aux_u, AUX_U.len() as u64 * s.cap * 4),
+            (&b.aux_r, slots::REAL.len() as u64 * s.cap * s.b),
+            (&b.aux_u, slots::COUNT.len() as u64 * s.cap * 4),
             (&b.points, s.max_points * s.pv * s.cap * s.b),
         ]
     }
@@ -826,7 +826,7 @@ fn final_time<R: Flows>(plan: &Plan, g: usize) -> R {
 }
 
 /// Poincaré points and cycle statistics of a finished chunk, from the
-/// observer state the kernel kept (`AUX_R`, `AUX_U`).
+/// observer state the kernel kept (`plan/slots.rs`).
 #[allow(clippy::too_many_arguments)]
 fn collect_observers<R: Flows>(
     ctx: &GpuContext,
@@ -843,13 +843,13 @@ fn collect_observers<R: Flows>(
         ctx,
         &bufs.aux_r,
         &bufs.staging,
-        AUX_R.len() as u64 * cap * b,
+        slots::REAL.len() as u64 * cap * b,
     )?;
     let aux_u: Vec<u32> = read(
         ctx,
         &bufs.aux_u,
         &bufs.staging,
-        AUX_U.len() as u64 * cap * 4,
+        slots::COUNT.len() as u64 * cap * 4,
     )?;
     let pv = plan.poincare_vars.len() as u64;
     let mp = out.max_points as u64;
@@ -860,9 +860,9 @@ fn collect_observers<R: Flows>(
     };
     for i in 0..count {
         let g = (base + i) as usize;
-        let a = |k: usize| aux_r[(k as u64 * cap + i) as usize];
+        let slot = |k: usize| aux_r[(k as u64 * cap + i) as usize];
         if plan.observers.poincare.is_some() {
-            let n = aux_u[(cap + i) as usize]; // AUX_U[1]: npoints
+            let n = aux_u[(slots::NPOINTS as u64 * cap + i) as usize];
             out.poincare_count[g] = n;
             for k in 0..(n as u64).min(mp) {
                 for j in 0..pv {
@@ -872,18 +872,9 @@ fn collect_observers<R: Flows>(
             }
         }
         if plan.cycle_var.is_some() {
-            // AUX_R: cyc_max, cyc_min, cyc_first, cyc_mean, cyc_com, cyc_count.
-            let (crossings, ok) = (a(5), status[i as usize] == 0);
-            out.cycle_amplitude[g] = if ok {
-                R::cycle_amplitude(a(0), a(1))
-            } else {
-                R::nan()
-            };
-            out.cycle_period[g] = if ok && crossings >= R::from_f64(2.0) {
-                R::cycle_period(a(4), crossings)
-            } else {
-                R::nan()
-            };
+            let (amplitude, period) = slots::cycle_finish(slot, status[i as usize] == 0);
+            out.cycle_amplitude[g] = amplitude;
+            out.cycle_period[g] = period;
         }
     }
     Ok(())

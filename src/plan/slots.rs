@@ -1,0 +1,94 @@
+//! The observers' per-trajectory state, declared once: the CPU keeps it per
+//! lane of a block (`backend/cpu/observe.rs`), the GPU per thread in the
+//! buffers `aux_r` and `aux_u` (`backend/gpu/codegen.rs` names a WGSL local
+//! after each slot; `run.rs` reads them back by these indices); both
+//! snapshot it in this order. Each observer's finish, what its outputs are
+//! made of from its slots, is here too, so both backends share it.
+
+use crate::models::Flows;
+
+/// A slot's value before the first step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Init {
+    Zero,
+    Inf,
+    NegInf,
+}
+
+impl Init {
+    pub fn value<R: Flows>(self) -> R {
+        match self {
+            Init::Zero => R::default(),
+            Init::Inf => R::inf(),
+            Init::NegInf => -R::inf(),
+        }
+    }
+
+    /// The same value in WGSL.
+    pub fn wgsl(self) -> &'static str {
+        match self {
+            Init::Zero => "0.0",
+            Init::Inf => "inf()",
+            Init::NegInf => "-inf()",
+        }
+    }
+}
+
+/// Slots in the working precision: the cycle statistics' running extremes,
+/// crossing count, first crossing time, and the running mean and co-moment
+/// of the crossing times (`models/events.rs::cycle_step`).
+pub const REAL: [(&str, Init); 6] = [
+    ("cyc_max", Init::NegInf),
+    ("cyc_min", Init::Inf),
+    ("cyc_count", Init::Zero),
+    ("cyc_first", Init::Zero),
+    ("cyc_mean", Init::Zero),
+    ("cyc_com", Init::Zero),
+];
+pub const CYC_MAX: usize = 0;
+pub const CYC_MIN: usize = 1;
+pub const CYC_COUNT: usize = 2;
+pub const CYC_COM: usize = 5;
+
+/// 32-bit counters (start at 0): the next interpolated stroboscopic sample,
+/// and the Poincaré points found.
+pub const COUNT: [&str; 2] = ["strobe_k", "npoints"];
+pub const STROBE_K: usize = 0;
+pub const NPOINTS: usize = 1;
+
+/// The cycle statistics' outputs, `(amplitude, period)`, from a
+/// trajectory's real slots (`slot(k)`: slot `k`); NaN for a trajectory that
+/// stopped (`ok` false), and the period NaN below two crossings.
+pub fn cycle_finish<R: Flows>(slot: impl Fn(usize) -> R, ok: bool) -> (R, R) {
+    if !ok {
+        return (R::nan(), R::nan());
+    }
+    let amplitude = R::cycle_amplitude(slot(CYC_MAX), slot(CYC_MIN));
+    let crossings = slot(CYC_COUNT);
+    let period = if crossings >= R::from_f64(2.0) {
+        R::cycle_period(slot(CYC_COM), crossings)
+    } else {
+        R::nan()
+    };
+    (amplitude, period)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_indices_name_their_slots() {
+        let names = [
+            (CYC_MAX, "cyc_max"),
+            (CYC_MIN, "cyc_min"),
+            (CYC_COUNT, "cyc_count"),
+            (CYC_COM, "cyc_com"),
+        ];
+        for (k, name) in names {
+            assert_eq!(REAL[k].0, name);
+        }
+        assert_eq!(COUNT[STROBE_K], "strobe_k");
+        assert_eq!(COUNT[NPOINTS], "npoints");
+    }
+}
