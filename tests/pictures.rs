@@ -66,6 +66,7 @@ fn observations(n: usize) -> Observations<f64> {
         poincare_count: vec![0; n],
         cycle_amplitude: vec![],
         cycle_period: vec![],
+        mean: vec![],
         nonfinite_step: vec![0; n],
     }
 }

@@ -119,6 +119,12 @@ crate::shared_fns! {
         *mean_u = *mean_u + (u - *mean_u) / n;
         *comoment = *comoment + 0.5 * n * (u - *mean_u);
     }
+    /// A time average's running mean after its k-th value x (k ≥ 1): the
+    /// mean of k values without their sum, which in f32 would lose the
+    /// digits of the later ones.
+    fn mean_step(x: R, k: R, mean: &mut R) {
+        *mean = *mean + (x - *mean) / k;
+    }
     /// Half the peak-to-peak range of the cycle variable.
     fn cycle_amplitude(cyc_max: R, cyc_min: R) -> R {
         return 0.5 * (cyc_max - cyc_min);

@@ -1,5 +1,6 @@
 //! The arrays of a run directory (`.npy`): axis values, final values,
-//! trajectories, Poincaré points, cycle statistics, status. Every array's
+//! trajectories, Poincaré points, cycle statistics, time averages and
+//! resonances, status. Every array's
 //! leading dimensions are the scene's axes, in file order, so the rows of a
 //! chunk of trajectories are one contiguous slab of each (`npy.rs`).
 
@@ -12,6 +13,7 @@ use npyz::WriterBuilder;
 
 use crate::num::precision::Real;
 use crate::plan::observations::Observations;
+use crate::plan::observers::ResonanceObs;
 use crate::scene::{OutVar, Scene};
 
 /// Writes a C-order .npy array.
@@ -94,6 +96,12 @@ pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Ve
         ));
         out.push(scalar("cycle_period.npy", real::<R>(), &obs.cycle_period));
     }
+    if let Some((vs, _)) = &scene.average {
+        vars(vs, &obs.mean, 0, "mean", &mut out)?;
+    }
+    if let Some(r) = &scene.resonance {
+        out.push(owned(scalar("resonance.npy", "<i4", &resonance(r, obs)?)));
+    }
     // status: 0 ok, 1 non-finite; status_step: the step it became non-finite (−1: never).
     let steps = &obs.nonfinite_step;
     let status: Vec<u8> = steps.iter().map(|s| u8::from(*s != 0)).collect();
@@ -104,6 +112,15 @@ pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Ve
         .collect();
     out.push(owned(scalar("status_step.npy", "<i8", &step)));
     Ok(out)
+}
+
+/// Each trajectory's resonance: the index into `r.ratios` of the one its
+/// mean of `r.var` is captured in, −1 for none (a NaN mean included).
+pub fn resonance<R: Real>(r: &ResonanceObs, obs: &Observations<R>) -> Result<Vec<i32>> {
+    let mean = obs
+        .mean_of(&r.var)
+        .with_context(|| format!("the average of {}", r.var))?;
+    Ok(mean.iter().map(|m| r.classify(m.to_f64())).collect())
 }
 
 /// The numpy type of the working precision.

@@ -27,6 +27,7 @@ use crate::output::journal::{self, Record};
 use crate::output::stream::{self, Target, Watch};
 use crate::output::zarr;
 use crate::plan::observations::bytes_per_trajectory;
+use crate::plan::observers::ResonanceObs;
 use crate::plan::size::{available_memory, Estimate};
 use crate::scene::{BackendChoice, Format, Scene, SceneWarning, SubRun};
 
@@ -464,6 +465,9 @@ fn finish<R: Flows>(
     };
     let mut summary = summary(scene, subs, made, record, &ran, &files);
     summary["dims"] = dims_of::<R>(scene, subs)?;
+    if let Some(r) = &scene.resonance {
+        summary["resonance"] = capture(r, &crate::output::arrays::resonance(r, &observations)?);
+    }
     if format == Format::Zarr {
         zarr::finish(&dir, scene, summary.clone())?;
     }
@@ -570,6 +574,33 @@ pub fn provenance(cpu_ran: bool) -> serde_json::Map<String, serde_json::Value> {
     map.insert("utc".into(), utc.to_string().into());
     map.insert("cpu_isa".into(), isa.into());
     map
+}
+
+/// `summary.json`'s `resonance`: the ratios, and how many trajectories
+/// (and what fraction of the ensemble) each captured, and none.
+fn capture(r: &ResonanceObs, index: &[i32]) -> serde_json::Value {
+    let n = index.len().max(1) as f64;
+    let mut labels: Vec<String> = (0..r.ratios.len()).map(|k| r.label(k)).collect();
+    labels.push("none".into());
+    let mut counts = vec![0u64; labels.len()];
+    for k in index {
+        counts[usize::try_from(*k).unwrap_or(r.ratios.len())] += 1;
+    }
+    let by_label =
+        |f: &dyn Fn(u64) -> serde_json::Value| -> serde_json::Map<String, serde_json::Value> {
+            labels
+                .iter()
+                .zip(&counts)
+                .map(|(l, c)| (l.clone(), f(*c)))
+                .collect()
+        };
+    serde_json::json!({
+        "var": r.var,
+        "ratios": labels[..r.ratios.len()],
+        "tolerance": r.tolerance,
+        "counts": by_label(&|c| c.into()),
+        "fractions": by_label(&|c| (c as f64 / n).into()),
+    })
 }
 
 /// The contents of summary.json.

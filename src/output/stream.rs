@@ -560,6 +560,10 @@ fn load<R: Real>(scene: &Scene, src: &Source, obs: &mut Observations<R>) -> Resu
         obs.cycle_amplitude = src.values("cycle_amplitude.npy", n, size)?;
         obs.cycle_period = src.values("cycle_period.npy", n, size)?;
     }
+    for v in scene.average.iter().flat_map(|(vars, _)| vars) {
+        let file = format!("mean_{}.npy", v.name);
+        src.components(&file, n, &v.components, &mut obs.mean)?;
+    }
     let steps: Vec<i64> = src.values("status_step.npy", n, 8)?;
     obs.nonfinite_step = steps.iter().map(|s| (*s).max(0) as u32).collect();
     Ok(())

@@ -66,6 +66,8 @@ pub struct Plan {
     /// The crossing variable of an event section, or of the cycle statistics.
     pub crossing_var: Option<usize>,
     pub cycle_var: Option<usize>,
+    /// The averaged variables (state variables only).
+    pub average_vars: Vec<ObsVar>,
 }
 
 /// Name of a lane field with a static lifetime.
@@ -150,7 +152,30 @@ impl Plan {
             poincare_vars: observed.poincare_vars,
             crossing_var: observed.crossing_var,
             cycle_var: observed.cycle_var,
+            average_vars: observed.average_vars,
         })
+    }
+
+    /// The step after which time averages start: the first `skip` fraction
+    /// of the run is left out, and the states at the ends of the steps
+    /// `average_start + 1 …` are averaged.
+    pub fn average_start(&self) -> u64 {
+        self.observers
+            .average
+            .as_ref()
+            .map_or(u64::MAX, |a| (a.skip * self.steps as f64).floor() as u64)
+    }
+
+    /// Does an observer keep state across steps (`plan/slots.rs`)?
+    pub fn has_slots(&self) -> bool {
+        self.observers.poincare.is_some()
+            || self.cycle_var.is_some()
+            || !self.average_vars.is_empty()
+    }
+
+    /// Does an observer look at the state after every step?
+    pub fn observes_every_step(&self) -> bool {
+        self.needs_field() || self.cycle_var.is_some() || !self.average_vars.is_empty()
     }
 
     /// Does any observer need the vector field at the step ends (for

@@ -154,6 +154,8 @@ observations! {
     cycle_amplitude: Plain R, per one, when cycle;
     /// Mean time between upward crossings of the cycle level in the window (NaN if fewer than two).
     cycle_period: Plain R, per one, when cycle;
+    /// `(variable, means[n])`: each averaged variable's time average.
+    mean: Named(average_vars) R, per one, when always;
     /// 0: ok; k > 0: non-finite at step k.
     nonfinite_step: Plain u32, per one, when always;
 }
@@ -333,6 +335,13 @@ impl<R: Real> Observations<R> {
 
     pub fn trajectory_of(&self, var: &str) -> Option<&[R]> {
         self.trajectory
+            .iter()
+            .find(|(v, _)| v == var)
+            .map(|(_, x)| x.as_slice())
+    }
+
+    pub fn mean_of(&self, var: &str) -> Option<&[R]> {
+        self.mean
             .iter()
             .find(|(v, _)| v == var)
             .map(|(_, x)| x.as_slice())

@@ -20,6 +20,8 @@ pub struct Observed {
     /// The crossing variable of an event section, and of the cycle statistics.
     pub crossing_var: Option<usize>,
     pub cycle_var: Option<usize>,
+    /// The averaged variables (state variables only).
+    pub average_vars: Vec<ObsVar>,
 }
 
 impl Observed {
@@ -66,6 +68,15 @@ impl Observed {
                 .as_ref()
                 .map(|c| state_only(&c.var, "output.cycle.var"))
                 .transpose()?,
+            average_vars: obs
+                .average
+                .iter()
+                .flat_map(|a| &a.vars)
+                .map(|v| match resolve(v, "output.average")? {
+                    ObsVar::Time => Err(err("output.average", "time has no average to take")),
+                    state => Ok(state),
+                })
+                .collect::<Result<_, _>>()?,
         })
     }
 }

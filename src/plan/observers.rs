@@ -68,6 +68,40 @@ impl Default for CycleObs {
     }
 }
 
+/// Time averages: the plain mean of each variable's values at the ends of
+/// the steps after the first `skip` fraction of the run.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct AverageObs {
+    /// State variables (components of vectors spelled out).
+    pub vars: Vec<String>,
+    pub skip: f64,
+}
+
+/// Resonance capture: the ratio p:q whose value p/q the mean of `var` is
+/// within `tolerance` of (the first such, in the order given).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ResonanceObs {
+    pub var: String,
+    pub ratios: Vec<[i64; 2]>,
+    pub tolerance: f64,
+}
+
+impl ResonanceObs {
+    /// The index into `ratios` of the resonance `mean` is captured in, or −1.
+    pub fn classify(&self, mean: f64) -> i32 {
+        self.ratios
+            .iter()
+            .position(|[p, q]| (mean - *p as f64 / *q as f64).abs() <= self.tolerance)
+            .map_or(-1, |k| k as i32)
+    }
+
+    /// `p:q` of ratio `k`.
+    pub fn label(&self, k: usize) -> String {
+        let [p, q] = self.ratios[k];
+        format!("{p}:{q}")
+    }
+}
+
 /// Everything a run records.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct Observers {
@@ -76,6 +110,9 @@ pub struct Observers {
     pub trajectory: Option<TrajectoryObs>,
     pub poincare: Option<PoincareObs>,
     pub cycle: Option<CycleObs>,
+    pub average: Option<AverageObs>,
+    /// Classifies the mean of one of the averaged variables.
+    pub resonance: Option<ResonanceObs>,
 }
 
 impl Observers {
@@ -93,6 +130,9 @@ impl Observers {
         }
         if let Some(c) = &self.cycle {
             v.push(c.var.clone());
+        }
+        if let Some(a) = &self.average {
+            v.extend(a.vars.iter().cloned());
         }
         v
     }
@@ -144,8 +184,40 @@ impl Observers {
                 return e("output.cycle.level", "is not a finite number".into());
             }
         }
+        if let Some(a) = &self.average {
+            if !(0.0..1.0).contains(&a.skip) {
+                return e(
+                    "output.average.skip",
+                    "must be in [0, 1): the fraction of the run skipped before averaging".into(),
+                );
+            }
+        }
+        if let Some(r) = &self.resonance {
+            validate_resonance(r)?;
+        }
         Ok(())
     }
+}
+
+/// A resonance's ratios and tolerance.
+fn validate_resonance(r: &ResonanceObs) -> Result<(), (String, String)> {
+    let e = |f: &str, m: String| Err((f.to_string(), m));
+    if r.ratios.is_empty() {
+        return e("output.resonance.ratios", "names no ratio".into());
+    }
+    if let Some([p, q]) = r.ratios.iter().find(|[p, q]| *p <= 0 || *q <= 0) {
+        return e(
+            "output.resonance.ratios",
+            format!("{p}:{q} has a term ≤ 0: each ratio is [p, q] with p, q ≥ 1"),
+        );
+    }
+    if !(r.tolerance.is_finite() && r.tolerance > 0.0) {
+        return e(
+            "output.resonance.tolerance",
+            format!("{} must be a number > 0", r.tolerance),
+        );
+    }
+    Ok(())
 }
 
 /// Is the stroboscopic section of `plan` sampled exactly (period and phase

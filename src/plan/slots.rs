@@ -6,6 +6,7 @@
 //! made of from its slots, is here too, so both backends share it.
 
 use crate::models::Flows;
+use crate::plan::Plan;
 
 /// A slot's value before the first step.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -50,6 +51,18 @@ pub const CYC_MIN: usize = 1;
 pub const CYC_COUNT: usize = 2;
 pub const CYC_COM: usize = 5;
 
+/// The first slot of the time averages: one per averaged variable after
+/// the fixed [`REAL`] slots, each the running mean of its values.
+pub const MEAN0: usize = REAL.len();
+
+/// Every real slot of `plan`: [`REAL`], then `mean_<j>` per averaged
+/// variable (`plan.average_vars[j]`), starting at 0.
+pub fn real(plan: &Plan) -> Vec<(String, Init)> {
+    let fixed = REAL.iter().map(|(n, init)| (n.to_string(), *init));
+    let means = (0..plan.average_vars.len()).map(|j| (format!("mean_{j}"), Init::Zero));
+    fixed.chain(means).collect()
+}
+
 /// 32-bit counters (start at 0): the next interpolated stroboscopic sample,
 /// and the Poincaré points found.
 pub const COUNT: [&str; 2] = ["strobe_k", "npoints"];
@@ -71,6 +84,16 @@ pub fn cycle_finish<R: Flows>(slot: impl Fn(usize) -> R, ok: bool) -> (R, R) {
         R::nan()
     };
     (amplitude, period)
+}
+
+/// A time average's output from its slot: NaN for a trajectory that
+/// stopped (`ok` false).
+pub fn mean_finish<R: Flows>(mean: R, ok: bool) -> R {
+    if ok {
+        mean
+    } else {
+        R::nan()
+    }
 }
 
 #[cfg(test)]

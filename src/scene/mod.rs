@@ -36,7 +36,7 @@ use std::path::PathBuf;
 pub use crate::backend::BackendChoice;
 use crate::models::Model;
 use crate::num::precision::Precision;
-use crate::plan::observers::{CycleObs, Section};
+use crate::plan::observers::{CycleObs, ResonanceObs, Section};
 use crate::plan::scheme::Scheme;
 use crate::plan::size::{self, Estimate, SizeError};
 use crate::plan::Plan;
@@ -168,6 +168,9 @@ pub struct Scene {
     pub trajectory: Option<(u64, Vec<OutVar>)>,
     pub poincare: Option<(Section, Vec<OutVar>, usize)>,
     pub cycle: Option<CycleObs>,
+    /// Time averages: the variables and the fraction of the run skipped.
+    pub average: Option<(Vec<OutVar>, f64)>,
+    pub resonance: Option<ResonanceObs>,
     /// How the arrays are written (`output.format`).
     pub format: Format,
     pub backend: BackendChoice,

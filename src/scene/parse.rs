@@ -15,7 +15,9 @@ use toml::Spanned;
 use crate::models::spec::ModelSpec;
 use crate::models::{Model, MODEL_NAMES};
 use crate::num::precision::Precision;
-use crate::plan::observers::{check_skip, check_strobe, CycleObs, Direction, Section};
+use crate::plan::observers::{
+    check_skip, check_strobe, CycleObs, Direction, ResonanceObs, Section,
+};
 use crate::plan::scheme::{Scheme, SCHEME_NAMES};
 use crate::plan::size;
 
@@ -40,7 +42,15 @@ const TOP_KEYS: &[&str] = &[
     "plot",
 ];
 const INTEGRATOR_KEYS: &[&str] = &["scheme", "order", "dt", "t_end", "steps"];
-const OUTPUT_KEYS: &[&str] = &["final", "trajectory", "poincare", "cycle", "format"];
+const OUTPUT_KEYS: &[&str] = &[
+    "final",
+    "trajectory",
+    "poincare",
+    "cycle",
+    "average",
+    "resonance",
+    "format",
+];
 const TRAJECTORY_KEYS: &[&str] = &["every", "vars"];
 const POINCARE_KEYS: &[&str] = &[
     "period",
@@ -53,6 +63,8 @@ const POINCARE_KEYS: &[&str] = &[
     "skip",
 ];
 const CYCLE_KEYS: &[&str] = &["var", "level", "skip"];
+const AVERAGE_KEYS: &[&str] = &["vars", "skip"];
+const RESONANCE_KEYS: &[&str] = &["var", "ratios", "tolerance"];
 const RUN_KEYS: &[&str] = &["backend", "precision"];
 const PLOT_KEYS: &[&str] = &[
     "phase",
@@ -301,6 +313,8 @@ impl Scene {
             trajectory: out.trajectory,
             poincare: out.poincare,
             cycle: out.cycle,
+            average: out.average,
+            resonance: out.resonance,
             format: out.format,
             backend,
             precision,
@@ -576,6 +590,8 @@ struct Out {
     trajectory: Option<(u64, Vec<OutVar>)>,
     poincare: Option<(Section, Vec<OutVar>, usize)>,
     cycle: Option<CycleObs>,
+    average: Option<(Vec<OutVar>, f64)>,
+    resonance: Option<ResonanceObs>,
     format: Format,
 }
 
@@ -659,10 +675,13 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model) -> Result<Out, SceneError> {
                 ("trajectory", TRAJECTORY_KEYS),
                 ("poincare", POINCARE_KEYS),
                 ("cycle", CYCLE_KEYS),
+                ("average", AVERAGE_KEYS),
+                ("resonance", RESONANCE_KEYS),
             ],
         )?;
     }
     let o: tables::Output = deserialize(p, doc.get("output"))?;
+    let (average, resonance) = averages(p, &ov, &o)?;
     let final_vars = match &o.final_vars {
         Some(v) => ov.list(p, "output.final", v)?,
         None => ov.defaults(),
@@ -712,8 +731,103 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model) -> Result<Out, SceneError> {
         trajectory,
         poincare,
         cycle,
+        average,
+        resonance,
         format,
     })
+}
+
+/// `output.average` and `output.resonance` (which averages its variable
+/// too, skipping the average's fraction, or half the run).
+#[allow(clippy::type_complexity)]
+fn averages(
+    p: &Parser,
+    ov: &OutVars,
+    o: &tables::Output,
+) -> Result<(Option<(Vec<OutVar>, f64)>, Option<ResonanceObs>), SceneError> {
+    let field = "output.average";
+    let mut average = match o.average.as_ref() {
+        None => None,
+        Some(a) => {
+            let span = a.span();
+            let (vars, skip) = match a.get_ref() {
+                tables::Average::Vars(v) => (v.0.clone(), None),
+                tables::Average::Table(t) => (
+                    t.vars
+                        .as_ref()
+                        .map(|v| v.get_ref().0.clone())
+                        .unwrap_or_default(),
+                    t.skip.as_ref().map(|x| x.get_ref().0),
+                ),
+            };
+            if vars.is_empty() {
+                return Err(p.err(field, Some(&span), "names no variable".to_string()));
+            }
+            let mut out = vec![];
+            for v in &vars {
+                if v == "t" {
+                    return Err(p.err(
+                        field,
+                        Some(&span),
+                        "time has no average to take".to_string(),
+                    ));
+                }
+                out.push(ov.one(p, field, v, &span)?);
+            }
+            Some((out, skip.unwrap_or(0.5)))
+        }
+    };
+    let Some(r) = o.resonance.as_ref() else {
+        return Ok((average, None));
+    };
+    let span = r.span();
+    let r = &r.get_ref().0;
+    let field = "output.resonance";
+    let Some(var) = r.var.as_ref() else {
+        return Err(p.err(
+            field,
+            Some(&span),
+            "needs var, the variable whose mean is classified (e.g. var = \"p\")".to_string(),
+        ));
+    };
+    let var_span = var.span();
+    let var = ov.one(p, "output.resonance.var", &var.get_ref().0, &var_span)?;
+    if var.name == "t" || var.components.len() != 1 {
+        return Err(p.err(
+            "output.resonance.var",
+            Some(&var_span),
+            format!(
+                "`{}` has no average to classify: name one state variable",
+                var.name
+            ),
+        ));
+    }
+    let Some(ratios) = r.ratios.as_ref() else {
+        return Err(p.err(
+            field,
+            Some(&span),
+            "needs ratios, e.g. ratios = [[1, 1], [3, 2]]".to_string(),
+        ));
+    };
+    let Some(tolerance) = r.tolerance.as_ref() else {
+        return Err(p.err(
+            field,
+            Some(&span),
+            "needs tolerance, e.g. tolerance = 0.01".to_string(),
+        ));
+    };
+    let (vars, _) = average.get_or_insert_with(|| (vec![], 0.5));
+    if !vars.iter().any(|v| v.name == var.name) {
+        vars.push(var.clone());
+    }
+    Ok((
+        average,
+        Some(ResonanceObs {
+            var: var.name,
+            ratios: ratios.get_ref().0.clone(),
+            tolerance: tolerance.get_ref().0,
+        }),
+    ))
 }
 
 /// `output.poincare`: the section, its variables and the points kept.

@@ -3,7 +3,7 @@
 //! problem with those axes held fixed.
 
 use crate::num::precision::Precision;
-use crate::plan::observers::{Observers, PoincareObs, TrajectoryObs};
+use crate::plan::observers::{AverageObs, Observers, PoincareObs, TrajectoryObs};
 use crate::plan::precision::{self as fits, apart, short, Limits};
 use crate::plan::{Plan, PlanError, PlanWarning, Problem, Source};
 
@@ -392,6 +392,11 @@ impl Scene {
                     max_points: *max_points,
                 }),
             cycle: self.cycle.clone(),
+            average: self.average.as_ref().map(|(vars, skip)| AverageObs {
+                vars: comps(vars),
+                skip: *skip,
+            }),
+            resonance: self.resonance.clone(),
         }
     }
 }

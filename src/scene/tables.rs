@@ -177,7 +177,7 @@ impl Leaf for Nums {
     }
 }
 
-leaf_deserialize!(Num, Int, Str, Bool, Strs, Nums, Period, Cycle);
+leaf_deserialize!(Num, Int, Str, Bool, Strs, Nums, Period, Cycle, Average, Ratios);
 
 /// An inline table of known fields; any other value is refused with
 /// `T::EXPECTED`, the form the scene should have used.
@@ -224,7 +224,78 @@ pub struct Output {
     pub trajectory: Field<Table<Trajectory>>,
     pub poincare: Field<Table<Poincare>>,
     pub cycle: Field<Cycle>,
+    pub average: Field<Average>,
+    pub resonance: Field<Table<Resonance>>,
     pub format: Field<Str>,
+}
+
+/// `output.average = ["p"]` or `{ vars = ["p"], skip = 0.5 }`.
+#[derive(Debug)]
+pub enum Average {
+    Vars(Strs),
+    Table(AverageTable),
+}
+
+#[derive(Debug, Default, Deserialize)]
+pub struct AverageTable {
+    pub vars: Field<Strs>,
+    pub skip: Field<Num>,
+}
+
+impl Leaf for Average {
+    const WHAT: &'static str = "a list of variables or { vars = [...], skip = 0.5 }";
+    fn from_str(v: &str) -> Result<Average, String> {
+        Strs::from_str(v).map(Average::Vars)
+    }
+    fn from_seq<'de, A: SeqAccess<'de>>(seq: A) -> Result<Average, A::Error> {
+        Strs::from_seq(seq).map(Average::Vars)
+    }
+    fn from_map<'de, A: MapAccess<'de>>(map: A) -> Result<Average, A::Error> {
+        AverageTable::deserialize(de::value::MapAccessDeserializer::new(map)).map(Average::Table)
+    }
+}
+
+/// `output.resonance = { var = "p", ratios = [[1, 1], [3, 2]], tolerance = 0.01 }`.
+#[derive(Debug, Default, Deserialize)]
+pub struct Resonance {
+    pub var: Field<Str>,
+    pub ratios: Field<Ratios>,
+    pub tolerance: Field<Num>,
+}
+
+impl Expected for Resonance {
+    const EXPECTED: &'static str = "{ var = \"p\", ratios = [[1, 1], [3, 2]], tolerance = 0.01 }";
+}
+
+/// A list of ratios `[p, q]` of whole numbers.
+#[derive(Debug, Clone)]
+pub struct Ratios(pub Vec<[i64; 2]>);
+
+impl Leaf for Ratios {
+    const WHAT: &'static str = "a list of ratios [p, q] of whole numbers";
+    fn from_seq<'de, A: SeqAccess<'de>>(mut seq: A) -> Result<Ratios, A::Error> {
+        let mut out = vec![];
+        while let Some(Nums(pq)) = seq.next_element()? {
+            let whole = |x: f64| (x.fract() == 0.0 && x.abs() < 1e15).then_some(x as i64);
+            match pq.as_slice() {
+                [p, q] => match (whole(*p), whole(*q)) {
+                    (Some(p), Some(q)) => out.push([p, q]),
+                    _ => {
+                        return Err(de::Error::custom(format!(
+                            "[{p}, {q}] is not a ratio of whole numbers"
+                        )))
+                    }
+                },
+                _ => {
+                    return Err(de::Error::custom(format!(
+                        "a ratio is two whole numbers [p, q], found {} numbers",
+                        pq.len()
+                    )))
+                }
+            }
+        }
+        Ok(Ratios(out))
+    }
 }
 
 /// `output.trajectory = { every = k, vars = [...] }`.

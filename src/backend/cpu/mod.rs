@@ -428,6 +428,7 @@ fn run_block<R: Flows>(
         let view = after!(n);
         obs.observe(&view);
         obs.cycle(&view);
+        obs.average(&view);
         if n % 1024 == 0 {
             report(&mut reported, n);
         }
@@ -468,7 +469,7 @@ fn quiet_run<R: Flows>(p: &Program<R>, obs: &BlockObservers<R>, n: u64, count: u
         .poincare
         .as_ref()
         .map(|_| obs.next_exact_strobe(n, count));
-    let every_step = p.needs_field || plan.cycle_var.is_some() || strobe == Some(None);
+    let every_step = plan.observes_every_step() || strobe == Some(None);
     if p.stages.is_none() || every_step {
         return 1;
     }

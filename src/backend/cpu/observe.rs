@@ -49,7 +49,8 @@ impl<R> BlockStep<'_, R> {
 pub struct BlockObservers<R> {
     /// Stroboscopic section sampled exactly: `(every, first)` steps per lane.
     strobe_exact: Option<([i32; LANES], [i32; LANES])>,
-    real: [[R; LANES]; slots::REAL.len()],
+    /// The real slots of [`slots::real`], per lane.
+    real: Vec<[R; LANES]>,
     count: [[u32; LANES]; slots::COUNT.len()],
     /// First step (0-based) of the cycle statistics' measuring window.
     cycle_start: u64,
@@ -70,7 +71,10 @@ impl<R: Flows> BlockObservers<R> {
             });
         BlockObservers {
             strobe_exact,
-            real: slots::REAL.map(|(_, init)| [init.value(); LANES]),
+            real: slots::real(plan)
+                .iter()
+                .map(|(_, init)| [init.value(); LANES])
+                .collect(),
             count: [[0; LANES]; slots::COUNT.len()],
             cycle_start: plan
                 .observers
@@ -215,7 +219,9 @@ impl<R: Flows> BlockObservers<R> {
         }
         let level = R::from_f64(p.plan.observers.cycle.as_ref().map_or(0.0, |cy| cy.level));
         let nf = R::from_f64((s.n1 - 1) as f64);
-        let [max, min, count, first, mean, com] = &mut self.real;
+        let [max, min, count, first, mean, com] = &mut self.real[..slots::MEAN0] else {
+            unreachable!("the fixed slots")
+        };
         for i in s.running() {
             let x = l.at(p.var[k])[i];
             R::cycle_step(
@@ -233,6 +239,25 @@ impl<R: Flows> BlockObservers<R> {
                 &mut mean[i],
                 &mut com[i],
             );
+        }
+    }
+
+    /// Time averages over step `n → n+1`, after the skipped part of the run.
+    pub fn average(&mut self, s: &BlockStep<R>) {
+        let (p, l) = (s.p, s.l);
+        let start = p.plan.average_start();
+        if s.n1 <= start {
+            return;
+        }
+        let k = R::from_f64((s.n1 - start) as f64);
+        for (j, v) in p.plan.average_vars.iter().enumerate() {
+            let ObsVar::State(v) = *v else {
+                unreachable!("time is not averaged")
+            };
+            let mean = &mut self.real[slots::MEAN0 + j];
+            for i in s.running() {
+                R::mean_step(l.at(p.var[v])[i], k, &mut mean[i]);
+            }
         }
     }
 
@@ -265,9 +290,16 @@ impl<R: Flows> BlockObservers<R> {
                 sink.cycle_period.set(base + i, per);
             }
         }
+        for (j, column) in sink.mean.iter().enumerate() {
+            for i in 0..count {
+                let mean = self.real[slots::MEAN0 + j][i];
+                column.set(base + i, slots::mean_finish(mean, status[i] == 0));
+            }
+        }
         if plan.observers.poincare.is_some() {
             for i in 0..count {
-                sink.poincare_count.set(base + i, self.count[slots::NPOINTS][i]);
+                sink.poincare_count
+                    .set(base + i, self.count[slots::NPOINTS][i]);
             }
         }
         for i in 0..count {

@@ -446,7 +446,7 @@ impl Gen<'_> {
         let plan = self.plan;
         let mut begin = String::new();
         let mut observe = String::new();
-        if plan.observers.poincare.is_some() || plan.cycle_var.is_some() {
+        if plan.has_slots() {
             self.aux_state();
         }
         if plan.needs_field() {
@@ -466,12 +466,13 @@ impl Gen<'_> {
         }
         observe.push_str(&self.observe_at("n + 1u", false, strobe_exact));
         observe.push_str(&self.cycle());
+        observe.push_str(&self.average());
         (begin, observe)
     }
 
     /// Observer state that lives across dispatches, loaded and stored.
     fn aux_state(&mut self) {
-        for (k, (a, init)) in slots::REAL.iter().enumerate() {
+        for (k, (a, init)) in slots::real(self.plan).iter().enumerate() {
             let init = init.wgsl();
             writeln!(self.load, "    var {a}: R = {init};\n    if u.step0 != 0u {{\n        {a} = aux_r[{k}u * u.cap + i];\n    }}").unwrap();
             writeln!(self.store, "    aux_r[{k}u * u.cap + i] = {a};").unwrap();
@@ -603,5 +604,24 @@ impl Gen<'_> {
             "        if n + 1u >= {start}u {{\n            cycle_step({x}, prev_{x} - {l}, {x} - {l}, dprev_{x}, d{x}, dt, t0 + nf * dt, &cyc_max, &cyc_min, &cyc_count, &cyc_first, &cyc_mean, &cyc_com);\n        }}\n",
             l = lit(cy.level)
         )
+    }
+
+    /// Time averages over the step, after the skipped part of the run.
+    fn average(&self) -> String {
+        let plan = self.plan;
+        let start = plan.average_start();
+        let mut s = String::new();
+        for (j, v) in plan.average_vars.iter().enumerate() {
+            let ObsVar::State(k) = v else {
+                unreachable!("time is not averaged")
+            };
+            let x = plan.vars[*k];
+            writeln!(
+                s,
+                "        if n + 1u > {start}u {{\n            mean_step({x}, R(n + 1u - {start}u), &mean_{j});\n        }}"
+            )
+            .unwrap();
+        }
+        s
     }
 }

@@ -296,6 +296,8 @@ struct Sizes {
     max_frames: u64,
     /// Steps between trajectory frames (0: no trajectory observer).
     every: u64,
+    /// Real observer slots per trajectory (`slots::real`).
+    real_slots: u64,
 }
 
 impl Sizes {
@@ -323,10 +325,11 @@ impl Sizes {
                     "{max_points} Poincaré points × {pv} variables per trajectory do not fit in 64 bits: lower output.poincare.max_points"
                 ))
             })?;
+        let real_slots = slots::real(plan).len() as u64;
         let per_buffer = [
             nv * b,
             4,
-            slots::REAL.len() as u64 * b,
+            real_slots * b,
             slots::COUNT.len() as u64 * 4,
             points,
         ];
@@ -373,6 +376,7 @@ impl Sizes {
                 .clamp(1, MAX_STEPS_PER_DISPATCH),
             max_frames,
             every: plan.observers.trajectory.as_ref().map_or(0, |t| t.every),
+            real_slots,
         })
     }
 
@@ -403,7 +407,7 @@ impl Buffers {
         let staging_per_trajectory = [
             s.nv * b,
             4,
-            slots::REAL.len() as u64 * b,
+            s.real_slots * b,
             slots::COUNT.len() as u64 * 4,
             s.max_points * s.pv * b,
             s.max_frames * s.tv * b,
@@ -437,7 +441,7 @@ impl Buffers {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
-            aux_r: storage(ctx, "aux_r", slots::REAL.len() as u64 * cap * b),
+            aux_r: storage(ctx, "aux_r", s.real_slots * cap * b),
             aux_u: storage(ctx, "aux_u", slots::COUNT.len() as u64 * cap * 4),
             traj: storage(ctx, "trajectory", s.max_frames * s.tv * cap * b),
             points: storage(ctx, "points", s.max_points * s.pv * cap * b),
@@ -602,7 +606,7 @@ impl Dispatcher<'_> {
         [
             (&b.state, s.nv * s.cap * s.b),
             (&b.status, 4 * s.cap),
-            (&b.aux_r, slots::REAL.len() as u64 * s.cap * s.b),
+            (&b.aux_r, s.real_slots * s.cap * s.b),
             (&b.aux_u, slots::COUNT.len() as u64 * s.cap * 4),
             (&b.points, s.max_points * s.pv * s.cap * s.b),
         ]
@@ -811,7 +815,7 @@ fn collect<R: Flows>(
             }
         }
     }
-    if plan.observers.poincare.is_some() || plan.cycle_var.is_some() {
+    if plan.has_slots() {
         collect_observers(ctx, plan, bufs, out, base, count, cap, b, &status)?;
     }
     check(ctx)
@@ -825,7 +829,7 @@ fn final_time<R: Flows>(plan: &Plan, g: usize) -> R {
     t0 + R::from_f64(plan.steps as f64) * dt
 }
 
-/// Poincaré points and cycle statistics of a finished chunk, from the
+/// Poincaré points, cycle statistics and time averages of a finished chunk, from the
 /// observer state the kernel kept (`plan/slots.rs`).
 #[allow(clippy::too_many_arguments)]
 fn collect_observers<R: Flows>(
@@ -843,7 +847,7 @@ fn collect_observers<R: Flows>(
         ctx,
         &bufs.aux_r,
         &bufs.staging,
-        slots::REAL.len() as u64 * cap * b,
+        slots::real(plan).len() as u64 * cap * b,
     )?;
     let aux_u: Vec<u32> = read(
         ctx,
@@ -871,10 +875,14 @@ fn collect_observers<R: Flows>(
                 }
             }
         }
+        let ok = status[i as usize] == 0;
         if plan.cycle_var.is_some() {
-            let (amplitude, period) = slots::cycle_finish(slot, status[i as usize] == 0);
+            let (amplitude, period) = slots::cycle_finish(slot, ok);
             out.cycle_amplitude[g] = amplitude;
             out.cycle_period[g] = period;
+        }
+        for (j, (_, mean)) in out.mean.iter_mut().enumerate() {
+            mean[g] = slots::mean_finish(slot(slots::MEAN0 + j), ok);
         }
     }
     Ok(())
