@@ -68,6 +68,7 @@ fn observations(n: usize) -> Observations<f64> {
         cycle_period: vec![],
         mean: vec![],
         nonfinite_step: vec![0; n],
+        stop_step: vec![0; n],
     }
 }
 

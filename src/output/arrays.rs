@@ -12,7 +12,7 @@ use anyhow::{Context, Result};
 use npyz::WriterBuilder;
 
 use crate::num::precision::Real;
-use crate::plan::observations::Observations;
+use crate::plan::observations::{Observations, Status};
 use crate::plan::observers::ResonanceObs;
 use crate::scene::{OutVar, Scene};
 
@@ -102,14 +102,16 @@ pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Ve
     if let Some(r) = &scene.resonance {
         out.push(owned(scalar("resonance.npy", "<i4", &resonance(r, obs)?)));
     }
-    // status: 0 ok, 1 non-finite; status_step: the step it became non-finite (−1: never).
-    let steps = &obs.nonfinite_step;
-    let status: Vec<u8> = steps.iter().map(|s| u8::from(*s != 0)).collect();
+    // status: 0 ok, 1 non-finite, 2 stopped; status_step: the step it
+    // became non-finite or stopped after (−1: neither).
+    let (status, step): (Vec<u8>, Vec<i64>) = (0..obs.n)
+        .map(|i| match obs.status(i) {
+            Status::Ok => (0, -1),
+            Status::NonFinite { step } => (1, step as i64),
+            Status::Stopped { step } => (2, step as i64),
+        })
+        .unzip();
     out.push(owned(scalar("status.npy", "|u1", &status)));
-    let step: Vec<i64> = steps
-        .iter()
-        .map(|s| if *s == 0 { -1 } else { *s as i64 })
-        .collect();
     out.push(owned(scalar("status_step.npy", "<i8", &step)));
     Ok(out)
 }

@@ -97,12 +97,14 @@ type Value<'a> = Box<dyn Fn(usize) -> Result<f64, Undefined> + 'a>;
 type Stat<'a> = (String, String, Value<'a>);
 
 /// The statistics drawn over the axes: every final value, the cycle's
-/// amplitude and period if observed, and where trajectories stopped if any
-/// did. A trajectory that stopped has no final value and no cycle; one
+/// amplitude and period if observed, the time averages, and where
+/// trajectories stopped (non-finite, or by the stop condition) if any did.
+/// A trajectory that became non-finite has no final value and no cycle; one
 /// whose cycle variable did not cross its level twice has no cycle (its
 /// amplitude array still holds the half-range of a transient or a rest).
 fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
     let stopped = move |i: usize| d.nonfinite_step[i] != 0;
+    let ended = move |i: usize| d.nonfinite_step[i].max(d.stop_step[i]);
     let mut stats: Vec<Stat> = vec![];
     for (name, v) in &d.final_values {
         let value = move |i| {
@@ -141,13 +143,24 @@ fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
             Box::new(period),
         ));
     }
-    if d.nonfinite_step.iter().any(|s| *s != 0) {
-        let step = move |i| {
+    for (name, v) in &d.mean {
+        let value = move |i| {
             if stopped(i) {
-                Ok(f64::from(d.nonfinite_step[i]))
+                Err(Undefined::NonFinite)
             } else {
-                Err(Undefined::RanToEnd)
+                Ok(v[i].to_f64())
             }
+        };
+        stats.push((
+            format!("mean_{name}"),
+            format!("mean {name}"),
+            Box::new(value),
+        ));
+    }
+    if (0..d.n).any(|i| ended(i) != 0) {
+        let step = move |i| match ended(i) {
+            0 => Err(Undefined::RanToEnd),
+            step => Ok(f64::from(step)),
         };
         stats.push((
             "status_step".into(),

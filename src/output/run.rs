@@ -457,6 +457,7 @@ fn finish<R: Flows>(
         seconds: done.iter().map(|d| d.seconds).sum(),
         traj_steps: done.iter().map(|d| d.traj_steps).sum(),
         ok: done.iter().map(|d| d.ok).sum(),
+        stopped: observations.count_stopped() as u64,
         timing: done.first().map_or("none".into(), |d| d.timing.clone()),
         max_steps,
         chunks: done.len(),
@@ -476,7 +477,7 @@ fn finish<R: Flows>(
     let out = claim.commit()?;
     let n = scene.ensemble_size() as u64;
     let line = format!(
-        "{}: {} trajectories × {} steps on {} ({}) in {:.3} s: {} trajectory-steps/s; {} ok, {} non-finite → {}",
+        "{}: {} trajectories × {} steps on {} ({}) in {:.3} s: {} trajectory-steps/s; {} ok, {} non-finite{} → {}",
         scene.name,
         n,
         ran.max_steps,
@@ -485,7 +486,12 @@ fn finish<R: Flows>(
         ran.seconds,
         crate::output::progress::sig3(ran.rate()),
         ran.ok,
-        n - ran.ok,
+        n - ran.ok - ran.stopped,
+        if ran.stopped > 0 {
+            format!(", {} stopped", ran.stopped)
+        } else {
+            String::new()
+        },
         out.display()
     );
     Ok(RunReport { out, summary, line })
@@ -528,6 +534,8 @@ struct Ran {
     seconds: f64,
     traj_steps: u64,
     ok: u64,
+    /// Trajectories the stop condition stopped.
+    stopped: u64,
     timing: String,
     max_steps: u64,
     chunks: usize,
@@ -638,7 +646,7 @@ fn summary(
         "timing": ran.timing,
         "traj_steps_per_s": ran.rate(),
         "evaluations_per_step": Some(scene.scheme.evaluations()),
-        "status": {"ok": ran.ok, "non_finite": n - ran.ok},
+        "status": {"ok": ran.ok, "non_finite": n - ran.ok - ran.stopped, "stopped": ran.stopped},
         "chunks": {"count": ran.chunks, "trajectories": record.chunks.largest(), "format": record.format},
         "warnings": ran.warnings,
         "files": files,

@@ -565,6 +565,13 @@ fn load<R: Real>(scene: &Scene, src: &Source, obs: &mut Observations<R>) -> Resu
         src.components(&file, n, &v.components, &mut obs.mean)?;
     }
     let steps: Vec<i64> = src.values("status_step.npy", n, 8)?;
-    obs.nonfinite_step = steps.iter().map(|s| (*s).max(0) as u32).collect();
+    let status: Vec<u8> = src.values("status.npy", n, 1)?;
+    for (i, (s, step)) in status.iter().zip(&steps).enumerate() {
+        let step = (*step).max(0) as u32;
+        (obs.nonfinite_step[i], obs.stop_step[i]) = match s {
+            2 => (0, step),
+            _ => (step, 0),
+        };
+    }
     Ok(())
 }

@@ -19,6 +19,7 @@ pub mod size;
 pub mod slots;
 pub mod snapshot;
 pub mod step;
+pub mod stop;
 
 use crate::models::spec::{ModelSpec, TimeDependence};
 use crate::models::{lanes, Model};
@@ -68,6 +69,62 @@ pub struct Plan {
     pub cycle_var: Option<usize>,
     /// The averaged variables (state variables only).
     pub average_vars: Vec<ObsVar>,
+    /// The stop condition, its inputs resolved to lane fields.
+    pub stop: Option<StopPlan>,
+}
+
+/// A stop condition's program of `lhs − rhs` over lane fields.
+#[derive(Debug, Clone)]
+pub struct StopPlan {
+    pub program: crate::num::formula::lower::Lowered,
+    pub cmp: stop::Cmp,
+    /// The lane field of each input of the program (`t`: the time at the
+    /// step's end).
+    pub inputs: Vec<&'static str>,
+}
+
+/// Resolves the names `s` reads to lane fields: state variables the plan
+/// integrates, `t`, and parameters bound to a lane (a built-in model's by
+/// name, a formula model's by slot).
+fn stop_plan(
+    model: &Model,
+    s: &stop::StopObs,
+    vars: &[&'static str],
+    bindings: &[(&'static str, Source)],
+) -> Result<StopPlan, PlanError> {
+    let field = "output.stop";
+    let bound = |lane: &str| bindings.iter().find(|(b, _)| *b == lane).map(|(b, _)| *b);
+    let mut inputs = vec![];
+    for name in &s.names {
+        let lane = if !s.reads.contains(name) || name == "t" {
+            "t"
+        } else if s.state(name) {
+            vars.iter()
+                .copied()
+                .find(|v| v == name)
+                .ok_or_else(|| err(field, format!("`{name}` is not integrated by this plan")))?
+        } else {
+            let lane = match model.formula() {
+                Some(m) => m.param_lane(name).and_then(bound),
+                None => bound(name),
+            };
+            lane.ok_or_else(|| {
+                err(
+                    field,
+                    format!(
+                        "parameter `{name}` is not an input of model `{}`",
+                        model.name()
+                    ),
+                )
+            })?
+        };
+        inputs.push(lane);
+    }
+    Ok(StopPlan {
+        program: s.program.clone(),
+        cmp: s.cmp,
+        inputs,
+    })
 }
 
 /// Name of a lane field with a static lifetime.
@@ -131,6 +188,10 @@ impl Plan {
         let obs = &problem.observers;
         obs.validate(problem.steps).map_err(|(f, m)| err(f, m))?;
         let observed = Observed::resolve(obs, &vars)?;
+        let stop = match &obs.stop {
+            Some(s) => Some(stop_plan(&problem.model, s, &vars, &bindings)?),
+            None => None,
+        };
         let lens: Vec<usize> = problem.axes.iter().map(|a| a.len).collect();
         Ok(Plan {
             model: problem.model.clone(),
@@ -153,6 +214,7 @@ impl Plan {
             crossing_var: observed.crossing_var,
             cycle_var: observed.cycle_var,
             average_vars: observed.average_vars,
+            stop,
         })
     }
 
@@ -175,7 +237,10 @@ impl Plan {
 
     /// Does an observer look at the state after every step?
     pub fn observes_every_step(&self) -> bool {
-        self.needs_field() || self.cycle_var.is_some() || !self.average_vars.is_empty()
+        self.needs_field()
+            || self.cycle_var.is_some()
+            || !self.average_vars.is_empty()
+            || self.stop.is_some()
     }
 
     /// Does any observer need the vector field at the step ends (for

@@ -12,6 +12,11 @@ pub enum Status {
     NonFinite {
         step: u64,
     },
+    /// The stop condition held after this step (1-based); the trajectory
+    /// stopped there, its state final.
+    Stopped {
+        step: u64,
+    },
 }
 
 /// The columns of [`Observations`], each declared once: its field, whether
@@ -158,6 +163,8 @@ observations! {
     mean: Named(average_vars) R, per one, when always;
     /// 0: ok; k > 0: non-finite at step k.
     nonfinite_step: Plain u32, per one, when always;
+    /// 0: not stopped; k > 0: stopped by the stop condition after step k.
+    stop_step: Plain u32, per one, when always;
 }
 
 /// The status is written as `status.npy` (1 byte) and `status_step.npy` (8
@@ -315,15 +322,23 @@ impl<R: Real> Observations<R> {
     }
 
     pub fn status(&self, i: usize) -> Status {
-        match self.nonfinite_step[i] {
-            0 => Status::Ok,
-            step => Status::NonFinite { step: step.into() },
+        match (self.nonfinite_step[i], self.stop_step[i]) {
+            (0, 0) => Status::Ok,
+            (0, step) => Status::Stopped { step: step.into() },
+            (step, _) => Status::NonFinite { step: step.into() },
         }
     }
 
-    /// Number of trajectories that finished with a finite state.
+    /// Number of trajectories that ran to the end with a finite state.
     pub fn count_ok(&self) -> usize {
-        self.nonfinite_step.iter().filter(|s| **s == 0).count()
+        (0..self.n)
+            .filter(|i| self.status(*i) == Status::Ok)
+            .count()
+    }
+
+    /// Number of trajectories the stop condition stopped.
+    pub fn count_stopped(&self) -> usize {
+        self.stop_step.iter().filter(|s| **s != 0).count()
     }
 
     pub fn final_of(&self, var: &str) -> Option<&[R]> {

@@ -2,6 +2,8 @@
 //! the checks on it that do not depend on the model. The per-step logic is
 //! shared functions in `models/events.rs`.
 
+use super::stop::StopObs;
+
 /// Direction of an event crossing.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -113,6 +115,8 @@ pub struct Observers {
     pub average: Option<AverageObs>,
     /// Classifies the mean of one of the averaged variables.
     pub resonance: Option<ResonanceObs>,
+    /// Stops a trajectory after the first step at which it holds.
+    pub stop: Option<StopObs>,
 }
 
 impl Observers {
@@ -133,6 +137,9 @@ impl Observers {
         }
         if let Some(a) = &self.average {
             v.extend(a.vars.iter().cloned());
+        }
+        if let Some(s) = &self.stop {
+            v.extend(s.reads.iter().filter(|r| s.state(r)).cloned());
         }
         v
     }

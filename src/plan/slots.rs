@@ -86,10 +86,34 @@ pub fn cycle_finish<R: Flows>(slot: impl Fn(usize) -> R, ok: bool) -> (R, R) {
     (amplitude, period)
 }
 
+/// The flag of a trajectory's status word (both backends: 0 running or
+/// finished, k > 0 non-finite at step k, `STOPPED | k` stopped by the stop
+/// condition after step k; plans have fewer than 2³¹ steps).
+pub const STOPPED: u32 = 1 << 31;
+
+/// A status word as `(non-finite step, stop step)`, 0 for neither.
+pub fn split_status(st: u64) -> (u32, u32) {
+    let st = st as u32;
+    if st & STOPPED != 0 {
+        (0, st & !STOPPED)
+    } else {
+        (st, 0)
+    }
+}
+
+/// The step a trajectory's observers ended at: its stop step, or the run's.
+pub fn last_step(plan: &Plan, stop_step: u32) -> u64 {
+    if stop_step != 0 {
+        stop_step.into()
+    } else {
+        plan.steps
+    }
+}
+
 /// A time average's output from its slot: NaN for a trajectory that
-/// stopped (`ok` false).
-pub fn mean_finish<R: Flows>(mean: R, ok: bool) -> R {
-    if ok {
+/// became non-finite (`ok` false) or stopped before its first value.
+pub fn mean_finish<R: Flows>(plan: &Plan, mean: R, ok: bool, stop_step: u32) -> R {
+    if ok && last_step(plan, stop_step) > plan.average_start() {
         mean
     } else {
         R::nan()

@@ -118,17 +118,22 @@ fn located(
     let message = match (text, e.column) {
         (Some(text), Some(col)) => {
             let col = text.char_indices().take_while(|(i, _)| *i < col).count();
-            let (shown, caret) = around(text, col);
-            format!(
-                "column {}: {}\n    {shown}\n    {}^",
-                col + 1,
-                e.message,
-                " ".repeat(caret)
-            )
+            with_caret(text, col, &e.message)
         }
         _ => e.message,
     };
     p.err(&e.field, span, message)
+}
+
+/// `column N: message`, then the formula (around the column) with a caret
+/// under character `col`.
+pub fn with_caret(text: &str, col: usize, message: &str) -> String {
+    let (shown, caret) = around(text, col);
+    format!(
+        "column {}: {message}\n    {shown}\n    {}^",
+        col + 1,
+        " ".repeat(caret)
+    )
 }
 
 /// Characters of a formula shown around an error's column.

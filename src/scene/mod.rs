@@ -39,6 +39,7 @@ use crate::num::precision::Precision;
 use crate::plan::observers::{CycleObs, ResonanceObs, Section};
 use crate::plan::scheme::Scheme;
 use crate::plan::size::{self, Estimate, SizeError};
+use crate::plan::stop::StopObs;
 use crate::plan::Plan;
 pub use error::SceneError;
 pub use error::SceneWarning;
@@ -171,6 +172,8 @@ pub struct Scene {
     /// Time averages: the variables and the fraction of the run skipped.
     pub average: Option<(Vec<OutVar>, f64)>,
     pub resonance: Option<ResonanceObs>,
+    /// Stops a trajectory after the first step at which it holds.
+    pub stop: Option<StopObs>,
     /// How the arrays are written (`output.format`).
     pub format: Format,
     pub backend: BackendChoice,

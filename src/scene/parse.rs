@@ -20,6 +20,7 @@ use crate::plan::observers::{
 };
 use crate::plan::scheme::{Scheme, SCHEME_NAMES};
 use crate::plan::size;
+use crate::plan::stop::StopObs;
 
 use super::tables::{self, Cycle, Period, Str, Strs, Table};
 use super::values::{integ_span, suggest, AxisValues, Entry, Parser};
@@ -49,6 +50,7 @@ const OUTPUT_KEYS: &[&str] = &[
     "cycle",
     "average",
     "resonance",
+    "stop",
     "format",
 ];
 const TRAJECTORY_KEYS: &[&str] = &["every", "vars"];
@@ -65,6 +67,7 @@ const POINCARE_KEYS: &[&str] = &[
 const CYCLE_KEYS: &[&str] = &["var", "level", "skip"];
 const AVERAGE_KEYS: &[&str] = &["vars", "skip"];
 const RESONANCE_KEYS: &[&str] = &["var", "ratios", "tolerance"];
+const STOP_KEYS: &[&str] = &["when"];
 const RUN_KEYS: &[&str] = &["backend", "precision"];
 const PLOT_KEYS: &[&str] = &[
     "phase",
@@ -291,7 +294,8 @@ impl Scene {
         let params = resolve_all(params);
         let initial = resolve_all(initial);
         let dt = resolve(integ.dt);
-        let out = output(&mut p, &doc, &model)?;
+        let names: Vec<&str> = params.keys().map(|k| k.as_str()).collect();
+        let out = output(&mut p, &doc, &model, &names)?;
         let (backend, precision) = run(&mut p, &doc)?;
         let plot = plot(&mut p, &doc, &model)?;
         let report = report(&mut p, &doc, &integ.scheme)?;
@@ -315,6 +319,7 @@ impl Scene {
             cycle: out.cycle,
             average: out.average,
             resonance: out.resonance,
+            stop: out.stop,
             format: out.format,
             backend,
             precision,
@@ -592,6 +597,7 @@ struct Out {
     cycle: Option<CycleObs>,
     average: Option<(Vec<OutVar>, f64)>,
     resonance: Option<ResonanceObs>,
+    stop: Option<StopObs>,
     format: Format,
 }
 
@@ -662,7 +668,7 @@ impl OutVars<'_> {
     }
 }
 
-fn output(p: &mut Parser, doc: &Doc, model: &Model) -> Result<Out, SceneError> {
+fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<Out, SceneError> {
     let ov = OutVars { spec: model.spec() };
     let table = doc.table(p, "output")?;
     if let Some(t) = table {
@@ -677,11 +683,17 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model) -> Result<Out, SceneError> {
                 ("cycle", CYCLE_KEYS),
                 ("average", AVERAGE_KEYS),
                 ("resonance", RESONANCE_KEYS),
+                ("stop", STOP_KEYS),
             ],
         )?;
     }
     let o: tables::Output = deserialize(p, doc.get("output"))?;
     let (average, resonance) = averages(p, &ov, &o)?;
+    let stop = o
+        .stop
+        .as_ref()
+        .map(|s| stop(p, model, params, s))
+        .transpose()?;
     let final_vars = match &o.final_vars {
         Some(v) => ov.list(p, "output.final", v)?,
         None => ov.defaults(),
@@ -733,7 +745,33 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model) -> Result<Out, SceneError> {
         cycle,
         average,
         resonance,
+        stop,
         format,
+    })
+}
+
+/// `output.stop`: the condition compiled over the model's variables, `t`
+/// and the scene's parameters; errors at its column, with a caret.
+fn stop(
+    p: &Parser,
+    model: &Model,
+    params: &[&str],
+    s: &Spanned<tables::Stop>,
+) -> Result<StopObs, SceneError> {
+    let text = &s.get_ref().0;
+    let vars = model.spec().vars;
+    let names: Vec<&str> = vars
+        .iter()
+        .copied()
+        .chain(["t"])
+        .chain(params.iter().copied())
+        .collect();
+    crate::plan::stop::compile(text, &names, vars.len()).map_err(|e| {
+        p.err(
+            "output.stop",
+            Some(&s.span()),
+            super::formula::with_caret(text, e.column, &e.message),
+        )
     })
 }
 

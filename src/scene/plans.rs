@@ -397,6 +397,7 @@ impl Scene {
                 skip: *skip,
             }),
             resonance: self.resonance.clone(),
+            stop: self.stop.clone(),
         }
     }
 }

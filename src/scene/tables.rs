@@ -177,7 +177,7 @@ impl Leaf for Nums {
     }
 }
 
-leaf_deserialize!(Num, Int, Str, Bool, Strs, Nums, Period, Cycle, Average, Ratios);
+leaf_deserialize!(Num, Int, Str, Bool, Strs, Nums, Period, Cycle, Average, Ratios, Stop);
 
 /// An inline table of known fields; any other value is refused with
 /// `T::EXPECTED`, the form the scene should have used.
@@ -226,7 +226,30 @@ pub struct Output {
     pub cycle: Field<Cycle>,
     pub average: Field<Average>,
     pub resonance: Field<Table<Resonance>>,
+    pub stop: Field<Stop>,
     pub format: Field<Str>,
+}
+
+/// `output.stop = "q1^2 + q2^2 > 100"` or `{ when = "…" }`.
+#[derive(Debug)]
+pub struct Stop(pub String);
+
+#[derive(Debug, Default, Deserialize)]
+struct StopTable {
+    when: Option<Str>,
+}
+
+impl Leaf for Stop {
+    const WHAT: &'static str = "a condition (\"q1^2 + q2^2 > 100\") or { when = \"…\" }";
+    fn from_str(v: &str) -> Result<Stop, String> {
+        Ok(Stop(v.to_string()))
+    }
+    fn from_map<'de, A: MapAccess<'de>>(map: A) -> Result<Stop, A::Error> {
+        let t = StopTable::deserialize(de::value::MapAccessDeserializer::new(map))?;
+        t.when
+            .map(|Str(w)| Stop(w))
+            .ok_or_else(|| de::Error::custom("needs when = \"<condition>\""))
+    }
 }
 
 /// `output.average = ["p"]` or `{ vars = ["p"], skip = 0.5 }`.

@@ -12,7 +12,8 @@ use crate::models::lanes::{index_of, Lanes, LANES};
 use crate::num::formula::stage::split;
 use crate::num::formula::tape::{Inputs, Tape};
 use crate::num::precision::Real;
-use crate::plan::Plan;
+use crate::plan::stop::Cmp;
+use crate::plan::{Plan, StopPlan};
 
 use super::kernels::Isa;
 
@@ -67,6 +68,44 @@ impl<R: Real> FormulaCall<R> {
         for (k, &lane) in self.outputs.iter().enumerate() {
             *l.at_mut(lane) = *self.tape.output(regs, k);
         }
+    }
+}
+
+/// A stop condition on a block: `lhs − rhs` through the interpreter,
+/// compared with zero per lane.
+pub struct Condition<R> {
+    tape: Tape<R>,
+    inputs: Vec<usize>,
+    cmp: Cmp,
+    isa: Isa,
+    /// Does it read `t` (set to the step's end before it runs)?
+    pub reads_time: bool,
+}
+
+impl<R: Real> Condition<R> {
+    pub fn new(s: &StopPlan, isa: Isa) -> Self {
+        Condition {
+            tape: Tape::new(&s.program, |_| false),
+            inputs: s.inputs.iter().map(|n| lane(n)).collect(),
+            cmp: s.cmp,
+            isa,
+            reads_time: s.inputs.contains(&"t"),
+        }
+    }
+
+    pub fn registers(&self) -> usize {
+        self.tape.registers
+    }
+
+    /// The lanes where the condition holds (never where it is NaN).
+    pub fn holds(&self, l: &Lanes<R>, regs: &mut [[R; LANES]]) -> [bool; LANES] {
+        let view = LaneView {
+            l,
+            lanes: &self.inputs,
+        };
+        self.tape.run(regs, &view, self.isa);
+        let g = self.tape.output(regs, 0);
+        std::array::from_fn(|i| self.cmp.holds(g[i].to_f64()))
     }
 }
 

@@ -25,7 +25,8 @@ use crate::models::lanes::{Lanes, LANES};
 use crate::models::Flows;
 use crate::plan::observations::{Observations, Sink};
 use crate::plan::snapshot::{get, get_array, get_one, get_vec, invalid, put, put_slice, Header};
-use crate::plan::Plan;
+use crate::plan::{slots, Plan};
+use formula::Condition;
 use formula::StepMemory;
 pub use kernels::{isa, Isa};
 use observe::{BlockObservers, BlockStep};
@@ -429,6 +430,9 @@ fn run_block<R: Flows>(
         obs.observe(&view);
         obs.cycle(&view);
         obs.average(&view);
+        if let Some(stop) = &p.stop {
+            alive -= stop_lanes(p, stop, l, &mut regs, &mut status, n, sink, base, count);
+        }
         if n % 1024 == 0 {
             report(&mut reported, n);
         }
@@ -563,6 +567,39 @@ fn nonfinite_lanes<R: Flows>(p: &Program<R>, l: &Lanes<R>) -> [bool; LANES] {
         }
     }
     bad
+}
+
+/// Stops the running lanes where the stop condition holds after step `n`
+/// and writes their final values; returns how many stopped. Their lanes
+/// go on computing what is never read.
+#[allow(clippy::too_many_arguments)]
+fn stop_lanes<R: Flows>(
+    p: &Program<R>,
+    stop: &Condition<R>,
+    l: &mut Lanes<R>,
+    regs: &mut [[R; LANES]],
+    status: &mut [u64; LANES],
+    n: u64,
+    sink: &Sink<R>,
+    base: usize,
+    count: usize,
+) -> usize {
+    if stop.reads_time {
+        let nf = R::from_f64(n as f64);
+        for i in 0..LANES {
+            l.t[i] = l.t0[i] + nf * l.dt[i];
+        }
+    }
+    let holds = stop.holds(l, regs);
+    let mut stopped = 0;
+    for i in 0..count {
+        if holds[i] && status[i] == 0 {
+            status[i] = u64::from(slots::STOPPED) | n;
+            observe::write_finals(p, l, sink, base, i, n);
+            stopped += 1;
+        }
+    }
+    stopped
 }
 
 /// Marks the lanes `bad` at step `n` as stopped there (first time only);

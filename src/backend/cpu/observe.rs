@@ -272,20 +272,22 @@ impl<R: Flows> BlockObservers<R> {
         status: &[u64; LANES],
     ) {
         let plan = p.plan;
-        let steps = R::from_f64(plan.steps as f64);
-        for (j, v) in plan.final_vars.iter().enumerate() {
-            for i in 0..count {
-                let x = match (status[i], v) {
-                    (0, ObsVar::State(k)) => l.at(p.var[*k])[i],
-                    (0, ObsVar::Time) => l.t0[i] + steps * l.dt[i],
-                    _ => R::nan(),
-                };
-                sink.final_values[j].set(base + i, x);
+        for i in 0..count {
+            match slots::split_status(status[i]) {
+                (0, 0) => write_finals(p, l, sink, base, i, plan.steps),
+                // Written when it stopped.
+                (0, _) => {}
+                _ => {
+                    for column in &sink.final_values {
+                        column.set(base + i, R::nan());
+                    }
+                }
             }
         }
         if plan.cycle_var.is_some() {
             for i in 0..count {
-                let (amp, per) = slots::cycle_finish(|k| self.real[k][i], status[i] == 0);
+                let ok = slots::split_status(status[i]).0 == 0;
+                let (amp, per) = slots::cycle_finish(|k| self.real[k][i], ok);
                 sink.cycle_amplitude.set(base + i, amp);
                 sink.cycle_period.set(base + i, per);
             }
@@ -293,7 +295,11 @@ impl<R: Flows> BlockObservers<R> {
         for (j, column) in sink.mean.iter().enumerate() {
             for i in 0..count {
                 let mean = self.real[slots::MEAN0 + j][i];
-                column.set(base + i, slots::mean_finish(mean, status[i] == 0));
+                let (nonfinite, stop) = slots::split_status(status[i]);
+                column.set(
+                    base + i,
+                    slots::mean_finish(plan, mean, nonfinite == 0, stop),
+                );
             }
         }
         if plan.observers.poincare.is_some() {
@@ -303,9 +309,30 @@ impl<R: Flows> BlockObservers<R> {
             }
         }
         for i in 0..count {
-            // Plans have fewer than 2³¹ steps.
-            sink.nonfinite_step.set(base + i, status[i] as u32);
+            let (nonfinite, stop) = slots::split_status(status[i]);
+            sink.nonfinite_step.set(base + i, nonfinite);
+            sink.stop_step.set(base + i, stop);
         }
+    }
+}
+
+/// The final values of lane `i` (row `base + i`), its state after step
+/// `last` (the run's last, or where it stopped).
+pub fn write_finals<R: Flows>(
+    p: &Program<R>,
+    l: &Lanes<R>,
+    sink: &Sink<R>,
+    base: usize,
+    i: usize,
+    last: u64,
+) {
+    let steps = R::from_f64(last as f64);
+    for (j, v) in p.plan.final_vars.iter().enumerate() {
+        let x = match v {
+            ObsVar::State(k) => l.at(p.var[*k])[i],
+            ObsVar::Time => l.t0[i] + steps * l.dt[i],
+        };
+        sink.final_values[j].set(base + i, x);
     }
 }
 

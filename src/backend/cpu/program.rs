@@ -6,7 +6,7 @@ use crate::models::{lane_fn, Flows};
 use crate::num::precision::Real;
 use crate::plan::{Op, Plan, Source};
 
-use super::formula::{FormulaCall, FormulaStep};
+use super::formula::{Condition, FormulaCall, FormulaStep};
 use super::kernels::{time, Isa, StageBuilder, StepsFn, Weights};
 
 /// The plan's step, field and inputs for the CPU.
@@ -23,6 +23,8 @@ pub struct Program<'p, R> {
     /// `ops`).
     pub formula_step: Option<FormulaStep<R>>,
     pub field: Vec<CpuOp<R>>,
+    /// The stop condition.
+    pub stop: Option<Condition<R>>,
     /// Registers (lane arrays) the block interpreter of formula ops needs.
     pub registers: usize,
     pub needs_field: bool,
@@ -99,6 +101,8 @@ impl<'p, R: Flows> Program<'p, R> {
             })
             .max()
             .unwrap_or(0);
+        let stop = plan.stop.as_ref().map(|s| Condition::new(s, isa));
+        let registers = registers.max(stop.as_ref().map_or(0, |s| s.registers()));
         let idx = lane;
         let shared_time = share_time && plan.stages.is_some() && plan.shares_time();
         Program {
@@ -111,6 +115,7 @@ impl<'p, R: Flows> Program<'p, R> {
                 .formula()
                 .and_then(|m| FormulaStep::new(plan, m, isa)),
             field,
+            stop,
             registers,
             needs_field: plan.needs_field(),
             var: plan.vars.iter().map(|v| idx(v)).collect(),

@@ -15,14 +15,14 @@ use crate::models::formula::{Composed, Cost, FormulaModel};
 use crate::models::COMMON_WGSL;
 use crate::num::dsl::to_wgsl;
 use crate::num::formula::stage::{split, Staged, Vary};
-use crate::num::formula::wgsl::lit;
+use crate::num::formula::wgsl::{function_text, lit};
 use crate::num::math::{
     ELEMENTARY_WGSL, LOG_ATAN_F32_WGSL, LOG_ATAN_F64_WGSL, MATH_F32_WGSL, MATH_F64_WGSL,
 };
 use crate::num::precision::Precision;
 use crate::plan::observers::{Direction, PoincareObs, Section};
 use crate::plan::slots;
-use crate::plan::{ObsVar, Op, Plan, Source};
+use crate::plan::{ObsVar, Op, Plan, Source, StopPlan};
 
 use super::time_table::TimeTable;
 
@@ -170,6 +170,9 @@ fn shared_text(
     for t in COMMON_WGSL.iter().chain(plan.model.spec().wgsl) {
         text.push_str(&to_wgsl(t)?);
     }
+    if let Some(stop) = &plan.stop {
+        text.push_str(&stop_function(stop));
+    }
     // A formula model's ops are emitted as WGSL directly (num/formula/wgsl.rs).
     if let Some(m) = plan.model.formula() {
         text.push_str(&m.wgsl());
@@ -178,6 +181,17 @@ fn shared_text(
         }
     }
     Ok(text)
+}
+
+/// `fn stop_value(…, stop_g: ptr<function, R>)`: the stop condition's
+/// `lhs − rhs` over the kernel's locals (`t` as `stop_t`, the step's end).
+fn stop_function(stop: &StopPlan) -> String {
+    let inputs: Vec<&str> = stop
+        .inputs
+        .iter()
+        .map(|n| if *n == "t" { "stop_t" } else { n })
+        .collect();
+    function_text("stop_value", &stop.program, &inputs, &["stop_g"])
 }
 
 /// Generates the kernel of `plan` in `precision`.
@@ -256,6 +270,14 @@ fn bound_names(
     }
     names.insert("dt".into());
     names.insert("t0".into());
+    if let Some(stop) = &plan.stop {
+        names.extend(
+            stop.inputs
+                .iter()
+                .filter(|n| **n != "t")
+                .map(|n| n.to_string()),
+        );
+    }
     if plan.observers.stroboscopic() {
         names.insert("strobe_period".into());
         names.insert("strobe_phase".into());
@@ -467,6 +489,7 @@ impl Gen<'_> {
         observe.push_str(&self.observe_at("n + 1u", false, strobe_exact));
         observe.push_str(&self.cycle());
         observe.push_str(&self.average());
+        observe.push_str(&self.stop());
         (begin, observe)
     }
 
@@ -623,5 +646,19 @@ impl Gen<'_> {
             .unwrap();
         }
         s
+    }
+
+    /// The stop condition after the step: the thread leaves its loop,
+    /// its state the stop's (observers have seen the step).
+    fn stop(&self) -> String {
+        let Some(stop) = &self.plan.stop else {
+            return String::new();
+        };
+        format!(
+            "        {{\n            let stop_t: R = t0 + R(n + 1u) * dt;\n            var stop_g: R = 0.0;\n    {}            if {} {{\n                st = {}u | (n + 1u);\n                break;\n            }}\n        }}\n",
+            self.call("stop_value"),
+            stop.cmp.wgsl("stop_g"),
+            slots::STOPPED
+        )
     }
 }

@@ -797,19 +797,27 @@ fn collect<R: Flows>(
     let every = plan.observers.trajectory.as_ref().map_or(0, |t| t.every);
     for i in 0..count {
         let g = (base + i) as usize;
-        let st = status[i as usize] as u64;
-        out.nonfinite_step[g] = st as u32;
+        let (nonfinite, stop) = slots::split_status(status[i as usize].into());
+        out.nonfinite_step[g] = nonfinite;
+        out.stop_step[g] = stop;
+        let last = slots::last_step(plan, stop);
         for (j, v) in plan.final_vars.iter().enumerate() {
-            out.final_values[j].1[g] = match (st, v) {
+            out.final_values[j].1[g] = match (nonfinite, v) {
                 (0, ObsVar::State(k)) => state[(*k as u64 * cap + i) as usize],
-                (0, ObsVar::Time) => final_time(plan, g),
+                (0, ObsVar::Time) => time_at(plan, g, last),
                 _ => R::nan(),
             };
         }
-        // Frames recorded at or after the step where it stopped are NaN (as on the CPU).
-        if st != 0 && every > 0 {
+        // Frames recorded at or after the step where it became non-finite,
+        // or after the one it stopped at, are NaN (as on the CPU).
+        let first_nan = match (nonfinite, stop) {
+            (0, 0) => None,
+            (0, stop) => Some(u64::from(stop) / every.max(1) + 1),
+            (k, _) => Some(u64::from(k).div_ceil(every.max(1))),
+        };
+        if let (Some(first), true) = (first_nan, every > 0) {
             for (_, dst) in out.trajectory.iter_mut() {
-                for f in st.div_ceil(every)..out.frames as u64 {
+                for f in first..out.frames as u64 {
                     dst[g * out.frames + f as usize] = R::nan();
                 }
             }
@@ -822,11 +830,11 @@ fn collect<R: Flows>(
 }
 
 /// `t0 + steps·dt` of trajectory `g`, in the working precision.
-fn final_time<R: Flows>(plan: &Plan, g: usize) -> R {
+fn time_at<R: Flows>(plan: &Plan, g: usize, steps: u64) -> R {
     let g = plan.first + g;
     let t0 = R::from_f64(plan.binding("t0").value_at(g, &plan.strides));
     let dt = R::from_f64(plan.binding("dt").value_at(g, &plan.strides));
-    t0 + R::from_f64(plan.steps as f64) * dt
+    t0 + R::from_f64(steps as f64) * dt
 }
 
 /// Poincaré points, cycle statistics and time averages of a finished chunk, from the
@@ -875,14 +883,15 @@ fn collect_observers<R: Flows>(
                 }
             }
         }
-        let ok = status[i as usize] == 0;
+        let (nonfinite, stop) = slots::split_status(status[i as usize].into());
+        let ok = nonfinite == 0;
         if plan.cycle_var.is_some() {
             let (amplitude, period) = slots::cycle_finish(slot, ok);
             out.cycle_amplitude[g] = amplitude;
             out.cycle_period[g] = period;
         }
         for (j, (_, mean)) in out.mean.iter_mut().enumerate() {
-            mean[g] = slots::mean_finish(slot(slots::MEAN0 + j), ok);
+            mean[g] = slots::mean_finish(plan, slot(slots::MEAN0 + j), ok, stop);
         }
     }
     Ok(())
