@@ -13,7 +13,11 @@ A scene is a path to a scene file, its TOML text, or a dict with exactly the
 TOML's structure. Runs come back as ``xarray.Dataset``: dimensions named
 after the scene's axes (then ``frame``, ``point``, ``component``), their
 values as coordinates, one data variable per output, the resolved scene
-and the run's summary as attributes.
+and the run's summary as attributes. ``status`` is 0 for a trajectory that
+ran to the end, 1 for one that became non-finite, 2 for one that
+``output.stop`` stopped (``status_step``: the step); ``mean_<var>`` and
+``resonance`` come with ``output.average`` and ``output.resonance``, the
+capture fractions in ``attrs["capture_fractions"]``.
 """
 
 from . import dask, report

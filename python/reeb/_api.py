@@ -154,8 +154,13 @@ def _dims(summary: Dict[str, Any], name: str, axes: List[str], ndim: int) -> Lis
 
 
 def _attributes(summary: Dict[str, Any]) -> Dict[str, Any]:
-    """The Dataset's attributes: the summary, the resolved scene in it."""
-    return dict(summary)
+    """The Dataset's attributes: the summary, the resolved scene in it, and
+    with ``output.resonance`` the fraction of the ensemble captured in each
+    ratio (and ``"none"``) as ``capture_fractions``."""
+    attrs = dict(summary)
+    if "resonance" in summary:
+        attrs["capture_fractions"] = dict(summary["resonance"]["fractions"])
+    return attrs
 
 
 def check(scene: Scene, *, precision: Optional[str] = None, out: Optional[PathLike] = None) -> Dict[str, Any]:

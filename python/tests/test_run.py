@@ -132,3 +132,44 @@ def test_check_info_and_verify():
     assert len(rows) > 20
     failed = [r for r in rows if not r["pass"]]
     assert not failed, failed
+
+
+def test_stops_averages_and_resonances_reach_the_dataset():
+    ds = reeb.run(
+        {
+            "model": "damped_oscillator",
+            "params": {"alpha": [0.05, 0.6]},
+            "initial": {"q": {"linspace": [-2.0, 2.0, 8]}, "p": 0.3},
+            "integrator": {"scheme": "s2", "dt": 0.05, "steps": 600},
+            "output": {
+                "final": ["q", "t"],
+                "trajectory": {"every": 1, "vars": ["p"]},
+                "average": {"vars": ["p"], "skip": 0.0},
+                "resonance": {"var": "p", "ratios": [[1, 40]], "tolerance": 0.03},
+                "stop": "t > 20 + 10*alpha",
+            },
+            "run": {"backend": "cpu", "precision": "f64"},
+        },
+        progress=False,
+    )
+    assert ds.mean_p.dims == ("alpha", "q")
+    assert ds.resonance.dims == ("alpha", "q")
+    assert ds.resonance.dtype == np.int32
+    # α = 0.6 stops after t > 26 (step 521), α = 0.05 runs to the end.
+    np.testing.assert_array_equal(ds.status.sel(alpha=0.6), 2)
+    np.testing.assert_array_equal(ds.status_step.sel(alpha=0.6), 521)
+    np.testing.assert_array_equal(ds.status.sel(alpha=0.05), 0)
+    np.testing.assert_allclose(ds.final_t.sel(alpha=0.6), 521 * 0.05)
+    # The mean is the plain mean of the steps 1 … last.
+    last = np.where(ds.status == 2, ds.status_step, 600)
+    p = ds.trajectory_p.values
+    for i in range(2):
+        for j in range(8):
+            plain = p[i, j, 1 : last[i, j] + 1].mean()
+            assert ds.mean_p.values[i, j] == pytest.approx(plain, rel=1e-12, abs=1e-15)
+    captured = np.abs(ds.mean_p.values - 1 / 40) <= 0.03
+    np.testing.assert_array_equal(ds.resonance.values, np.where(captured, 0, -1))
+    fractions = ds.attrs["capture_fractions"]
+    assert fractions["1:40"] == pytest.approx(captured.mean())
+    assert fractions["none"] == pytest.approx(1 - captured.mean())
+    assert ds.attrs["status"]["stopped"] == 8
