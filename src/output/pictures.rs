@@ -65,6 +65,7 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &Observations<R>) -> Result<V
     files.extend(pictures.phase_portrait(d)?);
     files.extend(pictures.poincare_portrait(d)?);
     files.extend(pictures.bifurcation_diagram(d)?);
+    files.extend(pictures.resonance_map(d)?);
     Ok(files)
 }
 
@@ -389,6 +390,58 @@ impl<'a> Pictures<'a> {
         let fig = self.figure(names[jx], names[jy]);
         plot::point_cloud(&self.dir.join("poincare.png"), &fig, &series, x_range, None)?;
         Ok(Some("poincare.png".into()))
+    }
+
+    /// Which resonance each trajectory was captured in, over the first two
+    /// varying axes (`output.resonance`): `resonance.png`, a colour per
+    /// ratio (with the fraction of the ensemble in its legend), grey for
+    /// none.
+    fn resonance_map<R: Real>(&self, d: &Observations<R>) -> Result<Option<String>> {
+        let (Some(r), [kx, ky, ..]) = (&self.scene.resonance, &self.varying[..]) else {
+            return Ok(None);
+        };
+        let (kx, ky) = (*kx, *ky);
+        let index = crate::output::arrays::resonance(r, d)?;
+        let none = r.ratios.len();
+        let (shape, strides) = (&self.shape, &self.strides);
+        let mut classes = vec![none as u8; shape[kx] * shape[ky]];
+        for ix in 0..shape[kx] {
+            for iy in 0..shape[ky] {
+                let k = index[ix * strides[kx] + iy * strides[ky]];
+                classes[ix * shape[ky] + iy] = usize::try_from(k).unwrap_or(none) as u8;
+            }
+        }
+        let fraction = |k: usize| {
+            let count = index.iter().filter(|i| usize::try_from(**i).unwrap_or(none) == k).count();
+            100.0 * count as f64 / index.len().max(1) as f64
+        };
+        let labels: Vec<String> = (0..=none)
+            .map(|k| match k {
+                k if k == none => format!("none ({:.1} %)", fraction(k)),
+                k => format!("{} ({:.1} %)", r.label(k), fraction(k)),
+            })
+            .collect();
+        let legend: Vec<(&str, plot::Rgb)> = labels
+            .iter()
+            .enumerate()
+            .map(|(k, l)| {
+                let colour = if k == none { (200, 200, 200) } else { plot::palette(k) };
+                (l.as_str(), colour)
+            })
+            .collect();
+        let (ax, ay) = (&self.scene.axes[kx], &self.scene.axes[ky]);
+        let name = "resonance.png".to_string();
+        plot::class_map(
+            &self.dir.join(&name),
+            &self.figure(&ax.name, &ay.name),
+            &ax.values,
+            &ay.values,
+            &classes,
+            &legend,
+            plot::log_scale(&ax.values),
+            plot::log_scale(&ay.values),
+        )?;
+        Ok(Some(name))
     }
 
     /// Bifurcation diagram: every section value of `var` against its
