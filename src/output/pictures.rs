@@ -412,7 +412,10 @@ impl<'a> Pictures<'a> {
             }
         }
         let fraction = |k: usize| {
-            let count = index.iter().filter(|i| usize::try_from(**i).unwrap_or(none) == k).count();
+            let count = index
+                .iter()
+                .filter(|i| usize::try_from(**i).unwrap_or(none) == k)
+                .count();
             100.0 * count as f64 / index.len().max(1) as f64
         };
         let labels: Vec<String> = (0..=none)
@@ -425,7 +428,11 @@ impl<'a> Pictures<'a> {
             .iter()
             .enumerate()
             .map(|(k, l)| {
-                let colour = if k == none { (200, 200, 200) } else { plot::palette(k) };
+                let colour = if k == none {
+                    (200, 200, 200)
+                } else {
+                    plot::palette(k)
+                };
                 (l.as_str(), colour)
             })
             .collect();
