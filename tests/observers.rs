@@ -197,6 +197,11 @@ fn resonances_and_their_fractions_reach_the_files_and_the_summary() {
     assert!(count(1) > 0 && count(-1) > 0, "{index:?}");
     let fraction = r["fractions"]["1:40"].as_f64().unwrap();
     assert_eq!(fraction, count(1) as f64 / 24.0);
+    let files = summary["files"].as_array().unwrap();
+    for picture in ["resonance.png", "capture.png", "mean_p.png"] {
+        assert!(files.iter().any(|f| f == picture), "{picture} in {files:?}");
+        assert!(out.join(picture).is_file());
+    }
     let dims = &summary["dims"];
     assert_eq!(dims["mean_p"], serde_json::json!(["alpha", "q"]));
     assert_eq!(dims["resonance"], serde_json::json!(["alpha", "q"]));

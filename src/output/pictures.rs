@@ -66,6 +66,7 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &Observations<R>) -> Result<V
     files.extend(pictures.poincare_portrait(d)?);
     files.extend(pictures.bifurcation_diagram(d)?);
     files.extend(pictures.resonance_map(d)?);
+    files.extend(pictures.capture_fractions(d)?);
     Ok(files)
 }
 
@@ -172,6 +173,14 @@ fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
     stats
 }
 
+/// The per cent of trajectories in class `k` of the resonances: ratio `k`,
+/// or none for `k = none` (the index −1).
+fn percent_in(index: &[i32], k: usize, none: usize) -> f64 {
+    let class = |i: &i32| usize::try_from(*i).unwrap_or(none);
+    let count = index.iter().filter(|i| class(i) == k).count();
+    100.0 * count as f64 / index.len().max(1) as f64
+}
+
 /// A statistic's value as drawn: NaN where it has none.
 fn or_nan(v: Result<f64, Undefined>) -> f64 {
     v.unwrap_or(f64::NAN)
@@ -250,6 +259,26 @@ impl<'a> Pictures<'a> {
     fn stat_maps(&self, stats: &[Stat], kx: usize, ky: usize) -> Result<Vec<String>> {
         let (shape, strides) = (&self.shape, &self.strides);
         let (ax, ay) = (&self.scene.axes[kx], &self.scene.axes[ky]);
+        // The resonances' values p/q, marked on the colour bar of their mean.
+        let resonant: Vec<(f64, String)> = self
+            .scene
+            .resonance
+            .iter()
+            .flat_map(|r| {
+                r.ratios
+                    .iter()
+                    .enumerate()
+                    .map(|(k, [p, q])| (*p as f64 / *q as f64, r.label(k)))
+            })
+            .collect();
+        let marks_of = |file: &str| -> Vec<(f64, &str)> {
+            match &self.scene.resonance {
+                Some(r) if file == format!("mean_{}", r.var) => {
+                    resonant.iter().map(|(v, l)| (*v, l.as_str())).collect()
+                }
+                _ => vec![],
+            }
+        };
         let mut files = vec![];
         for (file, label, v) in stats {
             let mut grid = vec![f64::NAN; shape[kx] * shape[ky]];
@@ -276,6 +305,7 @@ impl<'a> Pictures<'a> {
                 y_log: plot::log_scale(&ay.values),
                 why: &why,
                 undefined: &UNDEFINED,
+                marks: &marks_of(file),
             };
             plot::heat_map(
                 &self.dir.join(&name),
@@ -411,13 +441,7 @@ impl<'a> Pictures<'a> {
                 classes[ix * shape[ky] + iy] = usize::try_from(k).unwrap_or(none) as u8;
             }
         }
-        let fraction = |k: usize| {
-            let count = index
-                .iter()
-                .filter(|i| usize::try_from(**i).unwrap_or(none) == k)
-                .count();
-            100.0 * count as f64 / index.len().max(1) as f64
-        };
+        let fraction = |k: usize| percent_in(&index, k, none);
         let labels: Vec<String> = (0..=none)
             .map(|k| match k {
                 k if k == none => format!("none ({:.1} %)", fraction(k)),
@@ -447,6 +471,41 @@ impl<'a> Pictures<'a> {
             &legend,
             plot::log_scale(&ax.values),
             plot::log_scale(&ay.values),
+        )?;
+        Ok(Some(name))
+    }
+
+    /// The fraction of the ensemble in each resonance and in none
+    /// (`output.resonance`): `capture.png`, a bar chart in per cent.
+    fn capture_fractions<R: Real>(&self, d: &Observations<R>) -> Result<Option<String>> {
+        let Some(r) = &self.scene.resonance else {
+            return Ok(None);
+        };
+        let index = crate::output::arrays::resonance(r, d)?;
+        let none = r.ratios.len();
+        let labels: Vec<String> = (0..none)
+            .map(|k| r.label(k))
+            .chain(["none".into()])
+            .collect();
+        let bars: Vec<(&str, f64, plot::Rgb)> = labels
+            .iter()
+            .enumerate()
+            .map(|(k, l)| {
+                let colour = if k == none {
+                    (200, 200, 200)
+                } else {
+                    plot::palette(k)
+                };
+                (l.as_str(), percent_in(&index, k, none), colour)
+            })
+            .collect();
+        let y_label = format!("% of the {} trajectories (mean {})", index.len(), r.var);
+        let name = "capture.png".to_string();
+        plot::bars(
+            &self.dir.join(&name),
+            &self.figure("resonance p:q", &y_label),
+            &bars,
+            1,
         )?;
         Ok(Some(name))
     }

@@ -17,6 +17,9 @@ pub(super) struct ColorBar<'l> {
     /// Swatches under the bar for the colours of cells without a value,
     /// and what each means ("NaN", "no cycle found").
     missing: Vec<(&'l str, Rgb)>,
+    /// Values marked across the bar (transformed coordinates) and their
+    /// labels, written left of it.
+    marks: Vec<(f64, &'l str)>,
 }
 
 impl<'l> ColorBar<'l> {
@@ -34,7 +37,35 @@ impl<'l> ColorBar<'l> {
             ticks,
             label,
             missing,
+            marks: vec![],
         }
+    }
+
+    /// The same bar with `marks` across it (values in data coordinates;
+    /// those outside the bar's range are left out).
+    pub(super) fn with_marks(mut self, marks: &[(f64, &'l str)]) -> Self {
+        self.marks = marks
+            .iter()
+            .filter_map(|(v, l)| {
+                let t = if self.axis.log {
+                    (*v > 0.0).then(|| v.log10())?
+                } else {
+                    *v
+                };
+                (self.axis.lo..=self.axis.hi)
+                    .contains(&t)
+                    .then_some((t, *l))
+            })
+            .collect();
+        self
+    }
+
+    /// Widest mark label, and the space it takes left of the bar.
+    fn marks_width(&self, area: &Area, st: &Style) -> i32 {
+        self.marks
+            .iter()
+            .map(|(_, l)| text_width(area, l, &st.tick()) + st.px(4.0))
+            .fold(0, i32::max)
     }
 
     /// Widest tick label.
@@ -51,6 +82,7 @@ impl<'l> ColorBar<'l> {
     /// swatch and the widest note on a missing value, if wider.
     pub(super) fn width(&self, area: &Area, st: &Style) -> i32 {
         let bar = Self::gap(st)
+            + self.marks_width(area, st)
             + st.fpx(Self::BAR)
             + 3 * st.px(5.0)
             + self.label_width(area, st)
@@ -99,7 +131,7 @@ impl<'l> ColorBar<'l> {
     pub(super) fn draw(&self, side: &Area, st: &Style, main: &Frame) -> Result<(), PlotError> {
         let (sx, sy) = side.get_base_pixel();
         let (sw, sh) = side.dim_in_pixel();
-        let gap = Self::gap(st);
+        let gap = Self::gap(st) + self.marks_width(side, st);
         let bar = st.fpx(Self::BAR);
         let label_area = (sw as i32 - gap - bar).max(0);
         // The bar ends with the plot, unless the swatches under it would
@@ -156,6 +188,18 @@ impl<'l> ColorBar<'l> {
         }
         blit(side, &f, buf)?;
         draw_frame(side, &f)?;
+        let mark_style = st.tick().pos(Pos::new(HPos::Right, VPos::Center));
+        for (t, label) in &self.marks {
+            chart.draw_series(std::iter::once(PathElement::new(
+                vec![(0.0, *t), (1.0, *t)],
+                BLACK.stroke_width(st.px(2.0).max(1) as u32),
+            )))?;
+            chart.draw_series(std::iter::once(Text::new(
+                label.to_string(),
+                (0.0, *t),
+                mark_style.clone(),
+            )))?;
+        }
         if !self.label.is_empty() {
             let x = f.x1 - sx + 3 * st.px(5.0) + self.label_width(side, st) + st.px(12.0);
             let style = st

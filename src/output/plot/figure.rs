@@ -50,6 +50,9 @@ pub struct HeatMap<'a> {
     /// What a cell without a value means and its colour (a grey, not a
     /// colour of the scale), listed under the colour bar where it occurs.
     pub undefined: &'a [(&'a str, Rgb)],
+    /// Values marked across the colour bar, with their labels (the
+    /// resonances p/q on a map of a mean).
+    pub marks: &'a [(f64, &'a str)],
 }
 
 /// Options shared by the figures. Empty strings are simply not drawn.

@@ -153,7 +153,8 @@ pub(super) fn heatmap_impl(path: &Path, fig: &Figure, map: &HeatMap) -> Result<(
     render(path, fig, |body, st| {
         let ca = Axis::new(log_color, crange, 0.0);
         let (_, bh) = body.dim_in_pixel();
-        let cb = ColorBar::new(ca, map.label, undefined_present(map), f64::from(bh), st);
+        let cb = ColorBar::new(ca, map.label, undefined_present(map), f64::from(bh), st)
+            .with_marks(map.marks);
         let (main, side) = split_side(body, cb.width(body, st));
         let (xa, ya) = match &cells {
             Some((cx, cy)) => (cx.axis(x_log), cy.axis(y_log)),

@@ -42,6 +42,7 @@
 //! points, so no file below imports it.
 
 mod axis;
+mod bars;
 mod canvas;
 mod chart;
 mod cloud;
@@ -56,6 +57,7 @@ mod loglog;
 
 use std::path::Path;
 
+use bars::bars_impl;
 use canvas::guarded;
 use cloud::point_cloud_impl;
 use grid::{class_map_impl, heatmap_impl};
@@ -90,6 +92,7 @@ pub fn heatmap(
         y_log,
         why: &[],
         undefined: &[],
+        marks: &[],
     };
     heat_map(path, fig, &map)
 }
@@ -125,6 +128,17 @@ pub fn class_map(
     y_log: bool,
 ) -> Result<(), PlotError> {
     guarded(|| class_map_impl(path, fig, x, y, classes, legend, x_log, y_log))
+}
+
+/// A bar chart: one bar per `(label, value, colour)`, its value written
+/// above it with `digits` decimals (capture fractions).
+pub fn bars(
+    path: &Path,
+    fig: &Figure,
+    bars: &[(&str, f64, Rgb)],
+    digits: usize,
+) -> Result<(), PlotError> {
+    guarded(|| bars_impl(path, fig, bars, digits))
 }
 
 /// Point cloud (Poincaré portraits with up to 10⁷–10⁸ points), rasterised as
@@ -251,6 +265,21 @@ mod tests {
         let p = out("classmap");
         class_map(&p, &fig("classes"), &x, &y, &classes, &legend, false, true).expect("class_map");
         check_png(&p, 1000, 750, 15_000);
+    }
+
+    #[test]
+    fn bars_of_capture_fractions() {
+        let bars = [
+            ("1:1", 40.8, palette(0)),
+            ("3:2", 29.9, palette(1)),
+            ("none", 0.0, (200, 200, 200)),
+        ];
+        let p = out("bars");
+        super::bars(&p, &fig("capture"), &bars, 1).expect("bars");
+        check_png(&p, 1000, 750, 8_000);
+        assert!(super::bars(&p, &fig("capture"), &bars[..1], 1).is_err());
+        let nan = [("a", f64::NAN, palette(0)), ("b", 1.0, palette(1))];
+        assert!(super::bars(&p, &fig("capture"), &nan, 1).is_err());
     }
 
     #[test]
