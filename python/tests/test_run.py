@@ -146,7 +146,7 @@ def test_stops_averages_and_resonances_reach_the_dataset():
                 "trajectory": {"every": 1, "vars": ["p"]},
                 "average": {"vars": ["p"], "skip": 0.0},
                 "resonance": {"var": "p", "ratios": [[1, 40]], "tolerance": 0.03},
-                "stop": "t > 20 + 10*alpha",
+                "stop": "t > 20.52 + 20*alpha",
             },
             "run": {"backend": "cpu", "precision": "f64"},
         },
@@ -155,11 +155,12 @@ def test_stops_averages_and_resonances_reach_the_dataset():
     assert ds.mean_p.dims == ("alpha", "q")
     assert ds.resonance.dims == ("alpha", "q")
     assert ds.resonance.dtype == np.int32
-    # α = 0.6 stops after t > 26 (step 521), α = 0.05 runs to the end.
-    np.testing.assert_array_equal(ds.status.sel(alpha=0.6), 2)
-    np.testing.assert_array_equal(ds.status_step.sel(alpha=0.6), 521)
-    np.testing.assert_array_equal(ds.status.sel(alpha=0.05), 0)
-    np.testing.assert_allclose(ds.final_t.sel(alpha=0.6), 521 * 0.05)
+    # α = 0.05 stops after t > 21.52 (step 431), α = 0.6 runs to the end.
+    np.testing.assert_array_equal(ds.status.sel(alpha=0.05), 2)
+    np.testing.assert_array_equal(ds.status_step.sel(alpha=0.05), 431)
+    np.testing.assert_array_equal(ds.status.sel(alpha=0.6), 0)
+    np.testing.assert_array_equal(ds.status_step.sel(alpha=0.6), -1)
+    np.testing.assert_allclose(ds.final_t.sel(alpha=0.05), 431 * 0.05)
     # The mean is the plain mean of the steps 1 … last.
     last = np.where(ds.status == 2, ds.status_step, 600)
     p = ds.trajectory_p.values
