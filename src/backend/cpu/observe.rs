@@ -11,13 +11,13 @@ use std::io::{self, Read, Write};
 
 use crate::models::lanes::{Lanes, LANES};
 use crate::models::Flows;
+use crate::plan::observations::Sink;
 use crate::plan::observers::{Direction, Section};
 use crate::plan::slots;
 use crate::plan::snapshot::{get, put};
 use crate::plan::ObsVar;
 
 use super::program::Program;
-use crate::plan::observations::Sink;
 
 /// A block right after step `n1` (0: the initial state), as the observers
 /// see it: the program, the lanes, where its rows go, the state at the
