@@ -177,3 +177,52 @@ precision = "f64"
     );
     compare(&py, &npy, &z, &want);
 }
+
+#[test]
+fn averages_resonances_and_stops_reach_the_store() {
+    let Some(py) = python() else { return };
+    let d = tmp("observers");
+    let scene = d.join("observers.toml");
+    std::fs::write(
+        &scene,
+        r#"model = "damped_oscillator"
+[params]
+alpha = [0.05, 0.2, 0.6]
+[initial]
+q = { linspace = [-2.0, 2.0, 7] }
+p = 0.3
+[integrator]
+scheme = "s2"
+dt = 0.05
+steps = 600
+[output]
+final = ["q"]
+average = { vars = ["p"], skip = 0.0 }
+resonance = { var = "p", ratios = [[1, 40]], tolerance = 0.03 }
+stop = "t > 20.52 + 20*alpha"
+[run]
+precision = "f64"
+"#,
+    )
+    .unwrap();
+    let npy = d.join("npy");
+    ok(&["run", s(&scene), "--out", s(&npy), "--backend", "cpu"]);
+    let zarr = d.join("zarr");
+    ok(&[
+        "run",
+        s(&scene),
+        "--out",
+        s(&zarr),
+        "--backend",
+        "cpu",
+        "--format",
+        "zarr",
+        "--chunk-trajectories",
+        "5",
+    ]);
+    let a = r#"["alpha", "q"]"#;
+    let want = format!(
+        r#"{{"final_q": {a}, "mean_p": {a}, "resonance": {a}, "status": {a}, "status_step": {a}}}"#
+    );
+    compare(&py, &npy, &zarr, &want);
+}

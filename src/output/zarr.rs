@@ -28,15 +28,17 @@ pub struct Store {
     path: PathBuf,
 }
 
-/// The Zarr type and fill value (NaN, or 0 and −1 for "never") of a
-/// numpy type string.
+/// The Zarr type and fill value (NaN, or 0, or −1 for "never" and "no
+/// resonance") of a numpy type string.
 fn zarr_type(descr: &str) -> (DataType, FillValue) {
     match descr {
         "<f4" => (data_type::float32(), f32::NAN.into()),
         "<f8" => (data_type::float64(), f64::NAN.into()),
         "|u1" => (data_type::uint8(), 0u8.into()),
         "<u4" => (data_type::uint32(), 0u32.into()),
-        _ => (data_type::int64(), (-1i64).into()),
+        "<i4" => (data_type::int32(), (-1i32).into()),
+        "<i8" => (data_type::int64(), (-1i64).into()),
+        other => unreachable!("an array of numpy type {other}: add it here"),
     }
 }
 
