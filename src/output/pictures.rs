@@ -11,6 +11,7 @@ use anyhow::Result;
 use crate::num::precision::Real;
 use crate::output::plot::{self, fmt_significant, Figure, HeatMap, Rgb, Series};
 use crate::plan::observations::Observations;
+use crate::plan::observers::ResonanceObs;
 use crate::scene::Scene;
 
 fn f64s<R: Real>(v: &[R]) -> Vec<f64> {
@@ -65,8 +66,11 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &Observations<R>) -> Result<V
     files.extend(pictures.phase_portrait(d)?);
     files.extend(pictures.poincare_portrait(d)?);
     files.extend(pictures.bifurcation_diagram(d)?);
-    files.extend(pictures.resonance_map(d)?);
-    files.extend(pictures.capture_fractions(d)?);
+    if let Some(r) = &scene.resonance {
+        let index = crate::output::arrays::resonance(r, d)?;
+        files.extend(pictures.resonance_map(r, &index)?);
+        files.push(pictures.capture_fractions(r, &index)?);
+    }
     Ok(files)
 }
 
@@ -108,20 +112,7 @@ fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
     let stopped = move |i: usize| d.nonfinite_step[i] != 0;
     let ended = move |i: usize| d.nonfinite_step[i].max(d.stop_step[i]);
     let mut stats: Vec<Stat> = vec![];
-    for (name, v) in &d.final_values {
-        let value = move |i| {
-            if stopped(i) {
-                Err(Undefined::NonFinite)
-            } else {
-                Ok(v[i].to_f64())
-            }
-        };
-        stats.push((
-            format!("final_{name}"),
-            format!("final {name}"),
-            Box::new(value),
-        ));
-    }
+    stats.extend(per_variable(d, "final", &d.final_values));
     if !d.cycle_amplitude.is_empty() {
         let cycle = move |i: usize, v: &[R]| {
             if stopped(i) {
@@ -145,20 +136,7 @@ fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
             Box::new(period),
         ));
     }
-    for (name, v) in &d.mean {
-        let value = move |i| {
-            if stopped(i) {
-                Err(Undefined::NonFinite)
-            } else {
-                Ok(v[i].to_f64())
-            }
-        };
-        stats.push((
-            format!("mean_{name}"),
-            format!("mean {name}"),
-            Box::new(value),
-        ));
-    }
+    stats.extend(per_variable(d, "mean", &d.mean));
     if (0..d.n).any(|i| ended(i) != 0) {
         let step = move |i| match ended(i) {
             0 => Err(Undefined::RanToEnd),
@@ -173,12 +151,36 @@ fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
     stats
 }
 
-/// The per cent of trajectories in class `k` of the resonances: ratio `k`,
-/// or none for `k = none` (the index −1).
-fn percent_in(index: &[i32], k: usize, none: usize) -> f64 {
-    let class = |i: &i32| usize::try_from(*i).unwrap_or(none);
-    let count = index.iter().filter(|i| class(i) == k).count();
-    100.0 * count as f64 / index.len().max(1) as f64
+/// The per cent of the trajectories each ratio captured, then none.
+fn percents(r: &ResonanceObs, index: &[i32]) -> Vec<f64> {
+    let n = index.len().max(1) as f64;
+    r.counts(index)
+        .iter()
+        .map(|c| 100.0 * *c as f64 / n)
+        .collect()
+}
+
+/// `<prefix>_<var>` of each variable of `arrays` (final values, means):
+/// none for a trajectory that became non-finite.
+fn per_variable<'a, R: Real>(
+    d: &'a Observations<R>,
+    prefix: &'a str,
+    arrays: &'a [(String, Vec<R>)],
+) -> impl Iterator<Item = Stat<'a>> + 'a {
+    arrays.iter().map(move |(name, v)| -> Stat<'a> {
+        let value = move |i: usize| {
+            if d.nonfinite_step[i] != 0 {
+                Err(Undefined::NonFinite)
+            } else {
+                Ok(v[i].to_f64())
+            }
+        };
+        (
+            format!("{prefix}_{name}"),
+            format!("{prefix} {name}"),
+            Box::new(value),
+        )
+    })
 }
 
 /// A statistic's value as drawn: NaN where it has none.
@@ -426,12 +428,10 @@ impl<'a> Pictures<'a> {
     /// varying axes (`output.resonance`): `resonance.png`, a colour per
     /// ratio (with the fraction of the ensemble in its legend), grey for
     /// none.
-    fn resonance_map<R: Real>(&self, d: &Observations<R>) -> Result<Option<String>> {
-        let (Some(r), [kx, ky, ..]) = (&self.scene.resonance, &self.varying[..]) else {
+    fn resonance_map(&self, r: &ResonanceObs, index: &[i32]) -> Result<Option<String>> {
+        let [kx, ky, ..] = self.varying[..] else {
             return Ok(None);
         };
-        let (kx, ky) = (*kx, *ky);
-        let index = crate::output::arrays::resonance(r, d)?;
         let none = r.ratios.len();
         let (shape, strides) = (&self.shape, &self.strides);
         let mut classes = vec![none as u8; shape[kx] * shape[ky]];
@@ -441,12 +441,9 @@ impl<'a> Pictures<'a> {
                 classes[ix * shape[ky] + iy] = usize::try_from(k).unwrap_or(none) as u8;
             }
         }
-        let fraction = |k: usize| percent_in(&index, k, none);
+        let percent = percents(r, index);
         let labels: Vec<String> = (0..=none)
-            .map(|k| match k {
-                k if k == none => format!("none ({:.1} %)", fraction(k)),
-                k => format!("{} ({:.1} %)", r.label(k), fraction(k)),
-            })
+            .map(|k| format!("{} ({:.1} %)", r.label(k), percent[k]))
             .collect();
         let legend: Vec<(&str, plot::Rgb)> = labels
             .iter()
@@ -477,16 +474,10 @@ impl<'a> Pictures<'a> {
 
     /// The fraction of the ensemble in each resonance and in none
     /// (`output.resonance`): `capture.png`, a bar chart in per cent.
-    fn capture_fractions<R: Real>(&self, d: &Observations<R>) -> Result<Option<String>> {
-        let Some(r) = &self.scene.resonance else {
-            return Ok(None);
-        };
-        let index = crate::output::arrays::resonance(r, d)?;
+    fn capture_fractions(&self, r: &ResonanceObs, index: &[i32]) -> Result<String> {
         let none = r.ratios.len();
-        let labels: Vec<String> = (0..none)
-            .map(|k| r.label(k))
-            .chain(["none".into()])
-            .collect();
+        let percent = percents(r, index);
+        let labels: Vec<String> = (0..=none).map(|k| r.label(k)).collect();
         let bars: Vec<(&str, f64, plot::Rgb)> = labels
             .iter()
             .enumerate()
@@ -496,7 +487,7 @@ impl<'a> Pictures<'a> {
                 } else {
                     plot::palette(k)
                 };
-                (l.as_str(), percent_in(&index, k, none), colour)
+                (l.as_str(), percent[k], colour)
             })
             .collect();
         let y_label = format!("% of the {} trajectories (mean {})", index.len(), r.var);
@@ -507,7 +498,7 @@ impl<'a> Pictures<'a> {
             &bars,
             1,
         )?;
-        Ok(Some(name))
+        Ok(name)
     }
 
     /// Bifurcation diagram: every section value of `var` against its

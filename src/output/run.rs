@@ -588,12 +588,8 @@ pub fn provenance(cpu_ran: bool) -> serde_json::Map<String, serde_json::Value> {
 /// (and what fraction of the ensemble) each captured, and none.
 fn capture(r: &ResonanceObs, index: &[i32]) -> serde_json::Value {
     let n = index.len().max(1) as f64;
-    let mut labels: Vec<String> = (0..r.ratios.len()).map(|k| r.label(k)).collect();
-    labels.push("none".into());
-    let mut counts = vec![0u64; labels.len()];
-    for k in index {
-        counts[usize::try_from(*k).unwrap_or(r.ratios.len())] += 1;
-    }
+    let labels: Vec<String> = (0..=r.ratios.len()).map(|k| r.label(k)).collect();
+    let counts = r.counts(index);
     let by_label =
         |f: &dyn Fn(u64) -> serde_json::Value| -> serde_json::Map<String, serde_json::Value> {
             labels

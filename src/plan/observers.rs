@@ -97,10 +97,23 @@ impl ResonanceObs {
             .map_or(-1, |k| k as i32)
     }
 
-    /// `p:q` of ratio `k`.
+    /// `p:q` of ratio `k`, and `none` for `k` = the number of ratios.
     pub fn label(&self, k: usize) -> String {
-        let [p, q] = self.ratios[k];
-        format!("{p}:{q}")
+        match self.ratios.get(k) {
+            Some([p, q]) => format!("{p}:{q}"),
+            None => "none".into(),
+        }
+    }
+
+    /// How many of the trajectories with resonance `index` (from
+    /// [`Self::classify`]) each ratio captured, then how many none did.
+    pub fn counts(&self, index: &[i32]) -> Vec<u64> {
+        let none = self.ratios.len();
+        let mut counts = vec![0u64; none + 1];
+        for k in index {
+            counts[usize::try_from(*k).unwrap_or(none)] += 1;
+        }
+        counts
     }
 }
 
