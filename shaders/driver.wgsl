@@ -25,7 +25,8 @@ struct Uniforms {
 @group(0) @binding(1) var<storage, read_write> state: array<R>;
 // Input values along the axes.
 @group(0) @binding(2) var<storage, read> table: array<R>;
-// 0: running; k > 0: non-finite at step k (the trajectory stopped there).
+// 0: running; k > 0: non-finite at step k (the trajectory stopped there);
+// src/plan/slots.rs has the other words (stopped, cut).
 @group(0) @binding(3) var<storage, read_write> status: array<u32>;
 // Observer state that lives across dispatches.
 @group(0) @binding(4) var<storage, read_write> aux_r: array<R>;
@@ -53,7 +54,11 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
 {{LOAD}}
     var st: u32 = 0u;
 {{BEGIN}}
-    for (var n: u32 = u.step0; n < u.step0 + u.nsteps; n = n + 1u) {
+    var n: u32 = u.step0;
+    loop {
+        if n >= u.step0 + u.nsteps {
+            break;
+        }
         let nf: R = R(n);
 {{STEP}}
         if !({{FINITE}}) {
@@ -61,6 +66,12 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3
             break;
         }
 {{OBSERVE}}
+        n = n + 1u;
+    }
+    // A loop the adapter ended early (llvmpipe's limit on loop iterations,
+    // src/backend/gpu/run.rs) is flagged, never a silently short window.
+    if st == 0u && n < u.step0 + u.nsteps {
+        st = {{CUT}}u;
     }
 {{STORE}}
     status[i] = st;

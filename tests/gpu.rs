@@ -436,3 +436,69 @@ fn shared_time_terms_come_from_a_table_per_window() {
         2e-4,
     );
 }
+
+/// llvmpipe ends a shader's loops once they have run 65 535 iterations in
+/// all (`codegen::LOOP_ITERATIONS`): windows that long, with observers whose
+/// per-step code may loop (crossings located by Newton, a section that may
+/// find two samples in a step), must lose no step and no sample, whatever
+/// the window.
+#[test]
+fn long_windows_lose_no_step() {
+    let Some(ctx) = gpu() else { return };
+    let (dt, steps) = (0.02, 70_000u64);
+    // A period of several steps, and one within rounding of a step (so a
+    // step might hold two samples, and the section loops).
+    for period in [0.0731, 0.020015] {
+        let mut p = Problem::new(Model::VanDerPol, "s2")
+            .unwrap()
+            .initial("q", Source::Const(2.0));
+        let eps = p.axis("epsilon", (0..64).map(|k| 0.5 + 0.02 * k as f64).collect());
+        p = p.param("epsilon", eps);
+        p.dt = Source::Const(dt);
+        p.steps = steps;
+        p.observers.poincare = Some(PoincareObs {
+            section: Section::Stroboscopic { period, phase: 0.0 },
+            vars: vec!["t".into(), "q".into()],
+            max_points: 500,
+        });
+        p.observers.cycle = Some(CycleObs {
+            var: "q".into(),
+            level: 0.0,
+            skip: 0.0,
+        });
+        let plan = Plan::new(&p).unwrap();
+        // Samples at k·period for k = 0, 1, … up to the horizon.
+        let expected = ((steps as f64 * dt) / period).floor() as u32 + 1;
+        let c = cpu::run::<f32>(&plan, None);
+        assert!(c.poincare_count.iter().all(|n| *n == expected), "cpu");
+        let runs: Vec<_> = [None, Some(997)]
+            .into_iter()
+            .map(|window| {
+                let opts = gpu::GpuOptions {
+                    max_chunk: None,
+                    max_steps_per_dispatch: window,
+                };
+                gpu::run_with::<f32>(ctx, &plan, None, &opts)
+                    .unwrap_or_else(|e| panic!("period {period}, window {window:?}: {e}"))
+                    .observations
+            })
+            .collect();
+        for g in &runs {
+            assert_eq!(g.poincare_count, c.poincare_count, "period {period}");
+            assert!(g.nonfinite_step.iter().all(|s| *s == 0));
+        }
+        let bits = |o: &Observations<f32>| -> Vec<u32> {
+            let columns = o
+                .final_values
+                .iter()
+                .chain(&o.poincare)
+                .flat_map(|(_, v)| v);
+            let cycle = o.cycle_amplitude.iter().chain(&o.cycle_period);
+            columns.chain(cycle).map(|x| x.to_bits()).collect()
+        };
+        assert!(
+            bits(&runs[0]) == bits(&runs[1]),
+            "period {period}: the window changed the results"
+        );
+    }
+}

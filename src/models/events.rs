@@ -28,24 +28,35 @@ crate::shared_fns! {
     }
     /// The θ ∈ [0, 1] where the interpolant of y crosses zero, given that y0
     /// and y1 have opposite signs (or y1 = 0): Newton from the secant guess,
-    /// kept inside the shrinking bracket.
+    /// kept inside the shrinking bracket, 8 iterations written out (a GPU
+    /// kernel's loops count against llvmpipe's limit of 65 535 iterations
+    /// per dispatch, shared by all its loops; see `gpu/run.rs`).
     fn crossing_theta(y0: R, y1: R, d0: R, d1: R, h: R) -> R {
         let mut lo: R = 0.0;
         let mut hi: R = 1.0;
         let mut th: R = y0 / (y0 - y1);
-        let mut k: i32 = 0;
-        while k < 8 {
-            let f: R = R::hermite(y0, y1, d0, d1, h, th);
-            let same: bool = (f < 0.0) == (y0 < 0.0);
-            lo = R::select(lo, th, same);
-            hi = R::select(th, hi, same);
-            let fp: R = R::hermite_slope(y0, y1, d0, d1, h, th);
-            let nx: R = th - f / fp;
-            let inside: bool = nx >= lo && nx <= hi;
-            th = R::select(0.5 * (lo + hi), nx, inside);
-            k = k + 1;
-        }
+        R::newton_in_bracket(y0, y1, d0, d1, h, &mut lo, &mut hi, &mut th);
+        R::newton_in_bracket(y0, y1, d0, d1, h, &mut lo, &mut hi, &mut th);
+        R::newton_in_bracket(y0, y1, d0, d1, h, &mut lo, &mut hi, &mut th);
+        R::newton_in_bracket(y0, y1, d0, d1, h, &mut lo, &mut hi, &mut th);
+        R::newton_in_bracket(y0, y1, d0, d1, h, &mut lo, &mut hi, &mut th);
+        R::newton_in_bracket(y0, y1, d0, d1, h, &mut lo, &mut hi, &mut th);
+        R::newton_in_bracket(y0, y1, d0, d1, h, &mut lo, &mut hi, &mut th);
+        R::newton_in_bracket(y0, y1, d0, d1, h, &mut lo, &mut hi, &mut th);
         return th;
+    }
+    /// One iteration of `crossing_theta`: the bracket [lo, hi] shrunk to
+    /// the side of θ where the sign changes, then a Newton step from θ, or
+    /// the bracket's midpoint where Newton leaves it.
+    fn newton_in_bracket(y0: R, y1: R, d0: R, d1: R, h: R, lo: &mut R, hi: &mut R, th: &mut R) {
+        let f: R = R::hermite(y0, y1, d0, d1, h, *th);
+        let same: bool = (f < 0.0) == (y0 < 0.0);
+        *lo = R::select(*lo, *th, same);
+        *hi = R::select(*th, *hi, same);
+        let fp: R = R::hermite_slope(y0, y1, d0, d1, h, *th);
+        let nx: R = *th - f / fp;
+        let inside: bool = nx >= *lo && nx <= *hi;
+        *th = R::select(0.5 * (*lo + *hi), nx, inside);
     }
     /// Position, in steps from t0, of stroboscopic sample k (time
     /// t0 + phase + k·period); sample k is due after step n1 when the position
@@ -81,6 +92,48 @@ crate::shared_fns! {
         let up: bool = y0 < 0.0 && y1 >= 0.0;
         let down: bool = y0 > 0.0 && y1 <= 0.0;
         return (up && direction != 1) || (down && direction != 0);
+    }
+    /// The Poincaré section's next point in the step that ends at n1 (0:
+    /// the initial state), and its θ inside the step: both backends call it
+    /// until it says no, recording a point each time. `kind`
+    /// (`plan/section.rs`): 0 stroboscopic sampled exactly (`every`,
+    /// `first` from `strobe_exact_steps`), 1 stroboscopic interpolated
+    /// (`k`: samples taken so far), 2 event crossing of y = variable − level
+    /// (y0 → y1, slopes d0, d1) in `direction`. `done` starts false each step.
+    fn section_next(kind: i32, n1: i32, initial: bool, every: i32, first: i32,
+                    period: R, phase: R, dt: R, y0: R, y1: R, d0: R, d1: R,
+                    direction: i32, k: &mut i32, done: &mut bool, th: &mut R) -> bool {
+        if *done {
+            return false;
+        }
+        *th = 1.0;
+        if kind == 1 {
+            let due: bool = R::strobe_due(R::from_i32(*k), period, phase, dt, R::from_i32(n1), initial, th);
+            if due {
+                *k = *k + 1;
+            }
+            *done = !due;
+            return due;
+        }
+        *done = true;
+        if kind == 0 {
+            return R::strobe_exact_due(n1, every, first);
+        }
+        if initial || !R::crossing_due(y0, y1, direction) {
+            return false;
+        }
+        *th = R::crossing_theta(y0, y1, d0, d1, dt);
+        return true;
+    }
+    /// A Poincaré point was found: is it kept (fewer than `max_points` before
+    /// it, its number the count before this call)? Counts it either way,
+    /// saturating.
+    fn point_kept(npoints: &mut i32, max_points: i32) -> bool {
+        let kept: bool = *npoints < max_points;
+        if *npoints < 2147483647 {
+            *npoints = *npoints + 1;
+        }
+        return kept;
     }
     /// An observed state variable at θ inside the step y0 → y1 (θ = 1: the
     /// step's end, exactly).
@@ -155,6 +208,84 @@ mod tests {
         let h = 0.5;
         let th = f64::crossing_theta(y(2.0) - 5.0, y(2.5) - 5.0, d(2.0), d(2.5), h);
         assert!((y(2.0 + th * h) - 5.0).abs() < 1e-13);
+    }
+
+    /// Every point `section_next` finds in one step, as θs.
+    fn points(kind: i32, n1: i32, k: &mut i32, ends: [f64; 4], direction: i32) -> Vec<f64> {
+        let (mut done, mut th, mut found) = (false, 0.0, vec![]);
+        let [y0, y1, d0, d1] = ends;
+        let (every, first, period, phase, dt) = (3, 1, 2.5, 0.0, 1.0);
+        while f64::section_next(
+            kind,
+            n1,
+            n1 == 0,
+            every,
+            first,
+            period,
+            phase,
+            dt,
+            y0,
+            y1,
+            d0,
+            d1,
+            direction,
+            k,
+            &mut done,
+            &mut th,
+        ) {
+            found.push(th);
+        }
+        found
+    }
+
+    #[test]
+    fn sections_find_their_points() {
+        let flat = [0.0; 4];
+        // Exact stroboscopic, every 3 steps from step 1: steps 1, 4, 7.
+        let due: Vec<i32> = (0..9)
+            .filter(|n| points(0, *n, &mut 0, flat, 0) == [1.0])
+            .collect();
+        assert_eq!(due, [1, 4, 7]);
+        // Interpolated, period 2.5 steps: t0 itself, then 2.5 in step 3 (θ
+        // 0.5), 5 at the end of step 5, 7.5 in step 8; none in step 4.
+        let mut k = 0;
+        assert_eq!(points(1, 0, &mut k, flat, 0), [1.0]);
+        for n in 1..3 {
+            assert!(points(1, n, &mut k, flat, 0).is_empty());
+        }
+        assert_eq!(points(1, 3, &mut k, flat, 0), [0.5]);
+        assert!(points(1, 4, &mut k, flat, 0).is_empty());
+        assert_eq!(points(1, 5, &mut k, flat, 0), [1.0]);
+        assert_eq!(k, 3);
+        // Several samples in one long step: period 2.5 steps, a step of 6.
+        let (mut done, mut th, mut k, mut thetas) = (false, 0.0, 1, vec![]);
+        while f64::section_next(
+            1, 1, false, 0, 0, 2.5, 0.0, 6.0, 0.0, 0.0, 0.0, 0.0, 0, &mut k, &mut done, &mut th,
+        ) {
+            thetas.push(th);
+        }
+        assert_eq!((thetas.len(), k), (2, 3));
+        // Crossings of y = t − 0.25 over a unit step: θ 0.25, upward only.
+        let up = [-0.25, 0.75, 1.0, 1.0];
+        assert_eq!(points(2, 1, &mut 0, up, 0).len(), 1);
+        assert!((points(2, 1, &mut 0, up, 2)[0] - 0.25).abs() < 1e-15);
+        assert!(points(2, 1, &mut 0, up, 1).is_empty());
+        assert!(
+            points(2, 0, &mut 0, up, 2).is_empty(),
+            "not at the initial state"
+        );
+    }
+
+    #[test]
+    fn points_are_kept_up_to_the_limit_and_counted_saturating() {
+        let mut n = 0;
+        assert!(f64::point_kept(&mut n, 2));
+        assert!(f64::point_kept(&mut n, 2));
+        assert!(!f64::point_kept(&mut n, 2));
+        assert_eq!(n, 3);
+        let mut n = i32::MAX;
+        assert!(!f64::point_kept(&mut n, 2));
+        assert_eq!(n, i32::MAX);
     }
 
     #[test]

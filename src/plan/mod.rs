@@ -15,6 +15,7 @@ pub mod observers;
 pub mod precision;
 pub mod problem;
 pub mod scheme;
+pub mod section;
 pub mod size;
 pub mod slots;
 pub mod snapshot;
@@ -226,6 +227,15 @@ impl Plan {
             .average
             .as_ref()
             .map_or(u64::MAX, |a| (a.skip * self.steps as f64).floor() as u64)
+    }
+
+    /// The first step after which cycle statistics measure (the steps that
+    /// end at it and later, the first `skip` fraction of the run left out).
+    pub fn cycle_start(&self) -> u64 {
+        self.observers
+            .cycle
+            .as_ref()
+            .map_or(u64::MAX, |cy| (cy.skip * self.steps as f64).floor() as u64)
     }
 
     /// Does an observer keep state across steps (`plan/slots.rs`)?

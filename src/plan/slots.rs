@@ -91,6 +91,13 @@ pub fn cycle_finish<R: Flows>(slot: impl Fn(usize) -> R, ok: bool) -> (R, R) {
 /// condition after step k; plans have fewer than 2³¹ steps).
 pub const STOPPED: u32 = 1 << 31;
 
+/// The status word of a GPU thread whose step loop the adapter ended before
+/// its window's end (`shaders/driver.wgsl`; llvmpipe's limit on loop
+/// iterations, `backend/gpu/run.rs`): a stop after step 0, which no stop
+/// condition makes (they are tested after a step). Never a result: the run
+/// fails.
+pub const CUT: u32 = STOPPED;
+
 /// A status word as `(non-finite step, stop step)`, 0 for neither.
 pub fn split_status(st: u64) -> (u32, u32) {
     let st = st as u32;

@@ -12,7 +12,7 @@ use std::io::{self, Read, Write};
 use crate::models::lanes::{Lanes, LANES};
 use crate::models::Flows;
 use crate::plan::observations::Sink;
-use crate::plan::observers::{Direction, Section};
+use crate::plan::section::{Recorded, SectionKind, SectionStep};
 use crate::plan::slots;
 use crate::plan::snapshot::{get, put};
 use crate::plan::ObsVar;
@@ -51,8 +51,10 @@ pub struct BlockObservers<R> {
     strobe_exact: Option<([i32; LANES], [i32; LANES])>,
     /// The real slots of [`slots::real`], per lane.
     real: Vec<[R; LANES]>,
-    count: [[u32; LANES]; slots::COUNT.len()],
-    /// First step (0-based) of the cycle statistics' measuring window.
+    count: [[i32; LANES]; slots::COUNT.len()],
+    /// The plan's section and the first step of the cycle statistics'
+    /// measuring window, as `Plan::section` and `Plan::cycle_start` say.
+    section: Option<SectionStep>,
     cycle_start: u64,
 }
 
@@ -60,15 +62,18 @@ impl<R: Flows> BlockObservers<R> {
     /// Fresh observer state for a block whose inputs are loaded in `l`.
     pub fn new(p: &Program<R>, l: &Lanes<R>) -> Self {
         let plan = p.plan;
-        let strobe_exact =
-            (plan.observers.stroboscopic() && !plan.strobe_interpolated()).then(|| {
-                let (mut every, mut first) = ([1i32; LANES], [0i32; LANES]);
-                for i in 0..LANES {
-                    let (period, phase) = (l.strobe_period[i], l.strobe_phase[i]);
-                    R::strobe_exact_steps(period, phase, l.dt[i], &mut every[i], &mut first[i]);
-                }
-                (every, first)
-            });
+        let section = plan.section();
+        let exact = section
+            .as_ref()
+            .is_some_and(|s| s.kind == SectionKind::Exact);
+        let strobe_exact = exact.then(|| {
+            let (mut every, mut first) = ([1i32; LANES], [0i32; LANES]);
+            for i in 0..LANES {
+                let (period, phase) = (l.strobe_period[i], l.strobe_phase[i]);
+                R::strobe_exact_steps(period, phase, l.dt[i], &mut every[i], &mut first[i]);
+            }
+            (every, first)
+        });
         BlockObservers {
             strobe_exact,
             real: slots::real(plan)
@@ -76,11 +81,8 @@ impl<R: Flows> BlockObservers<R> {
                 .map(|(_, init)| [init.value(); LANES])
                 .collect(),
             count: [[0; LANES]; slots::COUNT.len()],
-            cycle_start: plan
-                .observers
-                .cycle
-                .as_ref()
-                .map_or(u64::MAX, |cy| (cy.skip * plan.steps as f64).floor() as u64),
+            section,
+            cycle_start: plan.cycle_start(),
         }
     }
 
@@ -128,86 +130,58 @@ impl<R: Flows> BlockObservers<R> {
     /// state), for the first `count` lanes of the block at row `base`.
     pub fn observe(&mut self, s: &BlockStep<R>) {
         record_frame(s);
-        let Some(pc) = &s.p.plan.observers.poincare else {
-            return;
-        };
-        match &pc.section {
-            Section::Stroboscopic { .. } | Section::Forced { .. } => self.strobe(s),
-            Section::Crossing {
-                value, direction, ..
-            } => self.crossing(s, *value, *direction),
-        }
+        self.section(s);
     }
 
-    /// Stroboscopic samples due in the step that ends at `n1`.
-    fn strobe(&mut self, s: &BlockStep<R>) {
-        let (l, n1) = (s.l, s.n1);
-        let (n1r, one) = (R::from_f64(n1 as f64), R::from_f64(1.0));
+    /// The section's points in the step that ends at `n1`, as the shared
+    /// `section_next` finds them.
+    fn section(&mut self, s: &BlockStep<R>) {
+        let Some(section) = &self.section else {
+            return;
+        };
+        let (p, l, n1) = (s.p, s.l, s.n1 as i32);
+        let (kind, max_points) = (section.kind.code(), section.max_points as i32);
+        let (exact_every, exact_first) = self.strobe_exact.unwrap_or(([0; LANES], [0; LANES]));
+        let zero = R::default();
+        let [strobe_k, npoints] = &mut self.count;
         for i in s.running() {
-            if let Some((every, first)) = &self.strobe_exact {
-                if R::strobe_exact_due(n1 as i32, every[i], first[i]) {
-                    self.record(s, i, one, None);
-                }
-                continue;
+            let (mut y0, mut y1, mut d0, mut d1, mut direction) = (zero, zero, zero, zero, 0);
+            if let SectionKind::Crossing {
+                var,
+                level,
+                direction: d,
+            } = section.kind
+            {
+                let level = R::from_f64(level);
+                y0 = s.prev[var][i] - level;
+                y1 = l.at(p.var[var])[i] - level;
+                (d0, d1, direction) = (s.dprev[var][i], l.at(p.dvar[var])[i], d.code());
             }
-            let mut th = one;
-            while R::strobe_due(
-                R::from_f64(self.count[slots::STROBE_K][i] as f64),
+            let (mut done, mut th) = (false, zero);
+            while R::section_next(
+                kind,
+                n1,
+                n1 == 0,
+                exact_every[i],
+                exact_first[i],
                 l.strobe_period[i],
                 l.strobe_phase[i],
                 l.dt[i],
-                n1r,
-                n1 == 0,
+                y0,
+                y1,
+                d0,
+                d1,
+                direction,
+                &mut strobe_k[i],
+                &mut done,
                 &mut th,
             ) {
-                self.record(s, i, th, None);
-                self.count[slots::STROBE_K][i] = self.count[slots::STROBE_K][i].wrapping_add(1);
+                let k = npoints[i] as usize;
+                if R::point_kept(&mut npoints[i], max_points) {
+                    record_point(s, section, i, k, th);
+                }
             }
         }
-    }
-
-    /// Event-section crossings inside the step that ends at `n1`.
-    fn crossing(&mut self, s: &BlockStep<R>, value: f64, direction: Direction) {
-        if s.n1 == 0 {
-            return;
-        }
-        let (p, l) = (s.p, s.l);
-        let cv = p.plan.crossing_var.expect("planned");
-        let level = R::from_f64(value);
-        let dir = direction_code(direction);
-        for i in s.running() {
-            let y0 = s.prev[cv][i] - level;
-            let y1 = l.at(p.var[cv])[i] - level;
-            if R::crossing_due(y0, y1, dir) {
-                let dy1 = l.at(p.dvar[cv])[i];
-                let th = R::crossing_theta(y0, y1, s.dprev[cv][i], dy1, l.dt[i]);
-                self.record(s, i, th, Some((cv, level)));
-            }
-        }
-    }
-
-    /// Stores Poincaré point number `points[i]` of lane `i` (if kept) at θ
-    /// inside the step; the crossing variable sits on the section exactly.
-    fn record(&mut self, s: &BlockStep<R>, i: usize, th: R, crossing: Option<(usize, R)>) {
-        let p = s.p;
-        let max_points = p
-            .plan
-            .observers
-            .poincare
-            .as_ref()
-            .map_or(0, |pc| pc.max_points);
-        let points = &mut self.count[slots::NPOINTS][i];
-        let k = *points as usize;
-        if k < max_points {
-            for (j, v) in p.plan.poincare_vars.iter().enumerate() {
-                let x = match (crossing, v) {
-                    (Some((cv, level)), ObsVar::State(s)) if *s == cv => level,
-                    _ => value_at(s, *v, i, th),
-                };
-                s.sink.poincare[j].set((s.base + i) * max_points + k, x);
-            }
-        }
-        *points = points.saturating_add(1);
     }
 
     /// Cycle statistics over step `n → n+1`, inside the measuring window.
@@ -305,7 +279,7 @@ impl<R: Flows> BlockObservers<R> {
         if plan.observers.poincare.is_some() {
             for i in 0..count {
                 sink.poincare_count
-                    .set(base + i, self.count[slots::NPOINTS][i]);
+                    .set(base + i, self.count[slots::NPOINTS][i] as u32);
             }
         }
         for i in 0..count {
@@ -360,6 +334,17 @@ fn record_frame<R: Flows>(s: &BlockStep<R>) {
     }
 }
 
+/// Poincaré point number `k` of lane `i`, at θ inside the step.
+fn record_point<R: Flows>(s: &BlockStep<R>, section: &SectionStep, i: usize, k: usize, th: R) {
+    for (j, c) in section.columns.iter().enumerate() {
+        let x = match c {
+            Recorded::Level(level) => R::from_f64(*level),
+            Recorded::Var(v) => value_at(s, *v, i, th),
+        };
+        s.sink.poincare[j].set((s.base + i) * section.max_points + k, x);
+    }
+}
+
 /// An observed variable of lane `i` at θ inside step `n1 − 1 → n1`.
 fn value_at<R: Flows>(s: &BlockStep<R>, v: ObsVar, i: usize, th: R) -> R {
     let (p, l) = (s.p, s.l);
@@ -375,14 +360,5 @@ fn value_at<R: Flows>(s: &BlockStep<R>, v: ObsVar, i: usize, th: R) -> R {
             l.dt[i],
             th,
         ),
-    }
-}
-
-/// The direction argument of the shared `crossing_due`.
-pub fn direction_code(d: Direction) -> i32 {
-    match d {
-        Direction::Up => 0,
-        Direction::Down => 1,
-        Direction::Both => 2,
     }
 }

@@ -20,7 +20,7 @@ use crate::num::math::{
     ELEMENTARY_WGSL, LOG_ATAN_F32_WGSL, LOG_ATAN_F64_WGSL, MATH_F32_WGSL, MATH_F64_WGSL,
 };
 use crate::num::precision::Precision;
-use crate::plan::observers::{Direction, PoincareObs, Section};
+use crate::plan::section::{Recorded, SectionKind, SectionStep};
 use crate::plan::slots;
 use crate::plan::{ObsVar, Op, Plan, Source, StopPlan};
 
@@ -41,6 +41,29 @@ pub struct Kernel {
     /// Time terms the host tabulates per window (uniform `tterms`), if the
     /// ensemble shares them.
     pub time_table: Option<TimeTable>,
+    /// The most steps a window may take within [`LOOP_ITERATIONS`].
+    pub max_window: u64,
+}
+
+/// llvmpipe (lavapipe) silently ends a shader's loops once they have run
+/// this many iterations in one invocation, counted together over all its
+/// loops (gallivm keeps one loop limiter per function, and inlines every
+/// function). Kernels keep loops out of their steps where they can
+/// (`crossing_theta` is written out) and windows stay within the limit
+/// ([`max_window`]); a thread whose loop ends early anyway says so
+/// (`slots::CUT`) and the run fails.
+pub const LOOP_ITERATIONS: u64 = 65_535;
+
+/// The most steps a window of `plan`'s kernel may take: one loop iteration
+/// per step, and with a section that may find several points in a step
+/// (its loop entered after the first) as many more per step as a step holds
+/// points: the lanes that one llvmpipe thread runs together share the
+/// iterations of any of them.
+fn max_window(plan: &Plan) -> u64 {
+    match plan.section().map_or(1, |s| s.max_per_step) {
+        1 => LOOP_ITERATIONS,
+        m => ((LOOP_ITERATIONS - 16) / (1 + m)).max(1),
+    }
 }
 
 /// Why no kernel could be generated.
@@ -223,8 +246,8 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
         .map(|v| format!("finite({v})"))
         .collect::<Vec<_>>()
         .join(" && ");
-    let strobe_exact = plan.observers.stroboscopic() && !plan.strobe_interpolated();
-    let (begin, observe) = g.observers(strobe_exact);
+    let strobe_exact = plan.section().is_some_and(|s| s.kind == SectionKind::Exact);
+    let (begin, observe) = g.observers();
 
     let prelude = match precision {
         Precision::F32 => PRELUDE_F32,
@@ -245,13 +268,15 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
         .replace("{{STEP}}", step.trim_end())
         .replace("{{FINITE}}", &finite)
         .replace("{{OBSERVE}}", observe.trim_end())
-        .replace("{{STORE}}", g.store.trim_end());
+        .replace("{{STORE}}", g.store.trim_end())
+        .replace("{{CUT}}", &slots::CUT.to_string());
     let source = format!("{prelude}\n// ---- shared functions (generated from src/**/*.rs) ----\n{shared}\n// ---- driver ----\n{driver}");
     Ok(Kernel {
         source,
         table,
         strobe_exact,
         time_table,
+        max_window: max_window(plan),
     })
 }
 
@@ -283,6 +308,16 @@ fn bound_names(
         names.insert("strobe_phase".into());
     }
     Ok(names)
+}
+
+/// `text` with every non-empty line indented by `n` spaces.
+fn indent(text: &str, n: usize) -> String {
+    text.lines()
+        .map(|l| match l.is_empty() {
+            true => "\n".to_string(),
+            false => format!("{:n$}{l}\n", ""),
+        })
+        .collect()
 }
 
 /// The pieces of one kernel as they are generated.
@@ -464,7 +499,7 @@ impl Gen<'_> {
 
     /// Observer code: at the start of the kernel (state kept in `aux_*`, the
     /// field and observations of step 0) and after every step.
-    fn observers(&mut self, strobe_exact: bool) -> (String, String) {
+    fn observers(&mut self) -> (String, String) {
         let plan = self.plan;
         let mut begin = String::new();
         let mut observe = String::new();
@@ -483,10 +518,10 @@ impl Gen<'_> {
             observe.push_str(&self.field("n + 1u"));
         }
         if plan.observers.trajectory.is_some() || plan.observers.poincare.is_some() {
-            let initial = self.observe_at("0u", true, strobe_exact);
+            let initial = self.observe_at("0u", true);
             writeln!(begin, "    if u.step0 == 0u {{\n{initial}    }}").unwrap();
         }
-        observe.push_str(&self.observe_at("n + 1u", false, strobe_exact));
+        observe.push_str(&self.observe_at("n + 1u", false));
         observe.push_str(&self.cycle());
         observe.push_str(&self.average());
         observe.push_str(&self.stop());
@@ -500,66 +535,41 @@ impl Gen<'_> {
             writeln!(self.load, "    var {a}: R = {init};\n    if u.step0 != 0u {{\n        {a} = aux_r[{k}u * u.cap + i];\n    }}").unwrap();
             writeln!(self.store, "    aux_r[{k}u * u.cap + i] = {a};").unwrap();
         }
+        // Counters are i32 in the shared functions, u32 in the buffer.
         for (k, a) in slots::COUNT.iter().enumerate() {
-            writeln!(self.load, "    var {a}: u32 = 0u;\n    if u.step0 != 0u {{\n        {a} = aux_u[{k}u * u.cap + i];\n    }}").unwrap();
-            writeln!(self.store, "    aux_u[{k}u * u.cap + i] = {a};").unwrap();
+            writeln!(self.load, "    var {a}: i32 = 0;\n    if u.step0 != 0u {{\n        {a} = i32(aux_u[{k}u * u.cap + i]);\n    }}").unwrap();
+            writeln!(self.store, "    aux_u[{k}u * u.cap + i] = u32({a});").unwrap();
+        }
+        if self
+            .plan
+            .section()
+            .is_some_and(|s| s.kind == SectionKind::Exact)
+        {
+            self.load.push_str("    var strobe_every: i32 = 0;\n    var strobe_first: i32 = 0;\n    strobe_exact_steps(strobe_period, strobe_phase, dt, &strobe_every, &strobe_first);\n");
         }
     }
 
     /// An observed variable at θ inside the step that ends at `n1` (the
-    /// state itself at the step's end).
-    fn value(&self, v: &ObsVar, th: &str, n1: &str) -> String {
+    /// state itself at the step's end, where a section never interpolates).
+    fn value(&self, v: &ObsVar, th: &str, n1: &str, interpolates: bool) -> String {
         match v {
             ObsVar::Time => format!("observed_time(t0, R({n1}), dt, {th})"),
             ObsVar::State(k) => {
                 let x = self.plan.vars[*k];
-                if th == "1.0" {
-                    x.to_string()
-                } else {
+                if interpolates {
                     format!("observed_state(prev_{x}, {x}, dprev_{x}, d{x}, dt, {th})")
+                } else {
+                    x.to_string()
                 }
             }
         }
     }
 
     /// Trajectory frames and Poincaré points after step `n1`.
-    fn observe_at(&self, n1: &str, initial: bool, strobe_exact: bool) -> String {
+    fn observe_at(&self, n1: &str, initial: bool) -> String {
         let mut s = self.frame(n1);
-        let Some(pc) = &self.plan.observers.poincare else {
-            return s;
-        };
-        match &pc.section {
-            Section::Stroboscopic { .. } | Section::Forced { .. } if strobe_exact => {
-                writeln!(s, "        {{\n            var every: i32;\n            var first: i32;\n            strobe_exact_steps(strobe_period, strobe_phase, dt, &every, &first);\n            if strobe_exact_due(i32({n1}), every, first) {{").unwrap();
-                s.push_str(
-                    &self
-                        .record(pc, "1.0", n1, None)
-                        .replace("\n            ", "\n                "),
-                );
-                s.push_str("            }\n        }\n");
-            }
-            Section::Stroboscopic { .. } | Section::Forced { .. } => {
-                writeln!(s, "        loop {{\n            var th: R = 1.0;\n            if !strobe_due(R(strobe_k), strobe_period, strobe_phase, dt, R({n1}), {initial}, &th) {{\n                break;\n            }}").unwrap();
-                s.push_str(&self.record(pc, "th", n1, None));
-                s.push_str("            strobe_k = strobe_k + 1u;\n        }\n");
-            }
-            Section::Crossing {
-                value: level,
-                direction,
-                ..
-            } if !initial => {
-                let cv = self.plan.crossing_var.expect("planned");
-                let x = self.plan.vars[cv];
-                let dir = match direction {
-                    Direction::Up => 0,
-                    Direction::Down => 1,
-                    Direction::Both => 2,
-                };
-                writeln!(s, "        {{\n            let y0 = prev_{x} - {l};\n            let y1 = {x} - {l};\n            if crossing_due(y0, y1, {dir}) {{\n            let th: R = crossing_theta(y0, y1, dprev_{x}, d{x}, dt);", l = lit(*level)).unwrap();
-                s.push_str(&self.record(pc, "th", n1, Some((cv, *level))));
-                s.push_str("            }\n        }\n");
-            }
-            Section::Crossing { .. } => {}
+        if let Some(section) = self.plan.section() {
+            s.push_str(&self.section(&section, n1, initial));
         }
         s
     }
@@ -581,7 +591,7 @@ impl Gen<'_> {
             writeln!(
                 s,
                 "            traj_out[(fr * {nv}u + {j}u) * u.cap + i] = {};",
-                self.value(v, "1.0", n1)
+                self.value(v, "1.0", n1, false)
             )
             .unwrap();
         }
@@ -589,30 +599,70 @@ impl Gen<'_> {
         s
     }
 
-    /// Stores Poincaré point number `npoints` (if kept) at θ = `th`; the
-    /// crossing variable sits on the section exactly.
-    fn record(
-        &self,
-        pc: &PoincareObs,
-        th: &str,
-        n1: &str,
-        crossing: Option<(usize, f64)>,
-    ) -> String {
-        let npv = self.plan.poincare_vars.len();
-        let mut r = format!("            if npoints < {}u {{\n", pc.max_points);
-        for (j, v) in self.plan.poincare_vars.iter().enumerate() {
-            let x = match (crossing, v) {
-                (Some((cv, level)), ObsVar::State(k)) if *k == cv => lit(level),
-                _ => self.value(v, th, n1),
+    /// The section's points in the step that ends at `n1`, as the shared
+    /// `section_next` finds them, each stored as point number `npoints` if
+    /// kept (`point_kept`).
+    fn section(&self, section: &SectionStep, n1: &str, initial: bool) -> String {
+        let zero = "0.0".to_string();
+        let (every, first) = match section.kind {
+            SectionKind::Exact => ("strobe_every", "strobe_first"),
+            _ => ("0", "0"),
+        };
+        let (period, phase) = match section.kind {
+            SectionKind::Crossing { .. } => (zero.clone(), zero.clone()),
+            _ => ("strobe_period".into(), "strobe_phase".into()),
+        };
+        let ([y0, y1, d0, d1], direction) = match section.kind {
+            SectionKind::Crossing {
+                var,
+                level,
+                direction,
+            } => {
+                let (x, l) = (self.plan.vars[var], lit(level));
+                let ends = [
+                    format!("prev_{x} - {l}"),
+                    format!("{x} - {l}"),
+                    format!("dprev_{x}"),
+                    format!("d{x}"),
+                ];
+                (ends, direction.code())
+            }
+            _ => ([zero.clone(), zero.clone(), zero.clone(), zero], 0),
+        };
+        let next = format!(
+            "section_next({kind}, i32({n1}), {initial}, {every}, {first}, {period}, {phase}, dt, {y0}, {y1}, {d0}, {d1}, {direction}, &strobe_k, &done, &th)",
+            kind = section.kind.code(),
+        );
+        let npv = section.columns.len();
+        let mut record = format!(
+            "let slot = u32(npoints);\nif point_kept(&npoints, {}) {{\n",
+            section.max_points
+        );
+        for (j, c) in section.columns.iter().enumerate() {
+            let x = match c {
+                Recorded::Level(level) => lit(*level),
+                Recorded::Var(v) => self.value(v, "th", n1, section.kind.interpolates()),
             };
             writeln!(
-                r,
-                "                points_out[(npoints * {npv}u + {j}u) * u.cap + i] = {x};"
+                record,
+                "    points_out[(slot * {npv}u + {j}u) * u.cap + i] = {x};"
             )
             .unwrap();
         }
-        r.push_str("            }\n            npoints = npoints + 1u;\n");
-        r
+        record.push_str("}\n");
+        // Every loop iteration counts against llvmpipe's limit
+        // ([`LOOP_ITERATIONS`]): a loop only where a step may hold several
+        // points, entered only after a first one.
+        let mut body = record.clone();
+        if section.max_per_step > 1 {
+            let again = format!("if !{next} {{\n    break;\n}}\n{record}");
+            write!(body, "loop {{\n{}}}\n", indent(&again, 4)).unwrap();
+        }
+        let block = format!(
+            "{{\n    var done = false;\n    var th: R = 1.0;\n    if {next} {{\n{}    }}\n}}\n",
+            indent(&body, 8)
+        );
+        indent(&block, 8)
     }
 
     /// Cycle statistics over the step, inside the measuring window.
@@ -622,7 +672,7 @@ impl Gen<'_> {
             return String::new();
         };
         let x = plan.vars[k];
-        let start = (cy.skip * plan.steps as f64).floor() as u64;
+        let start = plan.cycle_start();
         format!(
             "        if n + 1u >= {start}u {{\n            cycle_step({x}, prev_{x} - {l}, {x} - {l}, dprev_{x}, d{x}, dt, t0 + nf * dt, &cyc_max, &cyc_min, &cyc_count, &cyc_first, &cyc_mean, &cyc_com);\n        }}\n",
             l = lit(cy.level)

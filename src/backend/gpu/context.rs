@@ -29,6 +29,8 @@ pub enum GpuError {
     TooLarge(String),
     #[error("checkpoint: {0}")]
     Checkpoint(String),
+    #[error("{0}")]
+    Cut(String),
     #[error("stopped before the end, as asked")]
     Stopped,
 }

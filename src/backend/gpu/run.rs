@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use wgpu::util::DeviceExt;
 
-use super::codegen::generate;
+use super::codegen::{generate, LOOP_ITERATIONS};
 use super::context::{GpuContext, GpuError};
 use super::time_table::{self, TimeTable};
 use crate::backend::checkpoint::Checkpoints;
@@ -25,9 +25,9 @@ pub const TARGET_DISPATCH_SECONDS: f64 = 0.1;
 /// GPU memory a run may take (buffers of one chunk).
 pub const MEMORY_BUDGET: u64 = 1 << 30;
 const WORKGROUP: u64 = 64;
-/// Steps one dispatch may take: llvmpipe (lavapipe) silently ends any shader
-/// loop after 65 535 iterations, so a window never asks for more.
-pub const MAX_STEPS_PER_DISPATCH: u64 = 65_535;
+/// Steps one dispatch may take: no window asks llvmpipe for more loop
+/// iterations than it runs (`codegen::LOOP_ITERATIONS`).
+pub const MAX_STEPS_PER_DISPATCH: u64 = LOOP_ITERATIONS;
 
 /// Knobs of a GPU run; the defaults come from the adapter's limits.
 #[derive(Debug, Clone, Default)]
@@ -184,6 +184,7 @@ pub fn run_resumable<R: Flows>(
     let kernel = generate(plan, precision)?;
     let pipeline = ctx.pipeline(&kernel.source)?;
     let mut sizes = Sizes::new::<R>(ctx, plan, opts)?;
+    sizes.max_window = sizes.max_window.min(kernel.max_window);
     if let Some(tt) = &kernel.time_table {
         sizes.max_window = sizes.max_window.min(tt.max_steps(sizes.b));
     }
@@ -794,6 +795,15 @@ fn collect<R: Flows>(
     let nv = plan.vars.len() as u64;
     let state: Vec<R> = read(ctx, &bufs.state, &bufs.staging, nv * cap * b)?;
     let status: Vec<u32> = read(ctx, &bufs.status, &bufs.staging, 4 * cap)?;
+    let cut = status[..count as usize]
+        .iter()
+        .filter(|s| **s == slots::CUT)
+        .count();
+    if cut > 0 {
+        return Err(GpuError::Cut(format!(
+            "the adapter ended the kernel's step loop early in {cut} of {count} trajectories (a driver's limit on loop iterations, such as llvmpipe's {LOOP_ITERATIONS} per dispatch, which reeb's windows should respect: please report it); the CPU backend runs this scene"
+        )));
+    }
     let every = plan.observers.trajectory.as_ref().map_or(0, |t| t.every);
     for i in 0..count {
         let g = (base + i) as usize;
