@@ -178,13 +178,6 @@ impl Observers {
             if p.max_points == 0 {
                 return e("output.poincare.max_points", "must be at least 1".into());
             }
-            // Both backends count points in 32-bit signed integers.
-            if p.max_points > i32::MAX as usize {
-                return e(
-                    "output.poincare.max_points",
-                    format!("{} is more than {}", p.max_points, i32::MAX),
-                );
-            }
             if p.vars.is_empty() {
                 return e("output.poincare.vars", "names no variable".into());
             }

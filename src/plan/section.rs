@@ -66,7 +66,8 @@ pub enum Recorded {
 #[derive(Debug, Clone)]
 pub struct SectionStep {
     pub kind: SectionKind,
-    /// Points kept per trajectory (later ones are counted only).
+    /// Points kept per trajectory (later ones are counted only), the row
+    /// length of `poincare_*`.
     pub max_points: usize,
     /// One per column of `poincare_*` (`plan.poincare_vars`).
     pub columns: Vec<Recorded>,
@@ -74,6 +75,14 @@ pub struct SectionStep {
     /// interpolated stroboscopic section with a period shorter than the
     /// step has several; every other section at most one).
     pub max_per_step: u64,
+}
+
+impl SectionStep {
+    /// The `max_points` argument of `point_kept` (32-bit; no plan finds
+    /// more points than that: it has fewer than 2³¹ steps).
+    pub fn kept_limit(&self) -> i32 {
+        self.max_points.min(i32::MAX as usize) as i32
+    }
 }
 
 impl Plan {

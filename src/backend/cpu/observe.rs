@@ -52,10 +52,12 @@ pub struct BlockObservers<R> {
     /// The real slots of [`slots::real`], per lane.
     real: Vec<[R; LANES]>,
     count: [[i32; LANES]; slots::COUNT.len()],
-    /// The plan's section and the first step of the cycle statistics'
-    /// measuring window, as `Plan::section` and `Plan::cycle_start` say.
+    /// The plan's section and where the cycle statistics and time
+    /// averages start, as `Plan::section`, `Plan::cycle_start` and
+    /// `Plan::average_start` say.
     section: Option<SectionStep>,
     cycle_start: u64,
+    average_start: u64,
 }
 
 impl<R: Flows> BlockObservers<R> {
@@ -83,6 +85,7 @@ impl<R: Flows> BlockObservers<R> {
             count: [[0; LANES]; slots::COUNT.len()],
             section,
             cycle_start: plan.cycle_start(),
+            average_start: plan.average_start(),
         }
     }
 
@@ -140,7 +143,7 @@ impl<R: Flows> BlockObservers<R> {
             return;
         };
         let (p, l, n1) = (s.p, s.l, s.n1 as i32);
-        let (kind, max_points) = (section.kind.code(), section.max_points as i32);
+        let (kind, max_points) = (section.kind.code(), section.kept_limit());
         let (exact_every, exact_first) = self.strobe_exact.unwrap_or(([0; LANES], [0; LANES]));
         let zero = R::default();
         let [strobe_k, npoints] = &mut self.count;
@@ -219,7 +222,7 @@ impl<R: Flows> BlockObservers<R> {
     /// Time averages over step `n → n+1`, after the skipped part of the run.
     pub fn average(&mut self, s: &BlockStep<R>) {
         let (p, l) = (s.p, s.l);
-        let start = p.plan.average_start();
+        let start = self.average_start;
         if s.n1 <= start {
             return;
         }

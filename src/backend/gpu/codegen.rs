@@ -636,7 +636,7 @@ impl Gen<'_> {
         let npv = section.columns.len();
         let mut record = format!(
             "let slot = u32(npoints);\nif point_kept(&npoints, {}) {{\n",
-            section.max_points
+            section.kept_limit()
         );
         for (j, c) in section.columns.iter().enumerate() {
             let x = match c {
