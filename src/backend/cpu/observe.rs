@@ -145,6 +145,15 @@ impl<R: Flows> BlockObservers<R> {
         let (p, l, n1) = (s.p, s.l, s.n1 as i32);
         let (kind, max_points) = (section.kind.code(), section.kept_limit());
         let (exact_every, exact_first) = self.strobe_exact.unwrap_or(([0; LANES], [0; LANES]));
+        // An exact section is due at few steps: skip the lanes unless one
+        // is (the same predicate `section_next` applies to each).
+        if self.strobe_exact.is_some()
+            && !s
+                .running()
+                .any(|i| R::strobe_exact_due(n1, exact_every[i], exact_first[i]))
+        {
+            return;
+        }
         let zero = R::default();
         let [strobe_k, npoints] = &mut self.count;
         for i in s.running() {
