@@ -151,6 +151,16 @@ fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
     stats
 }
 
+/// The colour of resonance class `k` in both pictures: the palette's, grey
+/// for `none` (the index past the ratios).
+fn class_colour(k: usize, none: usize) -> plot::Rgb {
+    if k == none {
+        (200, 200, 200)
+    } else {
+        plot::palette(k)
+    }
+}
+
 /// The per cent of the trajectories each ratio captured, then none.
 fn percents(r: &ResonanceObs, index: &[i32]) -> Vec<f64> {
     let n = index.len().max(1) as f64;
@@ -448,14 +458,7 @@ impl<'a> Pictures<'a> {
         let legend: Vec<(&str, plot::Rgb)> = labels
             .iter()
             .enumerate()
-            .map(|(k, l)| {
-                let colour = if k == none {
-                    (200, 200, 200)
-                } else {
-                    plot::palette(k)
-                };
-                (l.as_str(), colour)
-            })
+            .map(|(k, l)| (l.as_str(), class_colour(k, none)))
             .collect();
         let (ax, ay) = (&self.scene.axes[kx], &self.scene.axes[ky]);
         let name = "resonance.png".to_string();
@@ -481,14 +484,7 @@ impl<'a> Pictures<'a> {
         let bars: Vec<(&str, f64, plot::Rgb)> = labels
             .iter()
             .enumerate()
-            .map(|(k, l)| {
-                let colour = if k == none {
-                    (200, 200, 200)
-                } else {
-                    plot::palette(k)
-                };
-                (l.as_str(), percent[k], colour)
-            })
+            .map(|(k, l)| (l.as_str(), percent[k], class_colour(k, none)))
             .collect();
         let y_label = format!("% of the {} trajectories (mean {})", index.len(), r.var);
         let name = "capture.png".to_string();

@@ -52,10 +52,8 @@ pub struct BlockObservers<R> {
     /// The real slots of [`slots::real`], per lane.
     real: Vec<[R; LANES]>,
     count: [[i32; LANES]; slots::COUNT.len()],
-    /// The plan's section and where the cycle statistics and time
-    /// averages start, as `Plan::section`, `Plan::cycle_start` and
-    /// `Plan::average_start` say.
-    section: Option<SectionStep>,
+    /// Where the cycle statistics and time averages start, as
+    /// `Plan::cycle_start` and `Plan::average_start` say.
     cycle_start: u64,
     average_start: u64,
 }
@@ -64,8 +62,8 @@ impl<R: Flows> BlockObservers<R> {
     /// Fresh observer state for a block whose inputs are loaded in `l`.
     pub fn new(p: &Program<R>, l: &Lanes<R>) -> Self {
         let plan = p.plan;
-        let section = plan.section();
-        let exact = section
+        let exact = p
+            .section
             .as_ref()
             .is_some_and(|s| s.kind == SectionKind::Exact);
         let strobe_exact = exact.then(|| {
@@ -83,7 +81,6 @@ impl<R: Flows> BlockObservers<R> {
                 .map(|(_, init)| [init.value(); LANES])
                 .collect(),
             count: [[0; LANES]; slots::COUNT.len()],
-            section,
             cycle_start: plan.cycle_start(),
             average_start: plan.average_start(),
         }
@@ -139,7 +136,7 @@ impl<R: Flows> BlockObservers<R> {
     /// The section's points in the step that ends at `n1`, as the shared
     /// `section_next` finds them.
     fn section(&mut self, s: &BlockStep<R>) {
-        let Some(section) = &self.section else {
+        let Some(section) = &s.p.section else {
             return;
         };
         let (p, l, n1) = (s.p, s.l, s.n1 as i32);

@@ -4,6 +4,7 @@
 use crate::models::lanes::{index_of, LaneFn, Lanes, LANES};
 use crate::models::{lane_fn, Flows};
 use crate::num::precision::Real;
+use crate::plan::section::SectionStep;
 use crate::plan::{Op, Plan, Source};
 
 use super::formula::{Condition, FormulaCall, FormulaStep};
@@ -28,6 +29,10 @@ pub struct Program<'p, R> {
     /// Registers (lane arrays) the block interpreter of formula ops needs.
     pub registers: usize,
     pub needs_field: bool,
+    /// Does an observer look at every step (`Plan::observes_every_step`)?
+    pub observes_every_step: bool,
+    /// The plan's Poincaré section (`Plan::section`).
+    pub section: Option<SectionStep>,
     /// Lane index of each integrated variable and of its derivative.
     pub var: Vec<usize>,
     pub dvar: Vec<usize>,
@@ -118,6 +123,8 @@ impl<'p, R: Flows> Program<'p, R> {
             stop,
             registers,
             needs_field: plan.needs_field(),
+            observes_every_step: plan.observes_every_step(),
+            section: plan.section(),
             var: plan.vars.iter().map(|v| idx(v)).collect(),
             dvar: plan.vars.iter().map(|v| idx(&format!("d{v}"))).collect(),
             bindings: plan.bindings.iter().map(|(n, s)| (idx(n), s)).collect(),
