@@ -54,13 +54,13 @@ pub struct Kernel {
 /// (`slots::CUT`) and the run fails.
 pub const LOOP_ITERATIONS: u64 = 65_535;
 
-/// The most steps a window of `plan`'s kernel may take: one loop iteration
+/// The most steps a window of a kernel with `section` may take: one loop iteration
 /// per step, and with a section that may find several points in a step
 /// (its loop entered after the first) as many more per step as a step holds
 /// points: the lanes that one llvmpipe thread runs together share the
 /// iterations of any of them.
-fn max_window(plan: &Plan) -> u64 {
-    match plan.section().map_or(1, |s| s.max_per_step) {
+fn max_window(section: Option<&SectionStep>) -> u64 {
+    match section.map_or(1, |s| s.max_per_step) {
         1 => LOOP_ITERATIONS,
         m => ((LOOP_ITERATIONS - 16) / (1 + m)).max(1),
     }
@@ -230,6 +230,7 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
     };
     let mut g = Gen {
         plan,
+        section: plan.section(),
         sigs: &sigs,
         names: &names,
         time_table: time_table.as_ref(),
@@ -246,7 +247,8 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
         .map(|v| format!("finite({v})"))
         .collect::<Vec<_>>()
         .join(" && ");
-    let strobe_exact = plan.section().is_some_and(|s| s.kind == SectionKind::Exact);
+    let strobe_exact = g.exact_section();
+    let max_window = max_window(g.section.as_ref());
     let (begin, observe) = g.observers();
 
     let prelude = match precision {
@@ -276,7 +278,7 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
         table,
         strobe_exact,
         time_table,
-        max_window: max_window(plan),
+        max_window,
     })
 }
 
@@ -323,6 +325,8 @@ fn indent(text: &str, n: usize) -> String {
 /// The pieces of one kernel as they are generated.
 struct Gen<'a> {
     plan: &'a Plan,
+    /// The plan's Poincaré section (`Plan::section`).
+    section: Option<SectionStep>,
     sigs: &'a BTreeMap<String, Vec<(String, bool)>>,
     names: &'a BTreeSet<String>,
     time_table: Option<&'a TimeTable>,
@@ -332,6 +336,13 @@ struct Gen<'a> {
 }
 
 impl Gen<'_> {
+    /// Is the section stroboscopic, sampled exactly at step ends?
+    fn exact_section(&self) -> bool {
+        self.section
+            .as_ref()
+            .is_some_and(|s| s.kind == SectionKind::Exact)
+    }
+
     /// The WGSL of an input: a literal for a constant, a table lookup along
     /// its axis otherwise.
     fn input_expr(
@@ -540,11 +551,7 @@ impl Gen<'_> {
             writeln!(self.load, "    var {a}: i32 = 0;\n    if u.step0 != 0u {{\n        {a} = i32(aux_u[{k}u * u.cap + i]);\n    }}").unwrap();
             writeln!(self.store, "    aux_u[{k}u * u.cap + i] = u32({a});").unwrap();
         }
-        if self
-            .plan
-            .section()
-            .is_some_and(|s| s.kind == SectionKind::Exact)
-        {
+        if self.exact_section() {
             self.load.push_str("    var strobe_every: i32 = 0;\n    var strobe_first: i32 = 0;\n    strobe_exact_steps(strobe_period, strobe_phase, dt, &strobe_every, &strobe_first);\n");
         }
     }
@@ -568,8 +575,8 @@ impl Gen<'_> {
     /// Trajectory frames and Poincaré points after step `n1`.
     fn observe_at(&self, n1: &str, initial: bool) -> String {
         let mut s = self.frame(n1);
-        if let Some(section) = self.plan.section() {
-            s.push_str(&self.section(&section, n1, initial));
+        if let Some(section) = &self.section {
+            s.push_str(&self.section(section, n1, initial));
         }
         s
     }
