@@ -142,18 +142,13 @@ impl<R: Flows> BlockObservers<R> {
         let (p, l, n1) = (s.p, s.l, s.n1 as i32);
         let (kind, max_points) = (section.kind.code(), section.kept_limit());
         let (exact_every, exact_first) = self.strobe_exact.unwrap_or(([0; LANES], [0; LANES]));
-        // An exact section is due at few steps: skip the lanes unless one
-        // is (the same predicate `section_next` applies to each).
-        if self.strobe_exact.is_some()
-            && !s
-                .running()
-                .any(|i| R::strobe_exact_due(n1, exact_every[i], exact_first[i]))
-        {
+        let candidates = self.candidates(s, section);
+        if candidates == 0 {
             return;
         }
         let zero = R::default();
         let [strobe_k, npoints] = &mut self.count;
-        for i in s.running() {
+        for i in (0..s.count).filter(|i| candidates >> i & 1 == 1) {
             let (mut y0, mut y1, mut d0, mut d1, mut direction) = (zero, zero, zero, zero, 0);
             if let SectionKind::Crossing {
                 var,
@@ -190,6 +185,35 @@ impl<R: Flows> BlockObservers<R> {
                     record_point(s, section, i, k, th);
                 }
             }
+        }
+    }
+
+    /// The lanes that may find a point in this step, as bits. Exact
+    /// sections and crossings are due at few steps of a lane: the per-lane
+    /// call is skipped where the predicate `section_next` applies first
+    /// says no, which leaves the points found unchanged.
+    fn candidates(&self, s: &BlockStep<R>, section: &SectionStep) -> u64 {
+        let n1 = s.n1 as i32;
+        let bits = |may: &dyn Fn(usize) -> bool| {
+            s.running().filter(|&i| may(i)).fold(0, |b, i| b | 1 << i)
+        };
+        match (section.kind, &self.strobe_exact) {
+            (SectionKind::Exact, Some((every, first))) => {
+                bits(&|i| R::strobe_exact_due(n1, every[i], first[i]))
+            }
+            (SectionKind::Crossing { .. }, _) if n1 == 0 => 0,
+            (
+                SectionKind::Crossing {
+                    var,
+                    level,
+                    direction,
+                },
+                _,
+            ) => {
+                let (level, now, d) = (R::from_f64(level), s.l.at(s.p.var[var]), direction.code());
+                bits(&|i| R::crossing_due(s.prev[var][i] - level, now[i] - level, d))
+            }
+            _ => bits(&|_| true),
         }
     }
 
