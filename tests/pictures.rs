@@ -67,6 +67,10 @@ fn observations(n: usize) -> Observations<f64> {
         cycle_amplitude: vec![],
         cycle_period: vec![],
         mean: vec![],
+        exponents: 0,
+        lyapunov: vec![],
+        fli: vec![],
+        megno: vec![],
         nonfinite_step: vec![0; n],
         stop_step: vec![0; n],
     }

@@ -310,6 +310,12 @@ impl FormulaModel {
         text
     }
 
+    /// The DAG of every op and the roots of op `name` in it (its outputs,
+    /// in the order of `FormulaOp::outputs`), over the variables `inputs`.
+    pub fn op_roots(&self, name: &str) -> Option<(&Dag, &[Id])> {
+        Some((&self.dag, self.roots.get(name)?))
+    }
+
     /// The lane slot of parameter `name`.
     pub fn param_lane(&self, name: &str) -> Option<&'static str> {
         let k = self.source.params.iter().position(|p| p == name)?;

@@ -22,6 +22,7 @@ pub mod pieces;
 pub mod quadratic_s;
 pub mod spec;
 pub mod spin_orbit;
+pub mod symbolic;
 
 use lanes::{LaneFn, ScalarFn};
 use pieces::PiecesVisitor;

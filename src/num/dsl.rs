@@ -79,7 +79,7 @@ macro_rules! shared_fns {
 
 /// A token of the restricted syntax.
 #[derive(Debug, Clone, PartialEq)]
-enum Tok {
+pub(crate) enum Tok {
     Ident(String),
     Num(String),
     Punct(String),
@@ -90,7 +90,7 @@ enum Tok {
 #[error("shared function text is outside the Rust/WGSL subset: {0}")]
 pub struct DslError(pub String);
 
-fn tokenize(src: &str) -> Result<Vec<Tok>, DslError> {
+pub(crate) fn tokenize(src: &str) -> Result<Vec<Tok>, DslError> {
     const PUNCT2: [&str; 16] = [
         "::", "->", "==", "!=", "<=", ">=", "&&", "||", "+=", "-=", "*=", "/=", "<<", ">>", "%=",
         "=>",

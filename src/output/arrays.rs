@@ -1,6 +1,6 @@
 //! The arrays of a run directory (`.npy`): axis values, final values,
 //! trajectories, Poincaré points, cycle statistics, time averages and
-//! resonances, status. Every array's
+//! resonances, chaos indicators, status. Every array's
 //! leading dimensions are the scene's axes, in file order, so the rows of a
 //! chunk of trajectories are one contiguous slab of each (`npy.rs`).
 
@@ -101,6 +101,19 @@ pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Ve
     }
     if let Some(r) = &scene.resonance {
         out.push(owned(scalar("resonance.npy", "<i4", &resonance(r, obs)?)));
+    }
+    if scene.lyapunov.is_some() {
+        out.push(Array {
+            inner: vec![obs.exponents as u64],
+            inner_names: vec!["exponent"],
+            ..scalar("lyapunov.npy", real::<R>(), &obs.lyapunov)
+        });
+    }
+    if scene.fli.is_some() {
+        out.push(scalar("fli.npy", real::<R>(), &obs.fli));
+    }
+    if scene.megno.is_some() {
+        out.push(scalar("megno.npy", real::<R>(), &obs.megno));
     }
     // status: 0 ok, 1 non-finite, 2 stopped; status_step: the step it
     // became non-finite or stopped after (−1: neither).

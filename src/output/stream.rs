@@ -564,6 +564,16 @@ fn load<R: Real>(scene: &Scene, src: &Source, obs: &mut Observations<R>) -> Resu
         let file = format!("mean_{}.npy", v.name);
         src.components(&file, n, &v.components, &mut obs.mean)?;
     }
+    let size = std::mem::size_of::<R>() as u64;
+    if scene.lyapunov.is_some() {
+        obs.lyapunov = src.values("lyapunov.npy", n, size * obs.exponents as u64)?;
+    }
+    if scene.fli.is_some() {
+        obs.fli = src.values("fli.npy", n, size)?;
+    }
+    if scene.megno.is_some() {
+        obs.megno = src.values("megno.npy", n, size)?;
+    }
     let steps: Vec<i64> = src.values("status_step.npy", n, 8)?;
     let status: Vec<u8> = src.values("status.npy", n, 1)?;
     for (i, (s, step)) in status.iter().zip(&steps).enumerate() {

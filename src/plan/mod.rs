@@ -9,6 +9,7 @@
 //! for `(q, s)`, no `t` for an autonomous one), which ops make one step, and
 //! where every lane input comes from. The ensemble is never materialised.
 
+pub mod indicators;
 pub mod observations;
 pub mod observed;
 pub mod observers;
@@ -21,6 +22,7 @@ pub mod slots;
 pub mod snapshot;
 pub mod step;
 pub mod stop;
+pub mod tangent;
 
 use crate::models::spec::{ModelSpec, TimeDependence};
 use crate::models::{lanes, Model};
@@ -72,6 +74,8 @@ pub struct Plan {
     pub average_vars: Vec<ObsVar>,
     /// The stop condition, its inputs resolved to lane fields.
     pub stop: Option<StopPlan>,
+    /// The chaos indicators: tangent step, samples, slots.
+    pub indicators: Option<indicators::Indicators>,
 }
 
 /// A stop condition's program of `lhs − rhs` over lane fields.
@@ -194,7 +198,7 @@ impl Plan {
             None => None,
         };
         let lens: Vec<usize> = problem.axes.iter().map(|a| a.len).collect();
-        Ok(Plan {
+        let mut plan = Plan {
             model: problem.model.clone(),
             scheme: problem.scheme.clone(),
             axes: problem.axes.clone(),
@@ -216,7 +220,11 @@ impl Plan {
             cycle_var: observed.cycle_var,
             average_vars: observed.average_vars,
             stop,
-        })
+            indicators: None,
+        };
+        let first_slot = slots::REAL.len() + plan.average_vars.len();
+        plan.indicators = indicators::Indicators::new(&plan, &plan.observers, first_slot)?;
+        Ok(plan)
     }
 
     /// The step after which time averages start: the first `skip` fraction
@@ -243,6 +251,7 @@ impl Plan {
         self.observers.poincare.is_some()
             || self.cycle_var.is_some()
             || !self.average_vars.is_empty()
+            || self.indicators.is_some()
     }
 
     /// Does an observer look at the state after every step?
@@ -251,6 +260,7 @@ impl Plan {
             || self.cycle_var.is_some()
             || !self.average_vars.is_empty()
             || self.stop.is_some()
+            || self.indicators.is_some()
     }
 
     /// Does any observer need the vector field at the step ends (for

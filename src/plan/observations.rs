@@ -40,6 +40,8 @@ macro_rules! observations {
             pub frames: usize,
             /// Poincaré points kept per trajectory.
             pub max_points: usize,
+            /// Lyapunov exponents per trajectory.
+            pub exponents: usize,
             $( $(#[$doc])* pub $field: $kind<$elem>, )*
         }
 
@@ -56,6 +58,7 @@ macro_rules! observations {
                     n: s.n,
                     frames: s.frames as usize,
                     max_points: s.max_points as usize,
+                    exponents: s.exponents as usize,
                     $( $field: observations!(@alloc $kind [$($list)?] $elem,
                         plan, s.n * s.$width as usize, s.$when), )*
                 }
@@ -84,6 +87,7 @@ macro_rules! observations {
                     n: self.n,
                     frames: self.frames,
                     max_points: self.max_points,
+                    exponents: self.exponents,
                     $( $field: observations!(@cast $kind $elem, &self.$field), )*
                 }
             }
@@ -161,6 +165,12 @@ observations! {
     cycle_period: Plain R, per one, when cycle;
     /// `(variable, means[n])`: each averaged variable's time average.
     mean: Named(average_vars) R, per one, when always;
+    /// Finite-time Lyapunov exponents, largest first (`exponents` per trajectory).
+    lyapunov: Plain R, per exponents, when lyapunov;
+    /// Fast Lyapunov Indicator: the largest ln‖w‖ over the samples.
+    fli: Plain R, per one, when fli;
+    /// MEGNO ⟨Y⟩ at the last sample.
+    megno: Plain R, per one, when megno;
     /// 0: ok; k > 0: non-finite at step k.
     nonfinite_step: Plain u32, per one, when always;
     /// 0: not stopped; k > 0: stopped by the stop condition after step k.
@@ -196,9 +206,13 @@ struct Shape {
     one: u64,
     frames: u64,
     max_points: u64,
+    exponents: u64,
     always: bool,
     points: bool,
     cycle: bool,
+    lyapunov: bool,
+    fli: bool,
+    megno: bool,
 }
 
 impl Shape {
@@ -213,6 +227,10 @@ impl Shape {
             always: true,
             points: max_points > 0,
             cycle: plan.cycle_var.is_some(),
+            exponents: plan.indicators.as_ref().map_or(0, |i| i.exponents()) as u64,
+            lyapunov: plan.observers.lyapunov.is_some(),
+            fli: plan.observers.fli.is_some(),
+            megno: plan.observers.megno.is_some(),
         })
     }
 }
@@ -281,6 +299,10 @@ impl<R: Real> Observations<R> {
             always: true,
             points: !self.poincare_count.is_empty(),
             cycle: !self.cycle_period.is_empty(),
+            exponents: self.exponents as u64,
+            lyapunov: !self.lyapunov.is_empty(),
+            fli: !self.fli.is_empty(),
+            megno: !self.megno.is_empty(),
         }
     }
 

@@ -117,6 +117,39 @@ impl ResonanceObs {
     }
 }
 
+/// Finite-time Lyapunov exponents by Benettin's method: `vectors`
+/// deviation vectors, re-orthonormalised every `every` steps, the logarithms
+/// of the growth summed after the first `skip` fraction of the run.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct LyapunovObs {
+    pub vectors: usize,
+    pub every: u64,
+    pub skip: f64,
+}
+
+impl Default for LyapunovObs {
+    fn default() -> Self {
+        LyapunovObs {
+            vectors: 1,
+            every: 1,
+            skip: 0.0,
+        }
+    }
+}
+
+/// The Fast Lyapunov Indicator or MEGNO: one deviation vector, its norm
+/// sampled every `every` steps.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SampledObs {
+    pub every: u64,
+}
+
+impl Default for SampledObs {
+    fn default() -> Self {
+        SampledObs { every: 1 }
+    }
+}
+
 /// Everything a run records.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct Observers {
@@ -130,6 +163,9 @@ pub struct Observers {
     pub resonance: Option<ResonanceObs>,
     /// Stops a trajectory after the first step at which it holds.
     pub stop: Option<StopObs>,
+    pub lyapunov: Option<LyapunovObs>,
+    pub fli: Option<SampledObs>,
+    pub megno: Option<SampledObs>,
 }
 
 impl Observers {
@@ -215,7 +251,60 @@ impl Observers {
         if let Some(r) = &self.resonance {
             validate_resonance(r)?;
         }
+        self.validate_indicators(steps)
+    }
+
+    /// The chaos indicators' values that do not depend on the model (the
+    /// vectors' bound, the tangent dimension, is the plan's check).
+    fn validate_indicators(&self, steps: u64) -> Result<(), (String, String)> {
+        let every = |name: &str, every: u64| {
+            let field = format!("output.{name}.every");
+            match every {
+                0 => Err((field, "must be at least 1".into())),
+                e if e > steps => Err((
+                    field,
+                    format!("{e} is more than the {steps} steps of the run"),
+                )),
+                _ => Ok(()),
+            }
+        };
+        if let Some(l) = &self.lyapunov {
+            every("lyapunov", l.every)?;
+            if l.vectors == 0 {
+                return Err((
+                    "output.lyapunov.vectors".into(),
+                    "must be at least 1".into(),
+                ));
+            }
+            if !(0.0..1.0).contains(&l.skip) {
+                return Err((
+                    "output.lyapunov.skip".into(),
+                    "must be in [0, 1): the fraction of the run skipped before summing".into(),
+                ));
+            }
+        }
+        for (name, obs) in [("fli", &self.fli), ("megno", &self.megno)] {
+            if let Some(o) = obs {
+                every(name, o.every)?;
+            }
+        }
+        if let (Some(f), Some(m)) = (&self.fli, &self.megno) {
+            if f.every != m.every {
+                return Err((
+                    "output.megno.every".into(),
+                    format!(
+                        "{} differs from output.fli.every = {}: FLI and MEGNO share one deviation vector, sampled at one rate",
+                        m.every, f.every
+                    ),
+                ));
+            }
+        }
         Ok(())
+    }
+
+    /// The FLI/MEGNO vector's sampling period, if either is asked for.
+    pub fn chaos_every(&self) -> Option<u64> {
+        self.fli.as_ref().or(self.megno.as_ref()).map(|o| o.every)
     }
 }
 

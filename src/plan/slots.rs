@@ -6,6 +6,7 @@
 //! made of from its slots, is here too, so both backends share it.
 
 use crate::models::Flows;
+use crate::plan::indicators::lyapunov_finish;
 use crate::plan::Plan;
 
 /// A slot's value before the first step.
@@ -14,6 +15,7 @@ pub enum Init {
     Zero,
     Inf,
     NegInf,
+    Value(f64),
 }
 
 impl Init {
@@ -22,15 +24,17 @@ impl Init {
             Init::Zero => R::default(),
             Init::Inf => R::inf(),
             Init::NegInf => -R::inf(),
+            Init::Value(v) => R::from_f64(v),
         }
     }
 
     /// The same value in WGSL.
-    pub fn wgsl(self) -> &'static str {
+    pub fn wgsl(self) -> String {
         match self {
-            Init::Zero => "0.0",
-            Init::Inf => "inf()",
-            Init::NegInf => "-inf()",
+            Init::Zero => "0.0".into(),
+            Init::Inf => "inf()".into(),
+            Init::NegInf => "-inf()".into(),
+            Init::Value(v) => crate::num::formula::wgsl::lit(v),
         }
     }
 }
@@ -56,11 +60,13 @@ pub const CYC_COM: usize = 5;
 pub const MEAN0: usize = REAL.len();
 
 /// Every real slot of `plan`: [`REAL`], then `mean_<j>` per averaged
-/// variable (`plan.average_vars[j]`), starting at 0.
+/// variable (`plan.average_vars[j]`), starting at 0, then the chaos
+/// indicators' (`plan/indicators.rs`).
 pub fn real(plan: &Plan) -> Vec<(String, Init)> {
     let fixed = REAL.iter().map(|(n, init)| (n.to_string(), *init));
     let means = (0..plan.average_vars.len()).map(|j| (format!("mean_{j}"), Init::Zero));
-    fixed.chain(means).collect()
+    let indicators = plan.indicators.iter().flat_map(|i| i.slots.iter().cloned());
+    fixed.chain(means).chain(indicators).collect()
 }
 
 /// 32-bit counters (start at 0): the next interpolated stroboscopic sample,
@@ -125,6 +131,38 @@ pub fn mean_finish<R: Flows>(plan: &Plan, mean: R, ok: bool, stop_step: u32) -> 
     } else {
         R::nan()
     }
+}
+
+/// The chaos indicators' outputs from a trajectory's real slots
+/// (`slot(k)`), its step `dt` and status: the Lyapunov exponents (largest
+/// first), the FLI and MEGNO; NaN for a trajectory that became non-finite
+/// or ended before a sample counted.
+pub fn indicators_finish<R: Flows>(
+    plan: &Plan,
+    slot: impl Fn(usize) -> R,
+    dt: R,
+    ok: bool,
+    stop_step: u32,
+) -> (Vec<R>, R, R) {
+    let Some(ind) = &plan.indicators else {
+        return (vec![], R::nan(), R::nan());
+    };
+    let last = last_step(plan, stop_step);
+    let lyap = |i: usize| {
+        ind.slot_of(&format!("lyap_{i}"))
+            .map_or(f64::NAN, |k| slot(k).to_f64())
+    };
+    let exponents = lyapunov_finish(ind, dt.to_f64(), last, ok, lyap);
+    let sampled = ok && plan.observers.chaos_every().is_some_and(|e| last >= e);
+    let value = |name: &str| match (sampled, ind.slot_of(name)) {
+        (true, Some(k)) => slot(k),
+        _ => R::nan(),
+    };
+    (
+        exponents.into_iter().map(R::from_f64).collect(),
+        value("fli_max"),
+        value("megno_mean"),
+    )
 }
 
 #[cfg(test)]

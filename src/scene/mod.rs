@@ -36,7 +36,7 @@ use std::path::PathBuf;
 pub use crate::backend::BackendChoice;
 use crate::models::Model;
 use crate::num::precision::Precision;
-use crate::plan::observers::{CycleObs, ResonanceObs, Section};
+use crate::plan::observers::{CycleObs, LyapunovObs, ResonanceObs, SampledObs, Section};
 use crate::plan::scheme::Scheme;
 use crate::plan::size::{self, Estimate, SizeError};
 use crate::plan::stop::StopObs;
@@ -174,6 +174,10 @@ pub struct Scene {
     pub resonance: Option<ResonanceObs>,
     /// Stops a trajectory after the first step at which it holds.
     pub stop: Option<StopObs>,
+    /// Chaos indicators.
+    pub lyapunov: Option<LyapunovObs>,
+    pub fli: Option<SampledObs>,
+    pub megno: Option<SampledObs>,
     /// How the arrays are written (`output.format`).
     pub format: Format,
     pub backend: BackendChoice,

@@ -16,13 +16,13 @@ use crate::models::spec::ModelSpec;
 use crate::models::{Model, MODEL_NAMES};
 use crate::num::precision::Precision;
 use crate::plan::observers::{
-    check_skip, check_strobe, CycleObs, Direction, ResonanceObs, Section,
+    check_skip, check_strobe, CycleObs, Direction, LyapunovObs, ResonanceObs, SampledObs, Section,
 };
 use crate::plan::scheme::{Scheme, SCHEME_NAMES};
 use crate::plan::size;
 use crate::plan::stop::StopObs;
 
-use super::tables::{self, Cycle, Period, Str, Strs, Table};
+use super::tables::{self, Cycle, Lyapunov, Period, Sampled, Str, Strs, Table};
 use super::values::{integ_span, suggest, AxisValues, Entry, Parser};
 use super::{
     BackendChoice, Format, Horizon, Input, OutVar, PlotSettings, ReportSettings, Scene, SceneAxis,
@@ -51,6 +51,9 @@ const OUTPUT_KEYS: &[&str] = &[
     "average",
     "resonance",
     "stop",
+    "lyapunov",
+    "fli",
+    "megno",
     "format",
 ];
 const TRAJECTORY_KEYS: &[&str] = &["every", "vars"];
@@ -68,6 +71,8 @@ const CYCLE_KEYS: &[&str] = &["var", "level", "skip"];
 const AVERAGE_KEYS: &[&str] = &["vars", "skip"];
 const RESONANCE_KEYS: &[&str] = &["var", "ratios", "tolerance"];
 const STOP_KEYS: &[&str] = &["when"];
+const LYAPUNOV_KEYS: &[&str] = &["vectors", "every", "skip"];
+const SAMPLED_KEYS: &[&str] = &["every"];
 const RUN_KEYS: &[&str] = &["backend", "precision"];
 const PLOT_KEYS: &[&str] = &[
     "phase",
@@ -320,6 +325,9 @@ impl Scene {
             average: out.average,
             resonance: out.resonance,
             stop: out.stop,
+            lyapunov: out.lyapunov,
+            fli: out.fli,
+            megno: out.megno,
             format: out.format,
             backend,
             precision,
@@ -598,6 +606,9 @@ struct Out {
     average: Option<(Vec<OutVar>, f64)>,
     resonance: Option<ResonanceObs>,
     stop: Option<StopObs>,
+    lyapunov: Option<LyapunovObs>,
+    fli: Option<SampledObs>,
+    megno: Option<SampledObs>,
     format: Format,
 }
 
@@ -684,6 +695,9 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
                 ("average", AVERAGE_KEYS),
                 ("resonance", RESONANCE_KEYS),
                 ("stop", STOP_KEYS),
+                ("lyapunov", LYAPUNOV_KEYS),
+                ("fli", SAMPLED_KEYS),
+                ("megno", SAMPLED_KEYS),
             ],
         )?;
     }
@@ -738,6 +752,7 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
         }
     };
     let format = parsed(p, "output.format", &o.format)?.unwrap_or(Format::Npy);
+    let (lyapunov, fli, megno) = indicators(o.lyapunov, o.fli, o.megno);
     Ok(Out {
         final_vars,
         trajectory,
@@ -746,8 +761,39 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
         average,
         resonance,
         stop,
+        lyapunov,
+        fli,
+        megno,
         format,
     })
+}
+
+/// `output.lyapunov`, `output.fli`, `output.megno` (`true`: the defaults;
+/// the values are checked with the other observers').
+fn indicators(
+    lyapunov: Option<Spanned<Lyapunov>>,
+    fli: Option<Spanned<Sampled>>,
+    megno: Option<Spanned<Sampled>>,
+) -> (Option<LyapunovObs>, Option<SampledObs>, Option<SampledObs>) {
+    let whole =
+        |x: Option<Spanned<tables::Int>>, default: u64| x.map_or(default, |v| v.into_inner().0);
+    let lyapunov = match lyapunov.map(Spanned::into_inner) {
+        None | Some(Lyapunov::On(false)) => None,
+        Some(Lyapunov::On(true)) => Some(LyapunovObs::default()),
+        Some(Lyapunov::Table(t)) => Some(LyapunovObs {
+            vectors: whole(t.vectors, 1) as usize,
+            every: whole(t.every, 1),
+            skip: t.skip.map_or(0.0, |x| x.into_inner().0),
+        }),
+    };
+    let sampled = |s: Option<Spanned<Sampled>>| match s.map(Spanned::into_inner) {
+        None | Some(Sampled::On(false)) => None,
+        Some(Sampled::On(true)) => Some(SampledObs::default()),
+        Some(Sampled::Table(t)) => Some(SampledObs {
+            every: whole(t.every, 1),
+        }),
+    };
+    (lyapunov, sampled(fli), sampled(megno))
 }
 
 /// `output.stop`: the condition compiled over the model's variables, `t`

@@ -398,6 +398,9 @@ impl Scene {
             }),
             resonance: self.resonance.clone(),
             stop: self.stop.clone(),
+            lyapunov: self.lyapunov.clone(),
+            fli: self.fli.clone(),
+            megno: self.megno.clone(),
         }
     }
 }

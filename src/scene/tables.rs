@@ -177,7 +177,9 @@ impl Leaf for Nums {
     }
 }
 
-leaf_deserialize!(Num, Int, Str, Bool, Strs, Nums, Period, Cycle, Average, Ratios, Stop);
+leaf_deserialize!(
+    Num, Int, Str, Bool, Strs, Nums, Period, Cycle, Average, Ratios, Stop, Lyapunov, Sampled
+);
 
 /// An inline table of known fields; any other value is refused with
 /// `T::EXPECTED`, the form the scene should have used.
@@ -227,6 +229,9 @@ pub struct Output {
     pub average: Field<Average>,
     pub resonance: Field<Table<Resonance>>,
     pub stop: Field<Stop>,
+    pub lyapunov: Field<Lyapunov>,
+    pub fli: Field<Sampled>,
+    pub megno: Field<Sampled>,
     pub format: Field<Str>,
 }
 
@@ -391,6 +396,52 @@ impl Leaf for Cycle {
     }
     fn from_map<'de, A: MapAccess<'de>>(map: A) -> Result<Cycle, A::Error> {
         CycleTable::deserialize(de::value::MapAccessDeserializer::new(map)).map(Cycle::Table)
+    }
+}
+
+/// `output.lyapunov = true` or `{ vectors = k, every = m, skip = 0.0 }`.
+#[derive(Debug)]
+pub enum Lyapunov {
+    On(bool),
+    Table(LyapunovTable),
+}
+
+#[derive(Debug, Default, Deserialize)]
+pub struct LyapunovTable {
+    pub vectors: Field<Int>,
+    pub every: Field<Int>,
+    pub skip: Field<Num>,
+}
+
+impl Leaf for Lyapunov {
+    const WHAT: &'static str = "true or { vectors = 1, every = 1, skip = 0.0 }";
+    fn from_bool(v: bool) -> Result<Lyapunov, String> {
+        Ok(Lyapunov::On(v))
+    }
+    fn from_map<'de, A: MapAccess<'de>>(map: A) -> Result<Lyapunov, A::Error> {
+        LyapunovTable::deserialize(de::value::MapAccessDeserializer::new(map)).map(Lyapunov::Table)
+    }
+}
+
+/// `output.fli` or `output.megno`: `true` or `{ every = m }`.
+#[derive(Debug)]
+pub enum Sampled {
+    On(bool),
+    Table(SampledTable),
+}
+
+#[derive(Debug, Default, Deserialize)]
+pub struct SampledTable {
+    pub every: Field<Int>,
+}
+
+impl Leaf for Sampled {
+    const WHAT: &'static str = "true or { every = 1 }";
+    fn from_bool(v: bool) -> Result<Sampled, String> {
+        Ok(Sampled::On(v))
+    }
+    fn from_map<'de, A: MapAccess<'de>>(map: A) -> Result<Sampled, A::Error> {
+        SampledTable::deserialize(de::value::MapAccessDeserializer::new(map)).map(Sampled::Table)
     }
 }
 

@@ -8,6 +8,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod formula;
+pub mod indicators;
 pub mod kernels;
 pub mod observe;
 pub mod program;
@@ -401,7 +402,7 @@ fn run_block<R: Flows>(
             pause.progressed();
             return;
         }
-        if p.needs_field || plan.cycle_var.is_some() {
+        if p.needs_field || plan.cycle_var.is_some() || p.indicators.is_some() {
             for k in 0..nv {
                 prev[k] = *l.at(p.var[k]);
                 dprev[k] = *l.at(p.dvar[k]);
@@ -430,6 +431,11 @@ fn run_block<R: Flows>(
         obs.observe(&view);
         obs.cycle(&view);
         obs.average(&view);
+        let bad = obs.indicators(&view, &mut regs);
+        if bad != 0 {
+            let bad: [bool; LANES] = std::array::from_fn(|i| bad >> i & 1 == 1);
+            alive -= mark_nonfinite(&bad, &mut status, count, n - 1);
+        }
         if let Some(stop) = &p.stop {
             alive -= stop_lanes(p, stop, l, &mut regs, &mut status, n, sink, base, count);
         }

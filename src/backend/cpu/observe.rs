@@ -217,6 +217,15 @@ impl<R: Flows> BlockObservers<R> {
         }
     }
 
+    /// The chaos indicators after the step: the lanes whose deviation
+    /// vectors became non-finite, as bits.
+    pub fn indicators(&mut self, s: &BlockStep<R>, regs: &mut [[R; LANES]]) -> u64 {
+        let Some(ind) = &s.p.indicators else {
+            return 0;
+        };
+        ind.after_step(s.l, s.prev, &mut self.real, regs, s.n1, s.p.isa)
+    }
+
     /// Cycle statistics over step `n → n+1`, inside the measuring window.
     pub fn cycle(&mut self, s: &BlockStep<R>) {
         let (p, l) = (s.p, s.l);
@@ -309,6 +318,9 @@ impl<R: Flows> BlockObservers<R> {
                 );
             }
         }
+        if plan.indicators.is_some() {
+            self.finish_indicators(p, l, sink, base, count, status);
+        }
         if plan.observers.poincare.is_some() {
             for i in 0..count {
                 sink.poincare_count
@@ -363,6 +375,36 @@ fn record_frame<R: Flows>(s: &BlockStep<R>) {
                 value_at(s, *v, i, one)
             };
             s.sink.trajectory[j].set((s.base + i) * frames + frame, x);
+        }
+    }
+}
+
+impl<R: Flows> BlockObservers<R> {
+    /// The chaos indicators' outputs of the block's trajectories.
+    fn finish_indicators(
+        &self,
+        p: &Program<R>,
+        l: &Lanes<R>,
+        sink: &Sink<R>,
+        base: usize,
+        count: usize,
+        status: &[u64; LANES],
+    ) {
+        let dt = l.at(p.dt_lane);
+        for i in 0..count {
+            let (nonfinite, stop) = slots::split_status(status[i]);
+            let slot = |k: usize| self.real[k][i];
+            let (lyap, fli, megno) =
+                slots::indicators_finish(p.plan, slot, dt[i], nonfinite == 0, stop);
+            for (j, x) in lyap.iter().enumerate() {
+                sink.lyapunov.set((base + i) * lyap.len() + j, *x);
+            }
+            if p.plan.observers.fli.is_some() {
+                sink.fli.set(base + i, fli);
+            }
+            if p.plan.observers.megno.is_some() {
+                sink.megno.set(base + i, megno);
+            }
         }
     }
 }

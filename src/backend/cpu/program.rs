@@ -8,6 +8,7 @@ use crate::plan::section::SectionStep;
 use crate::plan::{Op, Plan, Source};
 
 use super::formula::{Condition, FormulaCall, FormulaStep};
+use super::indicators::IndicatorTapes;
 use super::kernels::{time, Isa, StageBuilder, StepsFn, Weights};
 
 /// The plan's step, field and inputs for the CPU.
@@ -26,6 +27,11 @@ pub struct Program<'p, R> {
     pub field: Vec<CpuOp<R>>,
     /// The stop condition.
     pub stop: Option<Condition<R>>,
+    /// The chaos indicators' tangent step and samples.
+    pub indicators: Option<IndicatorTapes<R>>,
+    pub isa: Isa,
+    /// Lane index of `dt`.
+    pub dt_lane: usize,
     /// Registers (lane arrays) the block interpreter of formula ops needs.
     pub registers: usize,
     pub needs_field: bool,
@@ -107,7 +113,13 @@ impl<'p, R: Flows> Program<'p, R> {
             .max()
             .unwrap_or(0);
         let stop = plan.stop.as_ref().map(|s| Condition::new(s, isa));
-        let registers = registers.max(stop.as_ref().map_or(0, |s| s.registers()));
+        let indicators = plan
+            .indicators
+            .as_ref()
+            .map(|i| IndicatorTapes::new(plan, i));
+        let registers = registers
+            .max(stop.as_ref().map_or(0, |s| s.registers()))
+            .max(indicators.as_ref().map_or(0, |i| i.registers()));
         let idx = lane;
         let shared_time = share_time && plan.stages.is_some() && plan.shares_time();
         Program {
@@ -121,6 +133,9 @@ impl<'p, R: Flows> Program<'p, R> {
                 .and_then(|m| FormulaStep::new(plan, m, isa)),
             field,
             stop,
+            indicators,
+            isa,
+            dt_lane: lane("dt"),
             registers,
             needs_field: plan.needs_field(),
             observes_every_step: plan.observes_every_step(),

@@ -20,8 +20,10 @@ use crate::num::math::{
     ELEMENTARY_WGSL, LOG_ATAN_F32_WGSL, LOG_ATAN_F64_WGSL, MATH_F32_WGSL, MATH_F64_WGSL,
 };
 use crate::num::precision::Precision;
+use crate::plan::indicators::{Indicators, SampleInput};
 use crate::plan::section::{Recorded, SectionKind, SectionStep};
 use crate::plan::slots;
+use crate::plan::tangent::TangentInput;
 use crate::plan::{ObsVar, Op, Plan, Source, StopPlan};
 
 use super::time_table::TimeTable;
@@ -196,6 +198,9 @@ fn shared_text(
     if let Some(stop) = &plan.stop {
         text.push_str(&stop_function(stop));
     }
+    if let Some(ind) = &plan.indicators {
+        text.push_str(&indicator_functions(plan, ind));
+    }
     // A formula model's ops are emitted as WGSL directly (num/formula/wgsl.rs).
     if let Some(m) = plan.model.formula() {
         text.push_str(&m.wgsl());
@@ -204,6 +209,61 @@ fn shared_text(
         }
     }
     Ok(text)
+}
+
+/// The chaos indicators' programs as WGSL functions over the kernel's
+/// locals: `tangent_step` (the state at the step's start is `prev_<v>`,
+/// the step number `nf`, the deviation vectors the slots `w<k>_<j>`), and
+/// `lyapunov_sample`, `chaos_sample` over the slots and the locals
+/// `elapsed`, `sample_count`, `counted`.
+fn indicator_functions(plan: &Plan, ind: &Indicators) -> String {
+    let slot_names: Vec<String> = slots::real(plan).into_iter().map(|(n, _)| n).collect();
+    let tangent_inputs: Vec<String> = ind
+        .tangent
+        .inputs
+        .iter()
+        .map(|i| match *i {
+            TangentInput::Lane(v) if plan.vars.contains(&v) => format!("prev_{v}"),
+            TangentInput::Lane(name) => name.to_string(),
+            TangentInput::Step => "nf".into(),
+            d => slot_names[ind.deviation_slot(d).expect("a deviation")].clone(),
+        })
+        .collect();
+    let outputs =
+        |slots: &[usize]| -> Vec<String> { slots.iter().map(|k| slot_names[*k].clone()).collect() };
+    let mut text = function_text(
+        "tangent_step",
+        &ind.tangent.program,
+        &strs(&tangent_inputs),
+        &strs(&outputs(&ind.deviation_slots)),
+    );
+    for (name, sampler) in [
+        ("lyapunov_sample", &ind.lyapunov),
+        ("chaos_sample", &ind.chaos),
+    ] {
+        let Some(s) = sampler else { continue };
+        let inputs: Vec<String> = s
+            .inputs
+            .iter()
+            .map(|i| match *i {
+                SampleInput::Slot(k) => slot_names[k].clone(),
+                SampleInput::Elapsed => "elapsed".into(),
+                SampleInput::Count => "sample_count".into(),
+                SampleInput::Counted => "counted".into(),
+            })
+            .collect();
+        text.push_str(&function_text(
+            name,
+            &s.program,
+            &strs(&inputs),
+            &strs(&outputs(&s.outputs)),
+        ));
+    }
+    text
+}
+
+fn strs(v: &[String]) -> Vec<&str> {
+    v.iter().map(String::as_str).collect()
 }
 
 /// `fn stop_value(…, stop_g: ptr<function, R>)`: the stop condition's
@@ -445,6 +505,10 @@ impl Gen<'_> {
             for v in &self.plan.vars {
                 writeln!(step, "        prev_{v} = {v};\n        dprev_{v} = d{v};").unwrap();
             }
+        } else if self.plan.indicators.is_some() {
+            for v in &self.plan.vars {
+                writeln!(step, "        prev_{v} = {v};").unwrap();
+            }
         }
         if let Some(tt) = self.time_table {
             let stride = tt.row_stride();
@@ -527,6 +591,10 @@ impl Gen<'_> {
             }
             begin.push_str(&self.field("u.step0"));
             observe.push_str(&self.field("n + 1u"));
+        } else if plan.indicators.is_some() {
+            for v in &plan.vars {
+                writeln!(self.load, "    var prev_{v}: R = 0.0;").unwrap();
+            }
         }
         if plan.observers.trajectory.is_some() || plan.observers.poincare.is_some() {
             let initial = self.observe_at("0u", true);
@@ -535,6 +603,7 @@ impl Gen<'_> {
         observe.push_str(&self.observe_at("n + 1u", false));
         observe.push_str(&self.cycle());
         observe.push_str(&self.average());
+        observe.push_str(&self.indicators());
         observe.push_str(&self.stop());
         (begin, observe)
     }
@@ -699,6 +768,43 @@ impl Gen<'_> {
             writeln!(
                 s,
                 "        if n + 1u > {start}u {{\n            mean_step({x}, R(n + 1u - {start}u), &mean_{j});\n        }}"
+            )
+            .unwrap();
+        }
+        s
+    }
+
+    /// The chaos indicators after the step: the deviation vectors through
+    /// the tangent map (a non-finite one ends the trajectory like a
+    /// non-finite state), then the samples due.
+    fn indicators(&self) -> String {
+        let Some(ind) = &self.plan.indicators else {
+            return String::new();
+        };
+        let names = slots::real(self.plan);
+        let finite: Vec<String> = ind
+            .deviation_slots
+            .iter()
+            .map(|k| format!("finite({})", names[*k].0))
+            .collect();
+        let mut s = self.call("tangent_step");
+        writeln!(
+            s,
+            "        if !({}) {{\n            st = n + 1u;\n            break;\n        }}",
+            finite.join(" && ")
+        )
+        .unwrap();
+        for (name, sampler) in [
+            ("lyapunov_sample", &ind.lyapunov),
+            ("chaos_sample", &ind.chaos),
+        ] {
+            let Some(smp) = sampler else { continue };
+            let every = smp.every;
+            writeln!(
+                s,
+                "        if (n + 1u) % {every}u == 0u {{\n            let elapsed: R = R(n + 1u) * dt;\n            let sample_count: R = R((n + 1u) / {every}u);\n            let counted: R = select(R(0.0), R(1.0), n + 1u > {}u);\n    {}        }}",
+                ind.skip_step,
+                self.call(name)
             )
             .unwrap();
         }

@@ -903,6 +903,18 @@ fn collect_observers<R: Flows>(
         for (j, (_, mean)) in out.mean.iter_mut().enumerate() {
             mean[g] = slots::mean_finish(plan, slot(slots::MEAN0 + j), ok, stop);
         }
+        if plan.indicators.is_some() {
+            let dt = R::from_f64(plan.binding("dt").value_at(plan.first + g, &plan.strides));
+            let (lyap, fli, megno) = slots::indicators_finish(plan, slot, dt, ok, stop);
+            let k = lyap.len();
+            out.lyapunov[g * k..(g + 1) * k].copy_from_slice(&lyap);
+            if plan.observers.fli.is_some() {
+                out.fli[g] = fli;
+            }
+            if plan.observers.megno.is_some() {
+                out.megno[g] = megno;
+            }
+        }
     }
     Ok(())
 }

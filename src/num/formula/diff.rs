@@ -5,32 +5,9 @@
 use super::dag::{operands, Dag, Func, Func2, Id, Node};
 
 impl Dag {
-    /// ∂root/∂(variable `k`). The DAG is walked with a list of pending
-    /// nodes, not by recursion (a sum of n terms is n nodes deep), in the
-    /// order a recursive walk takes: operands first, in order, each node
-    /// once.
+    /// ∂root/∂(variable `k`).
     pub fn diff(&mut self, root: Id, k: u32) -> Id {
-        // The derivative of each node done, by node id.
-        let mut memo: Vec<Option<Id>> = vec![None; root.0 as usize + 1];
-        let mut todo = vec![(root, false)];
-        while let Some((id, ready)) = todo.pop() {
-            if memo[id.0 as usize].is_some() {
-                continue;
-            }
-            if ready {
-                let d = self.derivative(id, k, &memo);
-                memo[id.0 as usize] = Some(d);
-            } else {
-                todo.push((id, true));
-                todo.extend(
-                    operands(self.node(id))
-                        .into_iter()
-                        .rev()
-                        .map(|o| (o, false)),
-                );
-            }
-        }
-        memo[root.0 as usize].expect("the root differentiated")
+        self.directional(&[root], &mut |d, v| d.num(if v == k { 1.0 } else { 0.0 }))[0]
     }
 
     /// The gradient of `root` over the variables `ks`.
@@ -38,12 +15,55 @@ impl Dag {
         ks.iter().map(|k| self.diff(root, *k)).collect()
     }
 
-    /// ∂id/∂(variable `k`), given those of its operands in `memo`.
-    fn derivative(&mut self, id: Id, k: u32, memo: &[Option<Id>]) -> Id {
+    /// The derivatives of `roots` along a direction in which variable `v`
+    /// changes at the rate `seed(v)` (forward mode: a tangent map applied
+    /// to a deviation vector, when the seeds are the vector's components).
+    /// The DAG is walked with a list of pending nodes, not by recursion (a
+    /// sum of n terms is n nodes deep), operands first, each node once.
+    pub fn directional(
+        &mut self,
+        roots: &[Id],
+        seed: &mut dyn FnMut(&mut Dag, u32) -> Id,
+    ) -> Vec<Id> {
+        let last = roots.iter().map(|r| r.0 as usize + 1).max().unwrap_or(0);
+        let mut memo: Vec<Option<Id>> = vec![None; last];
+        for root in roots {
+            let mut todo = vec![(*root, false)];
+            while let Some((id, ready)) = todo.pop() {
+                if memo[id.0 as usize].is_some() {
+                    continue;
+                }
+                if ready {
+                    let d = self.derivative(id, &memo, seed);
+                    memo[id.0 as usize] = Some(d);
+                } else {
+                    todo.push((id, true));
+                    todo.extend(
+                        operands(self.node(id))
+                            .into_iter()
+                            .rev()
+                            .map(|o| (o, false)),
+                    );
+                }
+            }
+        }
+        roots
+            .iter()
+            .map(|r| memo[r.0 as usize].expect("the root differentiated"))
+            .collect()
+    }
+
+    /// The derivative of `id`, given those of its operands in `memo`.
+    fn derivative(
+        &mut self,
+        id: Id,
+        memo: &[Option<Id>],
+        seed: &mut dyn FnMut(&mut Dag, u32) -> Id,
+    ) -> Id {
         let d = |x: Id| memo[x.0 as usize].expect("operands first");
         match self.node(id) {
             Node::Const(_) => self.num(0.0),
-            Node::Var(v) => self.num(if v == k { 1.0 } else { 0.0 }),
+            Node::Var(v) => seed(self, v),
             Node::Neg(a) => self.neg(d(a)),
             Node::Add(a, b) => self.add(d(a), d(b)),
             Node::Mul(a, b) => {

@@ -12,6 +12,7 @@
 //!   addition theorems for `sin`/`cos` of mixed sums.
 //! - `stage.rs`: a program split into per-block, per-step shared and
 //!   per-lane parts.
+//! - `symbolic.rs`: shared functions (`num/dsl.rs`) run into the DAG.
 //! - `lower.rs`: roots → one straight-line program of primitive operations,
 //!   which both backends run: `tape.rs` (the CPU's block interpreter) and
 //!   `wgsl.rs` (a WGSL function for the GPU).
@@ -28,6 +29,7 @@ pub mod lower;
 pub mod parse;
 pub mod rewrite;
 pub mod stage;
+pub mod symbolic;
 pub mod tape;
 pub mod wgsl;
 

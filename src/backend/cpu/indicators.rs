@@ -1,0 +1,206 @@
+//! The chaos indicators on the CPU: the tangent step and the samples of
+//! `plan/indicators.rs` through the block interpreter, on the observer
+//! slots of a block (the GPU runs the same programs as WGSL).
+
+// Lane loops index several arrays by lane; iterators would hide that.
+#![allow(clippy::needless_range_loop)]
+
+use crate::models::lanes::{index_of, Lanes, LANES};
+use crate::num::formula::tape::{Inputs, Tape};
+use crate::num::isa::Isa;
+use crate::num::precision::Real;
+use crate::plan::indicators::{Indicators, SampleInput, Sampler};
+use crate::plan::tangent::TangentInput;
+use crate::plan::Plan;
+
+/// Where a program input comes from on the CPU.
+#[derive(Debug, Clone, Copy)]
+enum Src {
+    Lane(usize),
+    /// State variable `k` of the plan at the step's start.
+    Prev(usize),
+    Slot(usize),
+    /// A value the same in every lane, set per call (step, sample number,
+    /// whether the sample counts).
+    Step,
+    Count,
+    Counted,
+    /// `n1·dt` per lane.
+    Elapsed,
+}
+
+/// A program and where its inputs come from and its outputs go.
+pub struct Program<R> {
+    tape: Tape<R>,
+    inputs: Vec<Src>,
+    /// The real slots the outputs are written to.
+    outputs: Vec<usize>,
+    every: u64,
+}
+
+/// The indicators' programs for a plan.
+pub struct IndicatorTapes<R> {
+    tangent: Program<R>,
+    samples: Vec<Program<R>>,
+    skip_step: u64,
+}
+
+impl<R: Real> IndicatorTapes<R> {
+    pub fn new(plan: &Plan, ind: &Indicators) -> IndicatorTapes<R> {
+        let lane = |name: &str| match plan.vars.iter().position(|v| *v == name) {
+            Some(k) => Src::Prev(k),
+            None => Src::Lane(index_of(name).unwrap_or_else(|| panic!("{name} is not a lane"))),
+        };
+        let inputs = ind
+            .tangent
+            .inputs
+            .iter()
+            .map(|i| match *i {
+                TangentInput::Lane(name) => lane(name),
+                TangentInput::Step => Src::Step,
+                d => Src::Slot(ind.deviation_slot(d).expect("a deviation")),
+            })
+            .collect();
+        let tangent = Program {
+            tape: Tape::new(&ind.tangent.program, |_| false),
+            inputs,
+            outputs: ind.deviation_slots.clone(),
+            every: 1,
+        };
+        let samples = [&ind.lyapunov, &ind.chaos]
+            .into_iter()
+            .flatten()
+            .map(sampler)
+            .collect();
+        IndicatorTapes {
+            tangent,
+            samples,
+            skip_step: ind.skip_step,
+        }
+    }
+
+    /// Registers the programs need.
+    pub fn registers(&self) -> usize {
+        let all = std::iter::once(&self.tangent).chain(&self.samples);
+        all.map(|p| p.tape.registers).max().unwrap_or(0)
+    }
+
+    /// After step `n1` (1 for the first): the deviation vectors through
+    /// the step's tangent map, then the samples due. Returns the lanes
+    /// whose vectors became non-finite, as bits.
+    #[allow(clippy::too_many_arguments)]
+    pub fn after_step(
+        &self,
+        l: &Lanes<R>,
+        prev: &[[R; LANES]],
+        real: &mut [[R; LANES]],
+        regs: &mut [[R; LANES]],
+        n1: u64,
+        isa: Isa,
+    ) -> u64 {
+        let scalars = Scalars {
+            step: R::from_f64((n1 - 1) as f64),
+            count: R::from_f64(0.0),
+            counted: R::from_f64(0.0),
+        };
+        run(&self.tangent, l, prev, real, regs, scalars, n1, isa);
+        for s in self.samples.iter().filter(|s| n1.is_multiple_of(s.every)) {
+            let scalars = Scalars {
+                count: R::from_f64((n1 / s.every) as f64),
+                counted: R::from_f64(f64::from(u8::from(n1 > self.skip_step))),
+                ..scalars
+            };
+            run(s, l, prev, real, regs, scalars, n1, isa);
+        }
+        let mut bad = 0u64;
+        for &k in &self.tangent.outputs {
+            for i in 0..LANES {
+                if !real[k][i].finite() {
+                    bad |= 1 << i;
+                }
+            }
+        }
+        bad
+    }
+}
+
+fn sampler<R: Real>(s: &Sampler) -> Program<R> {
+    let inputs = s
+        .inputs
+        .iter()
+        .map(|i| match *i {
+            SampleInput::Slot(k) => Src::Slot(k),
+            SampleInput::Elapsed => Src::Elapsed,
+            SampleInput::Count => Src::Count,
+            SampleInput::Counted => Src::Counted,
+        })
+        .collect();
+    Program {
+        tape: Tape::new(&s.program, |_| false),
+        inputs,
+        outputs: s.outputs.clone(),
+        every: s.every,
+    }
+}
+
+/// The values of [`Src::Step`], [`Src::Count`] and [`Src::Counted`].
+#[derive(Clone, Copy)]
+struct Scalars<R> {
+    step: R,
+    count: R,
+    counted: R,
+}
+
+/// The inputs of one call, as arrays.
+struct View<'a, R> {
+    arrays: Vec<&'a [R; LANES]>,
+}
+
+impl<R: Real> Inputs<R, LANES> for View<'_, R> {
+    #[inline(always)]
+    fn array(&self, k: u32) -> &[R; LANES] {
+        self.arrays[k as usize]
+    }
+    #[inline(always)]
+    fn scalar(&self, k: u32) -> R {
+        self.arrays[k as usize][0]
+    }
+}
+
+/// Runs `p` on the block and writes its outputs into the slots.
+#[allow(clippy::too_many_arguments)]
+fn run<R: Real>(
+    p: &Program<R>,
+    l: &Lanes<R>,
+    prev: &[[R; LANES]],
+    real: &mut [[R; LANES]],
+    regs: &mut [[R; LANES]],
+    s: Scalars<R>,
+    n1: u64,
+    isa: Isa,
+) {
+    let fill = |v: R| [v; LANES];
+    let (step, count, counted) = (fill(s.step), fill(s.count), fill(s.counted));
+    let n1r = R::from_f64(n1 as f64);
+    let dt = l.at(index_of("dt").expect("dt is a lane"));
+    let elapsed: [R; LANES] = std::array::from_fn(|i| n1r * dt[i]);
+    {
+        let arrays = p
+            .inputs
+            .iter()
+            .map(|src| match *src {
+                Src::Lane(k) => l.at(k),
+                Src::Prev(k) => &prev[k],
+                Src::Slot(k) => &real[k],
+                Src::Step => &step,
+                Src::Count => &count,
+                Src::Counted => &counted,
+                Src::Elapsed => &elapsed,
+            })
+            .collect();
+        p.tape.run(regs, &View { arrays }, isa);
+    }
+    for (k, &slot) in p.outputs.iter().enumerate() {
+        real[slot] = *p.tape.output(regs, k);
+    }
+}

@@ -1,0 +1,290 @@
+//! Chaos indicators as observers: finite-time Lyapunov exponents
+//! (Benettin's method), the Fast Lyapunov Indicator and MEGNO. Their
+//! deviation vectors follow the exact tangent map of the step
+//! (`plan/tangent.rs`); at each sample a program re-normalises them and
+//! updates the sums. The tangent step and the samples are formulas lowered
+//! to one program each, which both backends run (the CPU's block
+//! interpreter, WGSL on the GPU): one source for all of it.
+//!
+//! Per-trajectory state (real slots, after the time averages'): the
+//! deviation vectors `w{k}_{j}` (Lyapunov's k vectors, starting as the
+//! identity's columns, then the FLI/MEGNO vector, (1, …, 1)/√d); the sums
+//! of ln Rᵢᵢ `lyap_{i}`; `fli_log` = ln‖w‖ so far (the vector is kept
+//! normalised, its growth in this running logarithm, so nothing
+//! overflows), `fli_max` its maximum over the samples; `megno_sum` =
+//! Σ t_k ln(‖w_k‖/‖w_{k−1}‖) and `megno_mean` = ⟨Y⟩.
+
+use crate::num::formula::lower::{lower, Lowered};
+use crate::num::formula::{Dag, Func, Func2, Id};
+
+use super::observers::Observers;
+use super::problem::{err, PlanError};
+use super::slots::Init;
+use super::tangent::{TangentInput, TangentStep};
+use super::Plan;
+
+/// What a sample program reads besides slots.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SampleInput {
+    /// The real slot at this index of `slots::real`.
+    Slot(usize),
+    /// The time since the start, `n1·dt`.
+    Elapsed,
+    /// The sample's number (1 for the first).
+    Count,
+    /// 1 when the sample counts (after the skipped part), else 0.
+    Counted,
+}
+
+/// A program run every `every` steps: it reads `inputs` and writes its
+/// outputs into the real slots `outputs`.
+#[derive(Debug, Clone)]
+pub struct Sampler {
+    pub every: u64,
+    pub program: Lowered,
+    pub inputs: Vec<SampleInput>,
+    pub outputs: Vec<usize>,
+}
+
+/// A plan's chaos indicators; see the module documentation.
+#[derive(Debug, Clone)]
+pub struct Indicators {
+    pub tangent: TangentStep,
+    /// The tangent step's deviation inputs and outputs, as real slots.
+    pub deviation_slots: Vec<usize>,
+    pub lyapunov: Option<Sampler>,
+    /// The FLI/MEGNO vector's samples.
+    pub chaos: Option<Sampler>,
+    /// Lyapunov sums start after this step (a multiple of `every`).
+    pub skip_step: u64,
+    /// The index of the first indicator slot, and the slots themselves.
+    pub first_slot: usize,
+    pub slots: Vec<(String, Init)>,
+}
+
+impl Indicators {
+    /// The indicators `observers` ask for, on `plan` (whose real slots
+    /// before these number `first_slot`); `None` if it asks for none.
+    pub fn new(
+        plan: &Plan,
+        observers: &Observers,
+        first_slot: usize,
+    ) -> Result<Option<Indicators>, PlanError> {
+        let k = observers.lyapunov.as_ref().map_or(0, |l| l.vectors);
+        let chaos = observers.chaos_every();
+        if k == 0 && chaos.is_none() {
+            return Ok(None);
+        }
+        let vectors = k + usize::from(chaos.is_some());
+        let tangent = TangentStep::new(plan, vectors).map_err(|e| {
+            let which = if k > 0 { "lyapunov" } else { "fli" };
+            err(format!("output.{which}"), e.message)
+        })?;
+        let d = tangent.space.len();
+        if k > d {
+            return Err(err(
+                "output.lyapunov.vectors",
+                format!(
+                    "{k} is more than the tangent dimension {d} of this plan ({})",
+                    tangent.space.join(", ")
+                ),
+            ));
+        }
+        let mut s = Indicators {
+            deviation_slots: (first_slot..first_slot + vectors * d).collect(),
+            tangent,
+            lyapunov: None,
+            chaos: None,
+            skip_step: 0,
+            first_slot,
+            slots: vec![],
+        };
+        s.slots = s.deviation_inits(k, chaos.is_some());
+        if let Some(l) = &observers.lyapunov {
+            let skip = (l.skip * plan.steps as f64).ceil() as u64;
+            s.skip_step = skip.div_ceil(l.every) * l.every;
+            s.lyapunov = Some(s.lyapunov_sampler(k, l.every));
+        }
+        if let Some(every) = chaos {
+            s.chaos = Some(s.chaos_sampler(k, every));
+        }
+        Ok(Some(s))
+    }
+
+    fn dimension(&self) -> usize {
+        self.tangent.space.len()
+    }
+
+    /// The deviation vectors' slots: identity columns, then (1, …, 1)/√d.
+    fn deviation_inits(&self, k: usize, chaos: bool) -> Vec<(String, Init)> {
+        let d = self.dimension();
+        let mut out = vec![];
+        for v in 0..k + usize::from(chaos) {
+            for j in 0..d {
+                let x = match v < k {
+                    true => f64::from(u8::from(v == j)),
+                    false => 1.0 / (d as f64).sqrt(),
+                };
+                out.push((format!("w{v}_{j}"), Init::Value(x)));
+            }
+        }
+        out
+    }
+
+    /// A new slot, its index.
+    fn slot(&mut self, name: String, init: Init) -> usize {
+        self.slots.push((name, init));
+        self.first_slot + self.slots.len() - 1
+    }
+
+    /// Modified Gram–Schmidt on vectors `0..k`, adding ln Rᵢᵢ (when the
+    /// sample counts) to the sums.
+    fn lyapunov_sampler(&mut self, k: usize, every: u64) -> Sampler {
+        let d = self.dimension();
+        let sums: Vec<usize> = (0..k)
+            .map(|i| self.slot(format!("lyap_{i}"), Init::Zero))
+            .collect();
+        let w = &self.deviation_slots[..k * d];
+        let mut inputs: Vec<SampleInput> = w.iter().map(|s| SampleInput::Slot(*s)).collect();
+        inputs.extend(sums.iter().map(|s| SampleInput::Slot(*s)));
+        inputs.push(SampleInput::Counted);
+        let mut g = Dag::new();
+        let var = |g: &mut Dag, k: usize| g.var(k as u32);
+        let counted = var(&mut g, inputs.len() - 1);
+        let mut basis: Vec<Vec<Id>> = vec![];
+        let mut roots_sums = vec![];
+        for i in 0..k {
+            let mut v: Vec<Id> = (0..d).map(|j| var(&mut g, i * d + j)).collect();
+            for e in &basis {
+                let proj = dot(&mut g, &v, e);
+                v = v
+                    .iter()
+                    .zip(e)
+                    .map(|(x, y)| {
+                        let p = g.mul(proj, *y);
+                        g.sub(*x, p)
+                    })
+                    .collect();
+            }
+            let r = norm(&mut g, &v);
+            basis.push(v.iter().map(|x| g.div(*x, r)).collect());
+            let ln = g.call(Func::Log, r);
+            let add = g.mul(counted, ln);
+            let sum = var(&mut g, k * d + i);
+            roots_sums.push(g.add(sum, add));
+        }
+        let mut roots: Vec<Id> = basis.concat();
+        roots.extend(roots_sums);
+        let mut outputs = w.to_vec();
+        outputs.extend(sums);
+        Sampler {
+            every,
+            program: lower(&g, &roots),
+            inputs,
+            outputs,
+        }
+    }
+
+    /// The FLI/MEGNO vector (number `k`) normalised, its growth logged.
+    fn chaos_sampler(&mut self, k: usize, every: u64) -> Sampler {
+        let d = self.dimension();
+        let u = self.deviation_slots[k * d..(k + 1) * d].to_vec();
+        let state = [
+            self.slot("fli_log".into(), Init::Zero),
+            self.slot("fli_max".into(), Init::NegInf),
+            self.slot("megno_sum".into(), Init::Zero),
+            self.slot("megno_mean".into(), Init::Zero),
+        ];
+        let mut inputs: Vec<SampleInput> = u.iter().map(|s| SampleInput::Slot(*s)).collect();
+        inputs.extend(state.iter().map(|s| SampleInput::Slot(*s)));
+        inputs.extend([SampleInput::Elapsed, SampleInput::Count]);
+        let mut g = Dag::new();
+        let x: Vec<Id> = (0..inputs.len()).map(|i| g.var(i as u32)).collect();
+        let [log0, max0, sum0, mean0, elapsed, count] = x[d..] else {
+            unreachable!("six inputs after the vector")
+        };
+        let r = norm(&mut g, &x[..d]);
+        let mut roots: Vec<Id> = x[..d].iter().map(|c| g.div(*c, r)).collect();
+        let ln = g.call(Func::Log, r);
+        let log = g.add(log0, ln);
+        let max = g.call2(Func2::Max, max0, log);
+        let weighted = g.mul(elapsed, ln);
+        let sum = g.add(sum0, weighted);
+        // Y = 2 Σ / t, and ⟨Y⟩ as a running mean.
+        let two = g.num(2.0);
+        let twice = g.mul(two, sum);
+        let y = g.div(twice, elapsed);
+        let dev = g.sub(y, mean0);
+        let step = g.div(dev, count);
+        let mean = g.add(mean0, step);
+        roots.extend([log, max, sum, mean]);
+        let mut outputs = u;
+        outputs.extend(state);
+        Sampler {
+            every,
+            program: lower(&g, &roots),
+            inputs,
+            outputs,
+        }
+    }
+
+    /// The slot of the running value `name` (`fli_max`, `megno_mean`, `lyap_0`, …).
+    pub fn slot_of(&self, name: &str) -> Option<usize> {
+        let k = self.slots.iter().position(|(n, _)| n == name)?;
+        Some(self.first_slot + k)
+    }
+
+    /// The tangent step's input `k` when it is a deviation: its slot.
+    pub fn deviation_slot(&self, input: TangentInput) -> Option<usize> {
+        match input {
+            TangentInput::Deviation { k, j } => {
+                Some(self.deviation_slots[k * self.dimension() + j])
+            }
+            _ => None,
+        }
+    }
+
+    /// How many Lyapunov exponents each trajectory has.
+    pub fn exponents(&self) -> usize {
+        self.lyapunov
+            .as_ref()
+            .map_or(0, |l| l.outputs.len() / (self.dimension() + 1))
+    }
+}
+
+fn dot(g: &mut Dag, a: &[Id], b: &[Id]) -> Id {
+    let mut s = g.num(0.0);
+    for (x, y) in a.iter().zip(b) {
+        let p = g.mul(*x, *y);
+        s = g.add(s, p);
+    }
+    s
+}
+
+fn norm(g: &mut Dag, v: &[Id]) -> Id {
+    let s = dot(g, v, v);
+    g.call(Func::Sqrt, s)
+}
+
+/// The Lyapunov exponents from the sums (`sum(i)`), largest first: each
+/// sum over the time between the skip step and the last sample at or
+/// before `last_step`; NaN when no sample counted or the trajectory did
+/// not finish (`ok` false).
+pub fn lyapunov_finish(
+    ind: &Indicators,
+    dt: f64,
+    last_step: u64,
+    ok: bool,
+    sum: impl Fn(usize) -> f64,
+) -> Vec<f64> {
+    let k = ind.exponents();
+    let every = ind.lyapunov.as_ref().map_or(1, |l| l.every);
+    let last_sample = last_step / every * every;
+    if !ok || last_sample <= ind.skip_step {
+        return vec![f64::NAN; k];
+    }
+    let span = (last_sample - ind.skip_step) as f64 * dt;
+    let mut out: Vec<f64> = (0..k).map(|i| sum(i) / span).collect();
+    out.sort_by(|a, b| b.total_cmp(a));
+    out
+}

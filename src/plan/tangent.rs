@@ -1,0 +1,158 @@
+//! The tangent map of a plan's step: the exact Jacobian of the numerical
+//! one-step map, applied to deviation vectors. The step's ops become
+//! formulas of the state at the step's start (`models/symbolic.rs`: each
+//! op from its one source), and their derivatives along each vector
+//! (`Dag::directional`) are the vectors after the step — the tangent-map
+//! method (Skokos & Gerlach 2010), never a Jacobian written per model.
+//!
+//! The tangent space is the state variables that feed back into the
+//! positions: starting from the `q`s, every variable the new values of the
+//! space read joins it. So it is `(q, p)` for mechanical models (`s` does
+//! not feed back), `(q, s)` for Liénard systems (`p` does not), and every
+//! variable for `quadratic_s`, whose damping is s itself; in the plan's
+//! variable order. Time is a parameter, not a direction.
+
+use crate::models::formula::STEP_INDEX;
+use crate::models::spec::Op;
+use crate::models::symbolic::LaneFormulas;
+use crate::num::formula::lower::{lower, Lowered};
+use crate::num::formula::{Dag, Id};
+
+use super::problem::{err, PlanError, Source};
+use super::Plan;
+
+/// Where an input of the tangent program comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TangentInput {
+    /// A lane field (the state at the step's start, parameters, `t0`, `dt`).
+    Lane(&'static str),
+    /// The number of the step (0 for the first).
+    Step,
+    /// Component `j` (of the tangent space) of deviation vector `k`.
+    Deviation { k: usize, j: usize },
+}
+
+/// One step of the tangent map for `vectors` deviation vectors.
+#[derive(Debug, Clone)]
+pub struct TangentStep {
+    /// The tangent space: state variables, in the plan's order.
+    pub space: Vec<&'static str>,
+    pub vectors: usize,
+    /// Inputs by variable index; outputs: vector k's component j at
+    /// `k·space.len() + j`.
+    pub program: Lowered,
+    pub inputs: Vec<TangentInput>,
+}
+
+/// A step's map as formulas: the lanes' values after the step over their
+/// values before it (`t` from `t0`, `dt` and the step number, as the ops
+/// compute it).
+pub fn step_formulas(plan: &Plan) -> Result<LaneFormulas, PlanError> {
+    let field = "integrator.scheme";
+    let mut f = LaneFormulas::new(&plan.model);
+    for (lane, source) in &plan.bindings {
+        if let (Source::Const(v), false) = (source, plan.vars.contains(lane)) {
+            f.know(lane, *v);
+        }
+    }
+    for op in &plan.ops {
+        match *op {
+            Op::Tau(c) => {
+                let dt = f.read("dt");
+                let c = f.dag.num(c);
+                let tau = f.dag.mul(c, dt);
+                f.write("tau", tau);
+            }
+            Op::Time(c) => {
+                // t0 + n dt + c dt, as the op interpreter computes it.
+                let (t0, dt, n) = (f.read("t0"), f.read("dt"), f.read(STEP_INDEX));
+                let ndt = f.dag.mul(n, dt);
+                let start = f.dag.add(t0, ndt);
+                let c = f.dag.num(c);
+                let cdt = f.dag.mul(c, dt);
+                let t = f.dag.add(start, cdt);
+                f.write("t", t);
+            }
+            Op::Call(name) => f.apply(&plan.model, name).map_err(|e| {
+                err(
+                    field,
+                    format!(
+                        "`{}` has no tangent map for model `{}`: {e}",
+                        plan.scheme.name,
+                        plan.model.name()
+                    ),
+                )
+            })?,
+        }
+    }
+    Ok(f)
+}
+
+/// The tangent space of `plan` (see the module documentation).
+pub fn tangent_space(plan: &Plan, f: &mut LaneFormulas) -> Vec<&'static str> {
+    let mut space: Vec<&'static str> = plan
+        .vars
+        .iter()
+        .copied()
+        .filter(|v| v.starts_with('q'))
+        .collect();
+    loop {
+        let mut grown = space.clone();
+        for v in &space {
+            let after = f.read(v);
+            for k in f.dag.uses(after) {
+                let lane = f.variables[k as usize];
+                if plan.vars.contains(&lane) && !grown.contains(&lane) {
+                    grown.push(lane);
+                }
+            }
+        }
+        if grown.len() == space.len() {
+            break;
+        }
+        space = grown;
+    }
+    plan.vars
+        .iter()
+        .copied()
+        .filter(|v| space.contains(v))
+        .collect()
+}
+
+impl TangentStep {
+    /// The tangent map of `plan`'s step for `vectors` deviation vectors
+    /// (at most the tangent dimension).
+    pub fn new(plan: &Plan, vectors: usize) -> Result<TangentStep, PlanError> {
+        let mut f = step_formulas(plan)?;
+        let space = tangent_space(plan, &mut f);
+        let after: Vec<Id> = space.iter().map(|v| f.read(v)).collect();
+        let before: Vec<Option<u32>> = space.iter().map(|v| f.variable(v)).collect();
+        let base = f.variables.len() as u32;
+        let d = space.len() as u32;
+        let mut roots = Vec::with_capacity(vectors * space.len());
+        for k in 0..vectors as u32 {
+            let mut seed = |dag: &mut Dag, v: u32| match before.iter().position(|b| *b == Some(v)) {
+                Some(j) => dag.var(base + k * d + j as u32),
+                None => dag.num(0.0),
+            };
+            roots.extend(f.dag.directional(&after, &mut seed));
+        }
+        let mut inputs: Vec<TangentInput> = f
+            .variables
+            .iter()
+            .map(|v| match *v {
+                STEP_INDEX => TangentInput::Step,
+                lane => TangentInput::Lane(lane),
+            })
+            .collect();
+        for k in 0..vectors {
+            inputs.extend((0..space.len()).map(|j| TangentInput::Deviation { k, j }));
+        }
+        Ok(TangentStep {
+            program: lower(&f.dag, &roots),
+            space,
+            vectors,
+            inputs,
+        })
+    }
+}
