@@ -157,8 +157,10 @@ fn tangents_are_finite_differences_of_the_step() {
             checked += 1;
         }
     }
-    assert!(checked >= 7 * 16, "{checked} model × scheme pairs");
+    // 7 models × 12 splitting schemes, and the methods each model offers.
+    assert!(checked >= 7 * 12 + 20, "{checked} model × scheme pairs");
     assert!(refused.len() <= 4, "refused: {refused:?}");
+    eprintln!("{checked} pairs checked; refused: {refused:?}");
 }
 
 /// The tangent spaces of the README: (q, p) for mechanical models, (q, s)
@@ -176,4 +178,157 @@ fn tangent_spaces_are_the_dynamical_phase_spaces() {
     assert_eq!(space("lane_emden"), ["q", "p"]);
     assert_eq!(space("spin_orbit"), ["q", "p"]);
     assert_eq!(space("quadratic_s"), ["q", "p", "s"]);
+}
+
+// ---- indicators: oracles ----
+
+mod common;
+
+use reeb::backend::{cpu, gpu};
+use reeb::plan::observations::Observations;
+use reeb::plan::observers::{LyapunovObs, SampledObs};
+
+/// `problem` asking for `k` exponents (re-orthonormalised every `every`
+/// steps), FLI and MEGNO, over `steps` steps of `dt`.
+fn indicators(mut p: Problem, k: usize, every: u64, steps: u64, dt: f64) -> Plan {
+    p.dt = C(dt);
+    p.steps = steps;
+    p.observers.lyapunov = Some(LyapunovObs {
+        vectors: k,
+        every,
+        skip: 0.0,
+    });
+    p.observers.fli = Some(SampledObs { every });
+    p.observers.megno = Some(SampledObs { every });
+    Plan::new(&p).unwrap()
+}
+
+fn exponents(o: &Observations<f64>, i: usize) -> Vec<f64> {
+    o.lyapunov[i * o.exponents..(i + 1) * o.exponents].to_vec()
+}
+
+/// The linear damped oscillator's step is a constant matrix M: the
+/// exponents are ln|eig M|/dt, and λ₁ + λ₂ = ln det M/dt = −α for any
+/// horizon (the A piece scales p by e^{−τα}, the others preserve area).
+#[test]
+fn linear_damped_oscillator_exponents_are_the_step_eigenvalues() {
+    let alpha = 3.0; // overdamped: two real eigenvalues
+    let p = Problem::new(Model::from_name("damped_oscillator").unwrap(), "s2")
+        .unwrap()
+        .param("alpha", C(alpha))
+        .initial("q", C(1.0));
+    let dt = 0.05;
+    let plan = indicators(p, 2, 3, 4000, dt);
+    let o = cpu::run::<f64>(&plan, None);
+    let l = exponents(&o, 0);
+    // M from the compiled step (finite differences are exact for a linear map).
+    let x = [("q", 0.3), ("p", -0.2), ("s", 0.0)];
+    let (_, cols) = jacobian(&plan, &x, 0);
+    let (a, b, c, d) = (cols[0][0], cols[1][0], cols[0][1], cols[1][1]);
+    let (tr, det) = (a + d, a * d - b * c);
+    let disc = (tr * tr / 4.0 - det).sqrt();
+    let eig = [tr / 2.0 + disc, tr / 2.0 - disc].map(|e: f64| e.abs().ln() / dt);
+    assert!(
+        (l[0] + l[1] + alpha).abs() < 1e-12 * alpha,
+        "λ₁ + λ₂ = {} (−α = {})",
+        l[0] + l[1],
+        -alpha
+    );
+    for (got, want) in l.iter().zip(eig) {
+        // Finite time: the second exponent converges like 1/t.
+        assert!((got - want).abs() < 2e-3, "λ = {l:?}, ln|eig|/dt = {eig:?}");
+    }
+}
+
+/// Van der Pol: the (q, s) step's determinant is the A pieces' e^{τε(1−q²)},
+/// so λ₁ + λ₂ = (1/t) Σ τ ε(1 − q²) over the A pieces of the run, summed
+/// here by the compiled step itself.
+#[test]
+fn van_der_pol_exponents_obey_the_sum_rule() {
+    let eps = 1.5;
+    let p = Problem::new(Model::from_name("van_der_pol").unwrap(), "triple_jump4")
+        .unwrap()
+        .param("epsilon", C(eps))
+        .param("forcing_amplitude", C(0.3))
+        .param("forcing_frequency", C(1.1))
+        .initial("q", C(0.5));
+    let (dt, steps) = (0.02, 5000);
+    let plan = indicators(p, 2, 5, steps, dt);
+    let o = cpu::run::<f64>(&plan, None);
+    let l = exponents(&o, 0);
+    let mut lane = lane(&plan, &[("q", 0.5), ("s", 0.0)]);
+    let mut contraction = 0.0;
+    for n in 0..steps {
+        let (t0, h) = (lane.get("t0").unwrap(), lane.get("dt").unwrap());
+        for op in &plan.ops {
+            match *op {
+                Op::Tau(c) => *lane.get_mut("tau").unwrap() = c * h,
+                Op::Time(c) => *lane.get_mut("t").unwrap() = t0 + n as f64 * h + c * h,
+                Op::Call(name) => {
+                    if name == "van_der_pol_a_s" {
+                        let (q, tau) = (lane.q, lane.tau);
+                        contraction += tau * eps * (1.0 - q * q);
+                    }
+                    scalar_fn::<f64>(name).unwrap()(&mut lane);
+                }
+            }
+        }
+    }
+    let want = contraction / (steps as f64 * dt);
+    let got = l[0] + l[1];
+    assert!(
+        (got - want).abs() <= 1e-9 * want.abs(),
+        "λ₁ + λ₂ = {got}, sum rule {want}"
+    );
+}
+
+/// On the limit cycle the largest exponent vanishes (the flow's direction).
+#[test]
+fn van_der_pol_limit_cycle_has_a_zero_exponent() {
+    let p = Problem::new(Model::from_name("van_der_pol").unwrap(), "s2")
+        .unwrap()
+        .param("epsilon", C(1.0))
+        .initial("q", C(2.0));
+    let plan = indicators(p, 1, 10, 200_000, 0.01);
+    let o = cpu::run::<f64>(&plan, None);
+    assert!(
+        o.lyapunov[0].abs() < 5e-3,
+        "λ₁ = {} by t = 2000",
+        o.lyapunov[0]
+    );
+}
+
+/// Both backends give the same indicators (f64, non-chaotic orbits).
+#[test]
+fn indicators_agree_between_cpu_and_gpu() {
+    let Some(ctx) = common::gpu() else { return };
+    for (name, k) in [
+        ("damped_oscillator", 2),
+        ("van_der_pol", 2),
+        ("kepler", 4),
+        ("spin_orbit", 2),
+        ("quadratic_s", 3),
+    ] {
+        let plan = indicators(
+            common::problem(name, "triple_jump4").unwrap(),
+            k,
+            4,
+            2000,
+            0.01,
+        );
+        let c = cpu::run::<f64>(&plan, None);
+        let g = gpu::run::<f64>(ctx, &plan, None).unwrap().observations;
+        for (what, a, b) in [
+            ("lyapunov", &c.lyapunov, &g.lyapunov),
+            ("fli", &c.fli, &g.fli),
+            ("megno", &c.megno, &g.megno),
+        ] {
+            for (x, y) in a.iter().zip(b.iter()) {
+                assert!(
+                    (x - y).abs() <= 1e-9 * x.abs().max(1e-3),
+                    "{name} {what}: CPU {x} GPU {y}"
+                );
+            }
+        }
+    }
 }
