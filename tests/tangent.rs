@@ -332,3 +332,56 @@ fn indicators_agree_between_cpu_and_gpu() {
         }
     }
 }
+
+/// Bad indicator settings are refused before any work, at their line.
+#[test]
+fn bad_indicator_settings_are_refused_at_their_field() {
+    let dir = std::env::temp_dir().join(format!("reeb-tangent-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let base = "name = \"x\"\nmodel = \"van_der_pol\"\n[params]\nepsilon = 1.0\n[integrator]\nscheme = \"s2\"\ndt = 0.01\nsteps = 100\n[output]\n";
+    for (line, field) in [
+        (
+            "lyapunov = { vectors = 3 }",
+            "output.lyapunov.vectors: 3 is more than the tangent dimension 2",
+        ),
+        (
+            "lyapunov = { vectors = 0 }",
+            "output.lyapunov.vectors: must be at least 1",
+        ),
+        (
+            "lyapunov = { every = 0 }",
+            "output.lyapunov.every: must be at least 1",
+        ),
+        (
+            "lyapunov = { skip = 1.0 }",
+            "output.lyapunov.skip: must be in [0, 1)",
+        ),
+        (
+            "fli = { every = 101 }",
+            "output.fli.every: 101 is more than the 100 steps",
+        ),
+        (
+            "megno = { every = 0 }",
+            "output.megno.every: must be at least 1",
+        ),
+        (
+            "fli = { every = 2 }\nmegno = { every = 3 }",
+            "output.megno.every: 3 differs",
+        ),
+    ] {
+        let path = dir.join("s.toml");
+        std::fs::write(&path, format!("{base}{line}\n")).unwrap();
+        let e = reeb::scene::Scene::load(&path).unwrap_err().to_string();
+        assert!(e.contains(":10: ") || e.contains(":11: "), "{line}: {e}");
+        assert!(e.contains(field), "{line}: {e}");
+    }
+    let path = dir.join("le.toml");
+    let text = "name = \"x\"\nmodel = \"lane_emden\"\n[params]\nindex = 3\n[integrator]\nscheme = \"rk4\"\ndt = 0.01\nsteps = 100\n[output]\nlyapunov = true\n";
+    std::fs::write(&path, text).unwrap();
+    let e = reeb::scene::Scene::load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("le.toml:10: output.lyapunov: `rk4` has no tangent map"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -77,7 +77,7 @@ pub fn step_formulas(plan: &Plan) -> Result<LaneFormulas, PlanError> {
                 err(
                     field,
                     format!(
-                        "`{}` has no tangent map for model `{}`: {e}",
+                        "`{}` has no tangent map for model `{}` ({e}); every splitting scheme (s2, triple_jump4, …) has one",
                         plan.scheme.name,
                         plan.model.name()
                     ),
