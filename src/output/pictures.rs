@@ -137,6 +137,7 @@ fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
         ));
     }
     stats.extend(per_variable(d, "mean", &d.mean));
+    stats.extend(indicators(d));
     if (0..d.n).any(|i| ended(i) != 0) {
         let step = move |i| match ended(i) {
             0 => Err(Undefined::RanToEnd),
@@ -146,6 +147,41 @@ fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
             "status_step".into(),
             "step at which it stopped".into(),
             Box::new(step),
+        ));
+    }
+    stats
+}
+
+/// The chaos indicators: each Lyapunov exponent (`lyapunov_1` the
+/// largest), the FLI and MEGNO; none for a trajectory that became
+/// non-finite.
+fn indicators<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
+    let value = move |i: usize, x: R| match d.nonfinite_step[i] {
+        0 => Ok(x.to_f64()),
+        _ => Err(Undefined::NonFinite),
+    };
+    let k = d.exponents;
+    let mut stats: Vec<Stat> = (0..k)
+        .map(|j| -> Stat {
+            (
+                format!("lyapunov_{}", j + 1),
+                format!("Lyapunov exponent λ{}", j + 1),
+                Box::new(move |i| value(i, d.lyapunov[i * k + j])),
+            )
+        })
+        .collect();
+    if !d.fli.is_empty() {
+        stats.push((
+            "fli".into(),
+            "FLI".into(),
+            Box::new(move |i| value(i, d.fli[i])),
+        ));
+    }
+    if !d.megno.is_empty() {
+        stats.push((
+            "megno".into(),
+            "MEGNO ⟨Y⟩".into(),
+            Box::new(move |i| value(i, d.megno[i])),
         ));
     }
     stats
