@@ -341,7 +341,10 @@ impl<'a> Pictures<'a> {
                 }
             }
             let label = &round_off_label(label, &grid, self.precision);
-            let label = &clip_outliers(&mut grid, label);
+            let label = &match file.as_str() {
+                "megno" => clip_to(&mut grid, label, MEGNO_RANGE),
+                _ => clip_outliers(&mut grid, label),
+            };
             let name = format!("{file}.png");
             let map = HeatMap {
                 x: &ax.values,
@@ -617,6 +620,18 @@ fn clip_outliers(grid: &mut [f64], label: &str) -> String {
         }
     }
     label
+}
+
+/// MEGNO's colour range in maps, as the literature draws them: ⟨Y⟩ → 2
+/// for quasi-periodic orbits, growing for chaotic ones.
+const MEGNO_RANGE: (f64, f64) = (0.0, 8.0);
+
+/// Clips the grid's values to `range` and says so in the returned label.
+fn clip_to(grid: &mut [f64], label: &str, (lo, hi): (f64, f64)) -> String {
+    for x in grid.iter_mut().filter(|x| x.is_finite()) {
+        *x = x.clamp(lo, hi);
+    }
+    format!("{label} (colours clipped to [{lo}, {hi}])")
 }
 
 /// Colours on a log scale: every finite value positive, spanning more than

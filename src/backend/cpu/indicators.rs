@@ -85,9 +85,10 @@ impl<R: Real> IndicatorTapes<R> {
         all.map(|p| p.tape.registers).max().unwrap_or(0)
     }
 
-    /// After step `n1` (1 for the first): the deviation vectors through
-    /// the step's tangent map, then the samples due. Returns the lanes
-    /// whose vectors became non-finite, as bits.
+    /// After step `n1` (1 for the first): the deviation vectors of the
+    /// `running` lanes (bits) through the step's tangent map, then the
+    /// samples due. Returns the running lanes whose vectors became
+    /// non-finite, as bits.
     #[allow(clippy::too_many_arguments)]
     pub fn after_step(
         &self,
@@ -96,25 +97,27 @@ impl<R: Real> IndicatorTapes<R> {
         real: &mut [[R; LANES]],
         regs: &mut [[R; LANES]],
         n1: u64,
+        running: u64,
         isa: Isa,
     ) -> u64 {
+        let at = Call { n1, running, isa };
         let scalars = Scalars {
             step: R::from_f64((n1 - 1) as f64),
             count: R::from_f64(0.0),
             counted: R::from_f64(0.0),
         };
-        run(&self.tangent, l, prev, real, regs, scalars, n1, isa);
+        run(&self.tangent, l, prev, real, regs, scalars, at);
         for s in self.samples.iter().filter(|s| n1.is_multiple_of(s.every)) {
             let scalars = Scalars {
                 count: R::from_f64((n1 / s.every) as f64),
                 counted: R::from_f64(f64::from(u8::from(n1 > self.skip_step))),
                 ..scalars
             };
-            run(s, l, prev, real, regs, scalars, n1, isa);
+            run(s, l, prev, real, regs, scalars, at);
         }
         let mut bad = 0u64;
         for &k in &self.tangent.outputs {
-            for i in 0..LANES {
+            for i in (0..LANES).filter(|i| running >> i & 1 == 1) {
                 if !real[k][i].finite() {
                     bad |= 1 << i;
                 }
@@ -141,6 +144,15 @@ fn sampler<R: Real>(s: &Sampler) -> Program<R> {
         outputs: s.outputs.clone(),
         every: s.every,
     }
+}
+
+/// The step a call follows, the lanes still running (as bits: only their
+/// slots change) and the instruction-set level.
+#[derive(Clone, Copy)]
+struct Call {
+    n1: u64,
+    running: u64,
+    isa: Isa,
 }
 
 /// The values of [`Src::Step`], [`Src::Count`] and [`Src::Counted`].
@@ -176,12 +188,11 @@ fn run<R: Real>(
     real: &mut [[R; LANES]],
     regs: &mut [[R; LANES]],
     s: Scalars<R>,
-    n1: u64,
-    isa: Isa,
+    at: Call,
 ) {
     let fill = |v: R| [v; LANES];
     let (step, count, counted) = (fill(s.step), fill(s.count), fill(s.counted));
-    let n1r = R::from_f64(n1 as f64);
+    let n1r = R::from_f64(at.n1 as f64);
     let dt = l.at(index_of("dt").expect("dt is a lane"));
     let elapsed: [R; LANES] = std::array::from_fn(|i| n1r * dt[i]);
     {
@@ -198,9 +209,13 @@ fn run<R: Real>(
                 Src::Elapsed => &elapsed,
             })
             .collect();
-        p.tape.run(regs, &View { arrays }, isa);
+        p.tape.run(regs, &View { arrays }, at.isa);
     }
+    // A lane that stopped or became non-finite keeps its indicators.
     for (k, &slot) in p.outputs.iter().enumerate() {
-        real[slot] = *p.tape.output(regs, k);
+        let out = p.tape.output(regs, k);
+        for i in (0..LANES).filter(|i| at.running >> i & 1 == 1) {
+            real[slot][i] = out[i];
+        }
     }
 }

@@ -223,7 +223,8 @@ impl<R: Flows> BlockObservers<R> {
         let Some(ind) = &s.p.indicators else {
             return 0;
         };
-        ind.after_step(s.l, s.prev, &mut self.real, regs, s.n1, s.p.isa)
+        let running = s.running().fold(0u64, |b, i| b | 1 << i);
+        ind.after_step(s.l, s.prev, &mut self.real, regs, s.n1, running, s.p.isa)
     }
 
     /// Cycle statistics over step `n → n+1`, inside the measuring window.
