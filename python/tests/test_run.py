@@ -174,3 +174,29 @@ def test_stops_averages_and_resonances_reach_the_dataset():
     assert fractions["1:40"] == pytest.approx(captured.mean())
     assert fractions["none"] == pytest.approx(1 - captured.mean())
     assert ds.attrs["status"]["stopped"] == 8
+
+
+def test_chaos_indicators_reach_the_dataset():
+    ds = reeb.run(
+        {
+            "model": "damped_oscillator",
+            "params": {"alpha": [0.1, 0.4]},
+            "initial": {"q": {"linspace": [-1.0, 1.0, 3]}},
+            "integrator": {"scheme": "triple_jump4", "dt": 0.05, "steps": 400},
+            "output": {
+                "final": ["q"],
+                "lyapunov": {"vectors": 2, "every": 4},
+                "fli": True,
+                "megno": True,
+            },
+            "run": {"backend": "cpu", "precision": "f64"},
+        },
+        progress=False,
+    )
+    assert ds.lyapunov.dims == ("alpha", "q", "exponent")
+    assert ds.fli.dims == ds.megno.dims == ("alpha", "q")
+    # The step scales (q, p) areas by e^{−α dt}: λ₁ + λ₂ = −α, λ₁ ≥ λ₂.
+    total = ds.lyapunov.sum("exponent")
+    np.testing.assert_allclose(total, -ds.alpha.broadcast_like(total), rtol=1e-10)
+    assert (ds.lyapunov.isel(exponent=0) >= ds.lyapunov.isel(exponent=1)).all()
+    assert np.isfinite(ds.fli).all() and np.isfinite(ds.megno).all()
