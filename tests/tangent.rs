@@ -401,3 +401,39 @@ fn tangent_program_sizes() {
         }
     }
 }
+
+/// `stop = "fli > 20"` ends the orbits known to be chaotic, at the same
+/// step on both backends.
+#[test]
+fn a_stop_condition_reads_the_fli() {
+    let dir = std::env::temp_dir().join(format!("reeb-tangent-stop-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string("scenes/spin_orbit_fli.toml")
+        .unwrap()
+        .replace(
+            "fli = { every = 20 }",
+            "fli = { every = 20 }\nstop = \"fli > 20\"",
+        )
+        .replace("320]", "6]");
+    let path = dir.join("s.toml");
+    std::fs::write(&path, text).unwrap();
+    let scene = reeb::scene::Scene::load(&path).unwrap();
+    let plans = scene.sub_runs().unwrap();
+    let plan = &plans[0].plan;
+    let c = cpu::run::<f64>(plan, None);
+    let stopped: Vec<usize> = (0..c.n).filter(|i| c.stop_step[*i] != 0).collect();
+    assert!(
+        !stopped.is_empty() && stopped.len() < c.n,
+        "{:?}",
+        c.stop_step
+    );
+    for i in 0..c.n {
+        let chaotic = c.fli[i] > 20.0;
+        assert_eq!(chaotic, c.stop_step[i] != 0, "orbit {i}: FLI {}", c.fli[i]);
+    }
+    if let Some(ctx) = common::gpu() {
+        let g = gpu::run::<f64>(ctx, plan, None).unwrap().observations;
+        assert_eq!(g.stop_step, c.stop_step);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

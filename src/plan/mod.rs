@@ -84,7 +84,7 @@ pub struct StopPlan {
     pub program: crate::num::formula::lower::Lowered,
     pub cmp: stop::Cmp,
     /// The lane field of each input of the program (`t`: the time at the
-    /// step's end).
+    /// step's end), or an indicator's slot ([`indicator_slot`]).
     pub inputs: Vec<&'static str>,
 }
 
@@ -103,6 +103,8 @@ fn stop_plan(
     for name in &s.names {
         let lane = if !s.reads.contains(name) || name == "t" {
             "t"
+        } else if let Some(slot) = indicator_slot(name) {
+            slot
         } else if s.state(name) {
             vars.iter()
                 .copied()
@@ -130,6 +132,16 @@ fn stop_plan(
         cmp: s.cmp,
         inputs,
     })
+}
+
+/// The observer slot a stop condition reads for an indicator's name: the
+/// FLI so far, MEGNO's running ⟨Y⟩ (`plan/indicators.rs`).
+pub fn indicator_slot(name: &str) -> Option<&'static str> {
+    match name {
+        "fli" => Some("fli_max"),
+        "megno" => Some("megno_mean"),
+        _ => None,
+    }
 }
 
 /// Name of a lane field with a static lifetime.

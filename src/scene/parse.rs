@@ -703,10 +703,17 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
     }
     let o: tables::Output = deserialize(p, doc.get("output"))?;
     let (average, resonance) = averages(p, &ov, &o)?;
+    // The indicators a stop condition may read, by name.
+    let readable: Vec<&str> = [("fli", o.fli.is_some()), ("megno", o.megno.is_some())]
+        .iter()
+        .filter(|(_, on)| *on)
+        .map(|(n, _)| *n)
+        .collect();
+    let params: Vec<&str> = params.iter().copied().chain(readable).collect();
     let stop = o
         .stop
         .as_ref()
-        .map(|s| stop(p, model, params, s))
+        .map(|s| stop(p, model, &params, s))
         .transpose()?;
     let final_vars = match &o.final_vars {
         Some(v) => ov.list(p, "output.final", v)?,

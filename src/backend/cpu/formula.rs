@@ -72,21 +72,48 @@ impl<R: Real> FormulaCall<R> {
 }
 
 /// A stop condition on a block: `lhs − rhs` through the interpreter,
-/// compared with zero per lane.
+/// compared with zero per lane. Its inputs are lanes, or observer slots
+/// (an indicator's running value).
 pub struct Condition<R> {
     tape: Tape<R>,
     inputs: Vec<usize>,
+    /// The slot of each input that reads one (by input).
+    slots: Vec<Option<usize>>,
     cmp: Cmp,
     isa: Isa,
     /// Does it read `t` (set to the step's end before it runs)?
     pub reads_time: bool,
 }
 
+/// A block's lanes and observer slots as the inputs of a condition.
+struct SlotView<'a, R> {
+    arrays: Vec<&'a [R; LANES]>,
+}
+
+impl<R: Real> Inputs<R, LANES> for SlotView<'_, R> {
+    #[inline(always)]
+    fn array(&self, k: u32) -> &[R; LANES] {
+        self.arrays[k as usize]
+    }
+    #[inline(always)]
+    fn scalar(&self, k: u32) -> R {
+        self.arrays[k as usize][0]
+    }
+}
+
 impl<R: Real> Condition<R> {
-    pub fn new(s: &StopPlan, isa: Isa) -> Self {
+    /// `slot(name)`: the observer slot of an input that is not a lane.
+    pub fn new(s: &StopPlan, isa: Isa, slot: impl Fn(&str) -> Option<usize>) -> Self {
+        let slots: Vec<Option<usize>> = s.inputs.iter().map(|n| slot(n)).collect();
         Condition {
             tape: Tape::new(&s.program, |_| false),
-            inputs: s.inputs.iter().map(|n| lane(n)).collect(),
+            inputs: s
+                .inputs
+                .iter()
+                .zip(&slots)
+                .map(|(n, k)| if k.is_some() { 0 } else { lane(n) })
+                .collect(),
+            slots,
             cmp: s.cmp,
             isa,
             reads_time: s.inputs.contains(&"t"),
@@ -97,13 +124,29 @@ impl<R: Real> Condition<R> {
         self.tape.registers
     }
 
-    /// The lanes where the condition holds (never where it is NaN).
-    pub fn holds(&self, l: &Lanes<R>, regs: &mut [[R; LANES]]) -> [bool; LANES] {
-        let view = LaneView {
-            l,
-            lanes: &self.inputs,
-        };
-        self.tape.run(regs, &view, self.isa);
+    /// The lanes where the condition holds (never where it is NaN); `real`:
+    /// the block's observer slots.
+    pub fn holds(
+        &self,
+        l: &Lanes<R>,
+        real: &[[R; LANES]],
+        regs: &mut [[R; LANES]],
+    ) -> [bool; LANES] {
+        if self.slots.iter().all(Option::is_none) {
+            let view = LaneView {
+                l,
+                lanes: &self.inputs,
+            };
+            self.tape.run(regs, &view, self.isa);
+        } else {
+            let arrays = (self.inputs.iter().zip(&self.slots))
+                .map(|(lane, slot)| match slot {
+                    Some(k) => &real[*k],
+                    None => l.at(*lane),
+                })
+                .collect();
+            self.tape.run(regs, &SlotView { arrays }, self.isa);
+        }
         let g = self.tape.output(regs, 0);
         std::array::from_fn(|i| self.cmp.holds(g[i].to_f64()))
     }

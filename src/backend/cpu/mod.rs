@@ -437,7 +437,19 @@ fn run_block<R: Flows>(
             alive -= mark_nonfinite(&bad, &mut status, count, n - 1);
         }
         if let Some(stop) = &p.stop {
-            alive -= stop_lanes(p, stop, l, &mut regs, &mut status, n, sink, base, count);
+            let real = obs.slots();
+            alive -= stop_lanes(
+                p,
+                stop,
+                l,
+                real,
+                &mut regs,
+                &mut status,
+                n,
+                sink,
+                base,
+                count,
+            );
         }
         if n % 1024 == 0 {
             report(&mut reported, n);
@@ -585,6 +597,7 @@ fn stop_lanes<R: Flows>(
     p: &Program<R>,
     stop: &Condition<R>,
     l: &mut Lanes<R>,
+    real: &[[R; LANES]],
     regs: &mut [[R; LANES]],
     status: &mut [u64; LANES],
     n: u64,
@@ -598,7 +611,7 @@ fn stop_lanes<R: Flows>(
             l.t[i] = l.t0[i] + nf * l.dt[i];
         }
     }
-    let holds = stop.holds(l, regs);
+    let holds = stop.holds(l, real, regs);
     let mut stopped = 0;
     for i in 0..count {
         if holds[i] && status[i] == 0 {

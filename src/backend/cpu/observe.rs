@@ -217,6 +217,11 @@ impl<R: Flows> BlockObservers<R> {
         }
     }
 
+    /// The real slots, per lane (what a stop condition may read).
+    pub fn slots(&self) -> &[[R; LANES]] {
+        &self.real
+    }
+
     /// The chaos indicators after the step: the lanes whose deviation
     /// vectors became non-finite, as bits.
     pub fn indicators(&mut self, s: &BlockStep<R>, regs: &mut [[R; LANES]]) -> u64 {

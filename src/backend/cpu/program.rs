@@ -112,7 +112,8 @@ impl<'p, R: Flows> Program<'p, R> {
             })
             .max()
             .unwrap_or(0);
-        let stop = plan.stop.as_ref().map(|s| Condition::new(s, isa));
+        let slot = |name: &str| plan.indicators.as_ref().and_then(|i| i.slot_of(name));
+        let stop = plan.stop.as_ref().map(|s| Condition::new(s, isa, slot));
         let indicators = plan
             .indicators
             .as_ref()

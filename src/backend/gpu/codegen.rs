@@ -358,10 +358,12 @@ fn bound_names(
     names.insert("dt".into());
     names.insert("t0".into());
     if let Some(stop) = &plan.stop {
+        // An indicator's slot is a local of the observers already.
+        let slot = |n: &str| slots::real(plan).iter().any(|(s, _)| s == n);
         names.extend(
             stop.inputs
                 .iter()
-                .filter(|n| **n != "t")
+                .filter(|n| **n != "t" && !slot(n))
                 .map(|n| n.to_string()),
         );
     }
