@@ -89,9 +89,9 @@ fn step(plan: &Plan, l: &mut Lane<f64>, n: u64) {
 
 /// The tangent program applied to the unit vectors (its columns).
 fn jacobian(plan: &Plan, x: &[(&str, f64)], n: u64) -> (Vec<&'static str>, Vec<Vec<f64>>) {
-    let space = TangentStep::new(plan, 1).unwrap().space;
+    let space = TangentStep::new(&plan.step_spec(), 1).unwrap().space;
     let d = space.len();
-    let t = TangentStep::new(plan, d).unwrap();
+    let t = TangentStep::new(&plan.step_spec(), d).unwrap();
     let l = lane(plan, x);
     let inputs: Vec<[f64; 1]> = t
         .inputs
@@ -122,7 +122,7 @@ fn tangents_are_finite_differences_of_the_step() {
             let what = format!("{name} {scheme}");
             let x: Vec<(&str, f64)> = plan.vars.iter().map(|v| (*v, start(v))).collect();
             let n = 3;
-            let (space, cols) = match TangentStep::new(&plan, 1) {
+            let (space, cols) = match TangentStep::new(&plan.step_spec(), 1) {
                 Ok(_) => jacobian(&plan, &x, n),
                 // Only a comparison method may have no tangent (Lane–Emden's
                 // RK4 and leapfrog branch on t = 0), refused by name.
@@ -169,7 +169,7 @@ fn tangents_are_finite_differences_of_the_step() {
 fn tangent_spaces_are_the_dynamical_phase_spaces() {
     let space = |name: &str| {
         let plan = Plan::new(&problem(name, "s2")).unwrap();
-        TangentStep::new(&plan, 1).unwrap().space
+        TangentStep::new(&plan.step_spec(), 1).unwrap().space
     };
     assert_eq!(space("damped_oscillator"), ["q", "p"]);
     assert_eq!(space("van_der_pol"), ["q", "s"]);
@@ -392,7 +392,7 @@ fn tangent_program_sizes() {
     for name in MODEL_NAMES {
         for scheme in ["s2", "triple_jump4", "yoshida8a"] {
             let plan = Plan::new(&problem(name, scheme)).unwrap();
-            let t = TangentStep::new(&plan, 1).unwrap();
+            let t = TangentStep::new(&plan.step_spec(), 1).unwrap();
             eprintln!(
                 "{name} {scheme}: {} instructions, {} inputs",
                 t.program.instrs.len(),

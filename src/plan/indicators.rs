@@ -19,14 +19,12 @@ use crate::num::formula::{Dag, Func, Func2, Id};
 
 use super::observers::Observers;
 use super::problem::{err, PlanError};
-use super::slots::Init;
-use super::tangent::{TangentInput, TangentStep};
-use super::Plan;
+use super::tangent::{StepSpec, TangentInput, TangentStep};
 
 /// What a sample program reads besides slots.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SampleInput {
-    /// The real slot at this index of `slots::real`.
+    /// The indicators' slot at this index (of [`Indicators::slots`]).
     Slot(usize),
     /// The time since the start, `n1·dt`.
     Elapsed,
@@ -37,7 +35,7 @@ pub enum SampleInput {
 }
 
 /// A program run every `every` steps: it reads `inputs` and writes its
-/// outputs into the real slots `outputs`.
+/// outputs into the indicators' slots `outputs`.
 #[derive(Debug, Clone)]
 pub struct Sampler {
     pub every: u64,
@@ -50,25 +48,26 @@ pub struct Sampler {
 #[derive(Debug, Clone)]
 pub struct Indicators {
     pub tangent: TangentStep,
-    /// The tangent step's deviation inputs and outputs, as real slots.
+    /// The tangent step's deviation inputs and outputs, as slots.
     pub deviation_slots: Vec<usize>,
     pub lyapunov: Option<Sampler>,
     /// The FLI/MEGNO vector's samples.
     pub chaos: Option<Sampler>,
     /// Lyapunov sums start after this step (a multiple of `every`).
     pub skip_step: u64,
-    /// The index of the first indicator slot, and the slots themselves.
-    pub first_slot: usize,
-    pub slots: Vec<(String, Init)>,
+    /// The slots: name and value before the first step. Indices here are
+    /// into this list; the plan's real slots hold it after the averages'
+    /// (`slots::indicator_first`).
+    pub slots: Vec<(String, f64)>,
 }
 
 impl Indicators {
-    /// The indicators `observers` ask for, on `plan` (whose real slots
-    /// before these number `first_slot`); `None` if it asks for none.
+    /// The indicators `observers` ask for, on the step `step` of a run of
+    /// `steps` steps; `None` if it asks for none.
     pub fn new(
-        plan: &Plan,
+        step: &StepSpec,
+        steps: u64,
         observers: &Observers,
-        first_slot: usize,
     ) -> Result<Option<Indicators>, PlanError> {
         let k = observers.lyapunov.as_ref().map_or(0, |l| l.vectors);
         let chaos = observers.chaos_every();
@@ -76,7 +75,7 @@ impl Indicators {
             return Ok(None);
         }
         let vectors = k + usize::from(chaos.is_some());
-        let tangent = TangentStep::new(plan, vectors).map_err(|e| {
+        let tangent = TangentStep::new(step, vectors).map_err(|e| {
             let which = if k > 0 { "lyapunov" } else { "fli" };
             err(format!("output.{which}"), e.message)
         })?;
@@ -91,17 +90,16 @@ impl Indicators {
             ));
         }
         let mut s = Indicators {
-            deviation_slots: (first_slot..first_slot + vectors * d).collect(),
+            deviation_slots: (0..vectors * d).collect(),
             tangent,
             lyapunov: None,
             chaos: None,
             skip_step: 0,
-            first_slot,
             slots: vec![],
         };
         s.slots = s.deviation_inits(k, chaos.is_some());
         if let Some(l) = &observers.lyapunov {
-            let skip = (l.skip * plan.steps as f64).ceil() as u64;
+            let skip = (l.skip * steps as f64).ceil() as u64;
             s.skip_step = skip.div_ceil(l.every) * l.every;
             s.lyapunov = Some(s.lyapunov_sampler(k, l.every));
         }
@@ -116,7 +114,7 @@ impl Indicators {
     }
 
     /// The deviation vectors' slots: identity columns, then (1, …, 1)/√d.
-    fn deviation_inits(&self, k: usize, chaos: bool) -> Vec<(String, Init)> {
+    fn deviation_inits(&self, k: usize, chaos: bool) -> Vec<(String, f64)> {
         let d = self.dimension();
         let mut out = vec![];
         for v in 0..k + usize::from(chaos) {
@@ -125,16 +123,16 @@ impl Indicators {
                     true => f64::from(u8::from(v == j)),
                     false => 1.0 / (d as f64).sqrt(),
                 };
-                out.push((format!("w{v}_{j}"), Init::Value(x)));
+                out.push((format!("w{v}_{j}"), x));
             }
         }
         out
     }
 
     /// A new slot, its index.
-    fn slot(&mut self, name: String, init: Init) -> usize {
+    fn slot(&mut self, name: String, init: f64) -> usize {
         self.slots.push((name, init));
-        self.first_slot + self.slots.len() - 1
+        self.slots.len() - 1
     }
 
     /// Modified Gram–Schmidt on vectors `0..k`, adding ln Rᵢᵢ (when the
@@ -142,7 +140,7 @@ impl Indicators {
     fn lyapunov_sampler(&mut self, k: usize, every: u64) -> Sampler {
         let d = self.dimension();
         let sums: Vec<usize> = (0..k)
-            .map(|i| self.slot(format!("lyap_{i}"), Init::Zero))
+            .map(|i| self.slot(format!("lyap_{i}"), 0.0))
             .collect();
         let w = &self.deviation_slots[..k * d];
         let mut inputs: Vec<SampleInput> = w.iter().map(|s| SampleInput::Slot(*s)).collect();
@@ -190,10 +188,10 @@ impl Indicators {
         let d = self.dimension();
         let u = self.deviation_slots[k * d..(k + 1) * d].to_vec();
         let state = [
-            self.slot("fli_log".into(), Init::Zero),
-            self.slot("fli_max".into(), Init::NegInf),
-            self.slot("megno_sum".into(), Init::Zero),
-            self.slot("megno_mean".into(), Init::Zero),
+            self.slot("fli_log".into(), 0.0),
+            self.slot("fli_max".into(), f64::NEG_INFINITY),
+            self.slot("megno_sum".into(), 0.0),
+            self.slot("megno_mean".into(), 0.0),
         ];
         let mut inputs: Vec<SampleInput> = u.iter().map(|s| SampleInput::Slot(*s)).collect();
         inputs.extend(state.iter().map(|s| SampleInput::Slot(*s)));
@@ -230,8 +228,7 @@ impl Indicators {
 
     /// The slot of the running value `name` (`fli_max`, `megno_mean`, `lyap_0`, …).
     pub fn slot_of(&self, name: &str) -> Option<usize> {
-        let k = self.slots.iter().position(|(n, _)| n == name)?;
-        Some(self.first_slot + k)
+        self.slots.iter().position(|(n, _)| n == name)
     }
 
     /// The tangent step's input `k` when it is a deviation: its slot.

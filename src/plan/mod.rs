@@ -234,9 +234,20 @@ impl Plan {
             stop,
             indicators: None,
         };
-        let first_slot = slots::REAL.len() + plan.average_vars.len();
-        plan.indicators = indicators::Indicators::new(&plan, &plan.observers, first_slot)?;
+        plan.indicators =
+            indicators::Indicators::new(&plan.step_spec(), plan.steps, &plan.observers)?;
         Ok(plan)
+    }
+
+    /// What the tangent map of the step is made of.
+    pub fn step_spec(&self) -> tangent::StepSpec<'_> {
+        tangent::StepSpec {
+            model: &self.model,
+            scheme: &self.scheme.name,
+            vars: &self.vars,
+            bindings: &self.bindings,
+            ops: &self.ops,
+        }
     }
 
     /// The step after which time averages start: the first `skip` fraction

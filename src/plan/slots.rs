@@ -65,8 +65,23 @@ pub const MEAN0: usize = REAL.len();
 pub fn real(plan: &Plan) -> Vec<(String, Init)> {
     let fixed = REAL.iter().map(|(n, init)| (n.to_string(), *init));
     let means = (0..plan.average_vars.len()).map(|j| (format!("mean_{j}"), Init::Zero));
-    let indicators = plan.indicators.iter().flat_map(|i| i.slots.iter().cloned());
+    let indicators = plan.indicators.iter().flat_map(|i| {
+        i.slots.iter().map(|(n, v)| {
+            let init = match *v {
+                0.0 => Init::Zero,
+                f64::NEG_INFINITY => Init::NegInf,
+                v => Init::Value(v),
+            };
+            (n.clone(), init)
+        })
+    });
     fixed.chain(means).chain(indicators).collect()
+}
+
+/// The real slot of the chaos indicators' slot 0: they follow the fixed
+/// slots and the averages'.
+pub fn indicator_first(plan: &Plan) -> usize {
+    MEAN0 + plan.average_vars.len()
 }
 
 /// 32-bit counters (start at 0): the next interpolated stroboscopic sample,
@@ -148,6 +163,8 @@ pub fn indicators_finish<R: Flows>(
         return (vec![], R::nan(), R::nan());
     };
     let last = last_step(plan, stop_step);
+    let first = indicator_first(plan);
+    let slot = |k: usize| slot(first + k);
     let lyap = |i: usize| {
         ind.slot_of(&format!("lyap_{i}"))
             .map_or(f64::NAN, |k| slot(k).to_f64())

@@ -18,8 +18,20 @@ use crate::models::symbolic::LaneFormulas;
 use crate::num::formula::lower::{lower, Lowered};
 use crate::num::formula::{Dag, Id};
 
+use crate::models::Model;
+
 use super::problem::{err, PlanError, Source};
-use super::Plan;
+
+/// What the tangent map is made of: a plan's model, scheme, integrated
+/// variables, lane inputs and step (`Plan::step_spec`).
+#[derive(Debug, Clone, Copy)]
+pub struct StepSpec<'a> {
+    pub model: &'a Model,
+    pub scheme: &'a str,
+    pub vars: &'a [&'static str],
+    pub bindings: &'a [(&'static str, Source)],
+    pub ops: &'a [Op],
+}
 
 /// Where an input of the tangent program comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -47,15 +59,15 @@ pub struct TangentStep {
 /// A step's map as formulas: the lanes' values after the step over their
 /// values before it (`t` from `t0`, `dt` and the step number, as the ops
 /// compute it).
-pub fn step_formulas(plan: &Plan) -> Result<LaneFormulas, PlanError> {
+pub fn step_formulas(plan: &StepSpec) -> Result<LaneFormulas, PlanError> {
     let field = "integrator.scheme";
-    let mut f = LaneFormulas::new(&plan.model);
-    for (lane, source) in &plan.bindings {
+    let mut f = LaneFormulas::new(plan.model);
+    for (lane, source) in plan.bindings {
         if let (Source::Const(v), false) = (source, plan.vars.contains(lane)) {
             f.know(lane, *v);
         }
     }
-    for op in &plan.ops {
+    for op in plan.ops {
         match *op {
             Op::Tau(c) => {
                 let dt = f.read("dt");
@@ -73,12 +85,12 @@ pub fn step_formulas(plan: &Plan) -> Result<LaneFormulas, PlanError> {
                 let t = f.dag.add(start, cdt);
                 f.write("t", t);
             }
-            Op::Call(name) => f.apply(&plan.model, name).map_err(|e| {
+            Op::Call(name) => f.apply(plan.model, name).map_err(|e| {
                 err(
                     field,
                     format!(
                         "`{}` has no tangent map for model `{}` ({e}); every splitting scheme (s2, triple_jump4, …) has one",
-                        plan.scheme.name,
+                        plan.scheme,
                         plan.model.name()
                     ),
                 )
@@ -89,7 +101,7 @@ pub fn step_formulas(plan: &Plan) -> Result<LaneFormulas, PlanError> {
 }
 
 /// The tangent space of `plan` (see the module documentation).
-pub fn tangent_space(plan: &Plan, f: &mut LaneFormulas) -> Vec<&'static str> {
+pub fn tangent_space(plan: &StepSpec, f: &mut LaneFormulas) -> Vec<&'static str> {
     let mut space: Vec<&'static str> = plan
         .vars
         .iter()
@@ -122,7 +134,7 @@ pub fn tangent_space(plan: &Plan, f: &mut LaneFormulas) -> Vec<&'static str> {
 impl TangentStep {
     /// The tangent map of `plan`'s step for `vectors` deviation vectors
     /// (at most the tangent dimension).
-    pub fn new(plan: &Plan, vectors: usize) -> Result<TangentStep, PlanError> {
+    pub fn new(plan: &StepSpec, vectors: usize) -> Result<TangentStep, PlanError> {
         let mut f = step_formulas(plan)?;
         let space = tangent_space(plan, &mut f);
         let after: Vec<Id> = space.iter().map(|v| f.read(v)).collect();

@@ -10,6 +10,7 @@ use crate::num::formula::tape::{Inputs, Tape};
 use crate::num::isa::Isa;
 use crate::num::precision::Real;
 use crate::plan::indicators::{Indicators, SampleInput, Sampler};
+use crate::plan::slots;
 use crate::plan::tangent::TangentInput;
 use crate::plan::Plan;
 
@@ -47,6 +48,8 @@ pub struct IndicatorTapes<R> {
 
 impl<R: Real> IndicatorTapes<R> {
     pub fn new(plan: &Plan, ind: &Indicators) -> IndicatorTapes<R> {
+        // The indicators' slots among the block's real slots.
+        let first = slots::indicator_first(plan);
         let lane = |name: &str| match plan.vars.iter().position(|v| *v == name) {
             Some(k) => Src::Prev(k),
             None => Src::Lane(index_of(name).unwrap_or_else(|| panic!("{name} is not a lane"))),
@@ -58,19 +61,19 @@ impl<R: Real> IndicatorTapes<R> {
             .map(|i| match *i {
                 TangentInput::Lane(name) => lane(name),
                 TangentInput::Step => Src::Step,
-                d => Src::Slot(ind.deviation_slot(d).expect("a deviation")),
+                d => Src::Slot(first + ind.deviation_slot(d).expect("a deviation")),
             })
             .collect();
         let tangent = Program {
             tape: Tape::new(&ind.tangent.program, |_| false),
             inputs,
-            outputs: ind.deviation_slots.clone(),
+            outputs: ind.deviation_slots.iter().map(|k| first + k).collect(),
             every: 1,
         };
         let samples = [&ind.lyapunov, &ind.chaos]
             .into_iter()
             .flatten()
-            .map(sampler)
+            .map(|s| sampler(s, first))
             .collect();
         IndicatorTapes {
             tangent,
@@ -127,12 +130,13 @@ impl<R: Real> IndicatorTapes<R> {
     }
 }
 
-fn sampler<R: Real>(s: &Sampler) -> Program<R> {
+/// A sampler's program, its slots `first` on among the real slots.
+fn sampler<R: Real>(s: &Sampler, first: usize) -> Program<R> {
     let inputs = s
         .inputs
         .iter()
         .map(|i| match *i {
-            SampleInput::Slot(k) => Src::Slot(k),
+            SampleInput::Slot(k) => Src::Slot(first + k),
             SampleInput::Elapsed => Src::Elapsed,
             SampleInput::Count => Src::Count,
             SampleInput::Counted => Src::Counted,
@@ -141,7 +145,7 @@ fn sampler<R: Real>(s: &Sampler) -> Program<R> {
     Program {
         tape: Tape::new(&s.program, |_| false),
         inputs,
-        outputs: s.outputs.clone(),
+        outputs: s.outputs.iter().map(|k| first + k).collect(),
         every: s.every,
     }
 }

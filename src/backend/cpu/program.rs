@@ -112,7 +112,11 @@ impl<'p, R: Flows> Program<'p, R> {
             })
             .max()
             .unwrap_or(0);
-        let slot = |name: &str| plan.indicators.as_ref().and_then(|i| i.slot_of(name));
+        let first = crate::plan::slots::indicator_first(plan);
+        let slot = |name: &str| {
+            let ind = plan.indicators.as_ref()?;
+            ind.slot_of(name).map(|k| first + k)
+        };
         let stop = plan.stop.as_ref().map(|s| Condition::new(s, isa, slot));
         let indicators = plan
             .indicators

@@ -217,7 +217,13 @@ fn shared_text(
 /// `lyapunov_sample`, `chaos_sample` over the slots and the locals
 /// `elapsed`, `sample_count`, `counted`.
 fn indicator_functions(plan: &Plan, ind: &Indicators) -> String {
-    let slot_names: Vec<String> = slots::real(plan).into_iter().map(|(n, _)| n).collect();
+    // The indicators' slots are real slots from `first` on.
+    let first = slots::indicator_first(plan);
+    let slot_names: Vec<String> = slots::real(plan)
+        .into_iter()
+        .skip(first)
+        .map(|(n, _)| n)
+        .collect();
     let tangent_inputs: Vec<String> = ind
         .tangent
         .inputs
@@ -783,11 +789,10 @@ impl Gen<'_> {
         let Some(ind) = &self.plan.indicators else {
             return String::new();
         };
-        let names = slots::real(self.plan);
         let finite: Vec<String> = ind
             .deviation_slots
             .iter()
-            .map(|k| format!("finite({})", names[*k].0))
+            .map(|k| format!("finite({})", ind.slots[*k].0))
             .collect();
         let mut s = self.call("tangent_step");
         writeln!(
