@@ -386,22 +386,6 @@ fn bad_indicator_settings_are_refused_at_their_field() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-#[test]
-#[ignore = "prints the tangent programs' sizes"]
-fn tangent_program_sizes() {
-    for name in MODEL_NAMES {
-        for scheme in ["s2", "triple_jump4", "yoshida8a"] {
-            let plan = Plan::new(&problem(name, scheme)).unwrap();
-            let t = TangentStep::new(&plan.step_spec(), 1).unwrap();
-            eprintln!(
-                "{name} {scheme}: {} instructions, {} inputs",
-                t.program.instrs.len(),
-                t.inputs.len()
-            );
-        }
-    }
-}
-
 /// `stop = "fli > 20"` ends the orbits known to be chaotic, at the same
 /// step on both backends.
 #[test]

@@ -85,22 +85,6 @@ pub struct Condition<R> {
     pub reads_time: bool,
 }
 
-/// A block's lanes and observer slots as the inputs of a condition.
-struct SlotView<'a, R> {
-    arrays: Vec<&'a [R; LANES]>,
-}
-
-impl<R: Real> Inputs<R, LANES> for SlotView<'_, R> {
-    #[inline(always)]
-    fn array(&self, k: u32) -> &[R; LANES] {
-        self.arrays[k as usize]
-    }
-    #[inline(always)]
-    fn scalar(&self, k: u32) -> R {
-        self.arrays[k as usize][0]
-    }
-}
-
 impl<R: Real> Condition<R> {
     /// `slot(name)`: the observer slot of an input that is not a lane.
     pub fn new(s: &StopPlan, isa: Isa, slot: impl Fn(&str) -> Option<usize>) -> Self {
@@ -139,13 +123,13 @@ impl<R: Real> Condition<R> {
             };
             self.tape.run(regs, &view, self.isa);
         } else {
-            let arrays = (self.inputs.iter().zip(&self.slots))
+            let arrays: Vec<&[R; LANES]> = (self.inputs.iter().zip(&self.slots))
                 .map(|(lane, slot)| match slot {
                     Some(k) => &real[*k],
                     None => l.at(*lane),
                 })
                 .collect();
-            self.tape.run(regs, &SlotView { arrays }, self.isa);
+            self.tape.run(regs, &arrays[..], self.isa);
         }
         let g = self.tape.output(regs, 0);
         std::array::from_fn(|i| self.cmp.holds(g[i].to_f64()))

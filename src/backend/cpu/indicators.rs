@@ -6,7 +6,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::models::lanes::{index_of, Lanes, LANES};
-use crate::num::formula::tape::{Inputs, Tape};
+use crate::num::formula::tape::Tape;
 use crate::num::isa::Isa;
 use crate::num::precision::Real;
 use crate::plan::indicators::{Indicators, SampleInput, Sampler};
@@ -44,6 +44,8 @@ pub struct IndicatorTapes<R> {
     tangent: Program<R>,
     samples: Vec<Program<R>>,
     skip_step: u64,
+    /// Lane index of `dt` (the samples' elapsed time).
+    dt_lane: usize,
 }
 
 impl<R: Real> IndicatorTapes<R> {
@@ -79,6 +81,7 @@ impl<R: Real> IndicatorTapes<R> {
             tangent,
             samples,
             skip_step: ind.skip_step,
+            dt_lane: index_of("dt").expect("dt is a lane"),
         }
     }
 
@@ -103,7 +106,12 @@ impl<R: Real> IndicatorTapes<R> {
         running: u64,
         isa: Isa,
     ) -> u64 {
-        let at = Call { n1, running, isa };
+        let at = Call {
+            n1,
+            running,
+            isa,
+            dt_lane: self.dt_lane,
+        };
         let scalars = Scalars {
             step: R::from_f64((n1 - 1) as f64),
             count: R::from_f64(0.0),
@@ -157,6 +165,7 @@ struct Call {
     n1: u64,
     running: u64,
     isa: Isa,
+    dt_lane: usize,
 }
 
 /// The values of [`Src::Step`], [`Src::Count`] and [`Src::Counted`].
@@ -165,22 +174,6 @@ struct Scalars<R> {
     step: R,
     count: R,
     counted: R,
-}
-
-/// The inputs of one call, as arrays.
-struct View<'a, R> {
-    arrays: Vec<&'a [R; LANES]>,
-}
-
-impl<R: Real> Inputs<R, LANES> for View<'_, R> {
-    #[inline(always)]
-    fn array(&self, k: u32) -> &[R; LANES] {
-        self.arrays[k as usize]
-    }
-    #[inline(always)]
-    fn scalar(&self, k: u32) -> R {
-        self.arrays[k as usize][0]
-    }
 }
 
 /// Runs `p` on the block and writes its outputs into the slots.
@@ -197,10 +190,10 @@ fn run<R: Real>(
     let fill = |v: R| [v; LANES];
     let (step, count, counted) = (fill(s.step), fill(s.count), fill(s.counted));
     let n1r = R::from_f64(at.n1 as f64);
-    let dt = l.at(index_of("dt").expect("dt is a lane"));
+    let dt = l.at(at.dt_lane);
     let elapsed: [R; LANES] = std::array::from_fn(|i| n1r * dt[i]);
     {
-        let arrays = p
+        let arrays: Vec<&[R; LANES]> = p
             .inputs
             .iter()
             .map(|src| match *src {
@@ -213,7 +206,7 @@ fn run<R: Real>(
                 Src::Elapsed => &elapsed,
             })
             .collect();
-        p.tape.run(regs, &View { arrays }, at.isa);
+        p.tape.run(regs, &arrays[..], at.isa);
     }
     // A lane that stopped or became non-finite keeps its indicators.
     for (k, &slot) in p.outputs.iter().enumerate() {

@@ -283,6 +283,34 @@ impl<R: Flows> BlockObservers<R> {
         }
     }
 
+    /// The chaos indicators' outputs of the block's trajectories.
+    fn finish_indicators(
+        &self,
+        p: &Program<R>,
+        l: &Lanes<R>,
+        sink: &Sink<R>,
+        base: usize,
+        count: usize,
+        status: &[u64; LANES],
+    ) {
+        let dt = l.at(p.dt_lane);
+        for i in 0..count {
+            let (nonfinite, stop) = slots::split_status(status[i]);
+            let slot = |k: usize| self.real[k][i];
+            let (lyap, fli, megno) =
+                slots::indicators_finish(p.plan, slot, dt[i], nonfinite == 0, stop);
+            for (j, x) in lyap.iter().enumerate() {
+                sink.lyapunov.set((base + i) * lyap.len() + j, *x);
+            }
+            if p.plan.observers.fli.is_some() {
+                sink.fli.set(base + i, fli);
+            }
+            if p.plan.observers.megno.is_some() {
+                sink.megno.set(base + i, megno);
+            }
+        }
+    }
+
     /// Final values, cycle statistics, point counts and status of the block.
     pub fn finish(
         &self,
@@ -381,36 +409,6 @@ fn record_frame<R: Flows>(s: &BlockStep<R>) {
                 value_at(s, *v, i, one)
             };
             s.sink.trajectory[j].set((s.base + i) * frames + frame, x);
-        }
-    }
-}
-
-impl<R: Flows> BlockObservers<R> {
-    /// The chaos indicators' outputs of the block's trajectories.
-    fn finish_indicators(
-        &self,
-        p: &Program<R>,
-        l: &Lanes<R>,
-        sink: &Sink<R>,
-        base: usize,
-        count: usize,
-        status: &[u64; LANES],
-    ) {
-        let dt = l.at(p.dt_lane);
-        for i in 0..count {
-            let (nonfinite, stop) = slots::split_status(status[i]);
-            let slot = |k: usize| self.real[k][i];
-            let (lyap, fli, megno) =
-                slots::indicators_finish(p.plan, slot, dt[i], nonfinite == 0, stop);
-            for (j, x) in lyap.iter().enumerate() {
-                sink.lyapunov.set((base + i) * lyap.len() + j, *x);
-            }
-            if p.plan.observers.fli.is_some() {
-                sink.fli.set(base + i, fli);
-            }
-            if p.plan.observers.megno.is_some() {
-                sink.megno.set(base + i, megno);
-            }
         }
     }
 }

@@ -60,6 +60,17 @@ impl<R: Copy, const N: usize> Inputs<R, N> for [[R; N]] {
     }
 }
 
+/// Arrays by reference, by input index: callers whose inputs live in
+/// several places (lanes, observer slots).
+impl<R: Copy, const N: usize> Inputs<R, N> for [&[R; N]] {
+    fn array(&self, k: u32) -> &[R; N] {
+        self[k as usize]
+    }
+    fn scalar(&self, k: u32) -> R {
+        self[k as usize][0]
+    }
+}
+
 impl<R: Real> Tape<R> {
     /// Allocates registers for `l` (a register is free again after the last
     /// instruction that reads it; outputs are never freed). Every output is
