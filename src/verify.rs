@@ -2,7 +2,13 @@
 //! every scheme, run on a chosen backend and precision. A user runs this to
 //! trust reeb on their machine; CI runs it too.
 
+pub mod check;
+pub mod indicators;
+
 use std::f64::consts::PI;
+
+pub(crate) use check::{bound, check, failed, fmt};
+pub use check::{Check, Target};
 
 use crate::backend::Engine;
 use crate::models::exact;
@@ -12,96 +18,6 @@ use crate::plan::observations::Observations;
 use crate::plan::observers::{CycleObs, TrajectoryObs};
 use crate::plan::scheme::{Scheme, SchemeKind, SCHEME_NAMES};
 use crate::plan::{Plan, Problem, Source};
-
-/// What `reeb verify` checks: a backend at a precision.
-pub struct Target {
-    pub engine: Engine,
-    pub precision: Precision,
-}
-
-impl Target {
-    /// Integrates `plan`, observations widened to f64.
-    pub(crate) fn run(&self, plan: &Plan) -> Result<Observations<f64>, String> {
-        self.engine
-            .run_f64(plan, self.precision)
-            .map(|(o, _)| o)
-            .map_err(|e| e.to_string())
-    }
-    fn precision(&self) -> Precision {
-        self.precision
-    }
-    /// e.g. "cpu (2 threads)" or "gpu: llvmpipe …".
-    pub fn describe(&self) -> String {
-        self.engine.describe()
-    }
-}
-
-/// One row of the report.
-#[derive(Debug, Clone)]
-pub struct Check {
-    pub group: &'static str,
-    pub name: String,
-    pub expected: String,
-    pub measured: String,
-    pub tolerance: String,
-    pub pass: bool,
-}
-
-fn check(
-    group: &'static str,
-    name: impl Into<String>,
-    expected: f64,
-    measured: f64,
-    tol: f64,
-) -> Check {
-    Check {
-        group,
-        name: name.into(),
-        expected: fmt(expected),
-        measured: fmt(measured),
-        tolerance: format!("±{}", fmt(tol)),
-        pass: (measured - expected).abs() <= tol,
-    }
-}
-
-pub(crate) fn bound(
-    group: &'static str,
-    name: impl Into<String>,
-    what: &str,
-    measured: f64,
-    max: f64,
-) -> Check {
-    Check {
-        group,
-        name: name.into(),
-        expected: what.into(),
-        measured: fmt(measured),
-        tolerance: format!("≤ {}", fmt(max)),
-        pass: measured <= max,
-    }
-}
-
-pub(crate) fn failed(group: &'static str, name: impl Into<String>, why: String) -> Check {
-    Check {
-        group,
-        name: name.into(),
-        expected: "-".into(),
-        measured: why,
-        tolerance: "-".into(),
-        pass: false,
-    }
-}
-
-pub(crate) fn fmt(x: f64) -> String {
-    if x == 0.0 || (1e-3..1e5).contains(&x.abs()) {
-        format!("{x:.8}")
-            .trim_end_matches('0')
-            .trim_end_matches('.')
-            .to_string()
-    } else {
-        format!("{x:.4e}")
-    }
-}
 
 /// Maximum that treats NaN as infinitely bad (`f64::max` would drop it).
 fn nan_max(a: f64, b: f64) -> f64 {
@@ -126,7 +42,7 @@ type CheckGroup = fn(&Target, bool) -> Vec<Check>;
 /// Runs every check on `engine`, calling `each` as rows complete.
 pub fn run_all(engine: &Target, mut each: impl FnMut(&Check)) -> Vec<Check> {
     let f32 = engine.precision() == Precision::F32;
-    let groups: [CheckGroup; 9] = [
+    let groups: [CheckGroup; 10] = [
         harmonic_period,
         van_der_pol_amplitude,
         van_der_pol_fixed_point,
@@ -136,6 +52,7 @@ pub fn run_all(engine: &Target, mut each: impl FnMut(&Check)) -> Vec<Check> {
         lienard_slope,
         damped_exact,
         convergence_orders,
+        indicators::checks,
     ];
     let mut rows = vec![];
     for group in groups {

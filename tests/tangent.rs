@@ -2,128 +2,36 @@
 //! one source (`plan/tangent.rs`), against central finite differences of
 //! the compiled step, for every model and scheme.
 
-use reeb::models::lanes::Lane;
 use reeb::models::spec::Op;
 use reeb::models::{scalar_fn, Model, MODEL_NAMES};
-use reeb::num::formula::tape::Tape;
-use reeb::num::isa::Isa;
 use reeb::plan::problem::{Problem, Source};
 use reeb::plan::scheme::SCHEME_NAMES;
-use reeb::plan::tangent::{TangentInput, TangentStep};
+use reeb::plan::tangent::TangentStep;
 use reeb::plan::Plan;
+use reeb::verify::indicators::{
+    difference_columns, formula_plans, full_problem, lane_at, start, tangent_columns,
+    with_indicators,
+};
 
 const C: fn(f64) -> Source = Source::Const;
 
-/// A problem of every model with every term switched on (forcing, time
-/// dependence, damping), at `scheme`.
 fn problem(name: &str, scheme: &str) -> Problem {
-    let p = Problem::new(Model::from_name(name).unwrap(), scheme).unwrap();
-    let mut p = match name {
-        "damped_oscillator" => p
-            .param("alpha", C(0.3))
-            .param("forcing_amplitude", C(0.5))
-            .param("forcing_frequency", C(1.3)),
-        "van_der_pol" => p
-            .param("epsilon", C(1.3))
-            .param("forcing_amplitude", C(0.4))
-            .param("forcing_frequency", C(1.1)),
-        "kepler" => p.param("alpha", C(0.05)).param("theta", C(2.0)),
-        "lane_emden" => p.param("index", C(3.0)).initial("t0", C(0.5)),
-        "spin_orbit" => p
-            .param("eccentricity", C(0.2))
-            .param("epsilon", C(0.3))
-            .param("lambda", C(0.1))
-            .param("omega", C(2.0))
-            .param("tidal_k", C(0.05))
-            .param("tidal_eta", C(1.2)),
-        "quadratic_s" => p.param("gamma", C(0.5)).param("r", C(0.1)),
-        _ => p,
-    };
-    if let Model::Lienard { f, g } = &mut p.model {
-        *f = vec![-1.0, 0.0, 1.0];
-        *g = vec![0.0, 1.0, 0.0, 0.3];
-    }
-    p.dt = C(0.07);
-    p
-}
-
-/// A state to differentiate at, by variable.
-fn start(var: &str) -> f64 {
-    match var {
-        "q" => 0.7,
-        "p" => -0.4,
-        "s" => 0.2,
-        "q1" => 0.9,
-        "q2" => 0.3,
-        "p1" => -0.2,
-        "p2" => 1.1,
-        _ => 0.1,
-    }
-}
-
-/// The plan's inputs in one lane, the state at `x`.
-fn lane(plan: &Plan, x: &[(&str, f64)]) -> Lane<f64> {
-    let mut l = Lane::<f64>::default();
-    for (name, source) in &plan.bindings {
-        if let Source::Const(v) = source {
-            *l.get_mut(name).unwrap() = *v;
-        }
-    }
-    for (v, value) in x {
-        *l.get_mut(v).unwrap() = *value;
-    }
-    l
-}
-
-/// Step number `n` of the plan as compiled (the scalar ops).
-fn step(plan: &Plan, l: &mut Lane<f64>, n: u64) {
-    let (t0, dt) = (l.get("t0").unwrap(), l.get("dt").unwrap());
-    for op in &plan.ops {
-        match *op {
-            Op::Tau(c) => *l.get_mut("tau").unwrap() = c * dt,
-            Op::Time(c) => *l.get_mut("t").unwrap() = t0 + n as f64 * dt + c * dt,
-            Op::Call(name) => scalar_fn::<f64>(name).unwrap()(l),
-        }
-    }
-}
-
-/// The tangent program applied to the unit vectors (its columns).
-fn jacobian(plan: &Plan, x: &[(&str, f64)], n: u64) -> (Vec<&'static str>, Vec<Vec<f64>>) {
-    let space = TangentStep::new(&plan.step_spec(), 1).unwrap().space;
-    let d = space.len();
-    let t = TangentStep::new(&plan.step_spec(), d).unwrap();
-    let l = lane(plan, x);
-    let inputs: Vec<[f64; 1]> = t
-        .inputs
-        .iter()
-        .map(|i| match *i {
-            TangentInput::Lane(name) => [l.get(name).unwrap()],
-            TangentInput::Step => [n as f64],
-            TangentInput::Deviation { k, j } => [if k == j { 1.0 } else { 0.0 }],
-        })
-        .collect();
-    let tape = Tape::<f64>::new(&t.program, |_| false);
-    let mut regs = vec![[0.0; 1]; tape.registers];
-    tape.run(&mut regs, &inputs[..], Isa::Baseline);
-    let cols = (0..d)
-        .map(|k| (0..d).map(|j| tape.output(&regs, k * d + j)[0]).collect())
-        .collect();
-    (t.space, cols)
+    full_problem(name, scheme).unwrap()
 }
 
 #[test]
 fn tangents_are_finite_differences_of_the_step() {
     let (mut checked, mut refused) = (0, vec![]);
-    for name in MODEL_NAMES {
-        for scheme in SCHEME_NAMES {
-            let Ok(plan) = Plan::new(&problem(name, scheme)) else {
-                continue; // a method this model does not offer
-            };
-            let what = format!("{name} {scheme}");
+    for scheme in SCHEME_NAMES {
+        let built_in = MODEL_NAMES
+            .iter()
+            .filter_map(|m| Plan::new(&problem(m, scheme)).ok());
+        for plan in built_in.chain(formula_plans(scheme, 10, "")) {
+            let what = format!("{} {scheme}", plan.model.name());
             let x: Vec<(&str, f64)> = plan.vars.iter().map(|v| (*v, start(v))).collect();
             let n = 3;
-            let (space, cols) = match TangentStep::new(&plan.step_spec(), 1) {
-                Ok(_) => jacobian(&plan, &x, n),
+            let (space, cols) = match tangent_columns(&plan, &x, n) {
+                Ok(j) => j,
                 // Only a comparison method may have no tangent (Lane–Emden's
                 // RK4 and leapfrog branch on t = 0), refused by name.
                 Err(e) if ["rk4", "leapfrog", "variational1", "variational2"].contains(scheme) => {
@@ -133,21 +41,10 @@ fn tangents_are_finite_differences_of_the_step() {
                 }
                 Err(e) => panic!("{what}: {e}"),
             };
+            let fd = difference_columns(&plan, &x, &space, n, 1e-6);
             for (k, var) in space.iter().enumerate() {
-                let h = 1e-6;
-                let moved = |sign: f64| {
-                    let y: Vec<(&str, f64)> = x
-                        .iter()
-                        .map(|(v, val)| (*v, if v == var { val + sign * h } else { *val }))
-                        .collect();
-                    let mut l = lane(&plan, &y);
-                    step(&plan, &mut l, n);
-                    l
-                };
-                let (up, down) = (moved(1.0), moved(-1.0));
                 for (j, out) in space.iter().enumerate() {
-                    let fd = (up.get(out).unwrap() - down.get(out).unwrap()) / (2.0 * h);
-                    let got = cols[k][j];
+                    let (got, fd) = (cols[k][j], fd[k][j]);
                     assert!(
                         (got - fd).abs() <= 1e-6 * fd.abs().max(1.0),
                         "{what}: d{out}/d{var} = {got}, finite differences {fd}"
@@ -157,8 +54,9 @@ fn tangents_are_finite_differences_of_the_step() {
             checked += 1;
         }
     }
-    // 7 models × 12 splitting schemes, and the methods each model offers.
-    assert!(checked >= 7 * 12 + 20, "{checked} model × scheme pairs");
+    // 7 built-in and 3 formula models × 12 splitting schemes, less the
+    // comparison methods a model does not offer or refuses.
+    assert!(checked >= 130, "{checked} model × scheme pairs");
     assert!(refused.len() <= 4, "refused: {refused:?}");
     eprintln!("{checked} pairs checked; refused: {refused:?}");
 }
@@ -186,21 +84,13 @@ mod common;
 
 use reeb::backend::{cpu, gpu};
 use reeb::plan::observations::Observations;
-use reeb::plan::observers::{LyapunovObs, SampledObs};
+use reeb::plan::observers::TrajectoryObs;
+use reeb::reference::variational::flow_exponents;
 
 /// `problem` asking for `k` exponents (re-orthonormalised every `every`
 /// steps), FLI and MEGNO, over `steps` steps of `dt`.
-fn indicators(mut p: Problem, k: usize, every: u64, steps: u64, dt: f64) -> Plan {
-    p.dt = C(dt);
-    p.steps = steps;
-    p.observers.lyapunov = Some(LyapunovObs {
-        vectors: k,
-        every,
-        skip: 0.0,
-    });
-    p.observers.fli = Some(SampledObs { every });
-    p.observers.megno = Some(SampledObs { every });
-    Plan::new(&p).unwrap()
+fn indicators(p: Problem, k: usize, every: u64, steps: u64, dt: f64) -> Plan {
+    Plan::new(&with_indicators(p, k, every, 0.0, steps, dt)).unwrap()
 }
 
 fn exponents(o: &Observations<f64>, i: usize) -> Vec<f64> {
@@ -223,7 +113,8 @@ fn linear_damped_oscillator_exponents_are_the_step_eigenvalues() {
     let l = exponents(&o, 0);
     // M from the compiled step (finite differences are exact for a linear map).
     let x = [("q", 0.3), ("p", -0.2), ("s", 0.0)];
-    let (_, cols) = jacobian(&plan, &x, 0);
+    let (space, _) = tangent_columns(&plan, &x, 0).unwrap();
+    let cols = difference_columns(&plan, &x, &space, 0, 1e-6);
     let (a, b, c, d) = (cols[0][0], cols[1][0], cols[0][1], cols[1][1]);
     let (tr, det) = (a + d, a * d - b * c);
     let disc = (tr * tr / 4.0 - det).sqrt();
@@ -256,7 +147,7 @@ fn van_der_pol_exponents_obey_the_sum_rule() {
     let plan = indicators(p, 2, 5, steps, dt);
     let o = cpu::run::<f64>(&plan, None);
     let l = exponents(&o, 0);
-    let mut lane = lane(&plan, &[("q", 0.5), ("s", 0.0)]);
+    let mut lane = lane_at(&plan, &[("q", 0.5), ("s", 0.0)]);
     let mut contraction = 0.0;
     for n in 0..steps {
         let (t0, h) = (lane.get("t0").unwrap(), lane.get("dt").unwrap());
@@ -279,6 +170,46 @@ fn van_der_pol_exponents_obey_the_sum_rule() {
     assert!(
         (got - want).abs() <= 1e-9 * want.abs(),
         "λ₁ + λ₂ = {got}, sum rule {want}"
+    );
+}
+
+/// The exponents of the numerical maps converge to the flow's (variational
+/// equations integrated by DOP853) as dt → 0: the forced van der Pol on its
+/// regular attractor (A = ε = 5, ω = 2.45).
+#[test]
+fn map_exponents_converge_to_the_flows() {
+    let (t, skip) = (300.0, 0.2);
+    let p = |scheme: &str| {
+        Problem::new(Model::VanDerPol, scheme)
+            .unwrap()
+            .param("epsilon", C(5.0))
+            .param("forcing_amplitude", C(5.0))
+            .param("forcing_frequency", C(2.45))
+            .initial("q", C(2.0))
+            .initial("s", C(2.0))
+    };
+    let map = |scheme: &str, dt: f64| {
+        let plan = Plan::new(&with_indicators(
+            p(scheme),
+            2,
+            10,
+            skip,
+            (t / dt) as u64,
+            dt,
+        ))
+        .unwrap();
+        cpu::run::<f64>(&plan, None).lyapunov
+    };
+    let plan = Plan::new(&with_indicators(p("s2"), 2, 10, skip, 100, 0.01)).unwrap();
+    let flow = flow_exponents(&plan, 0, 2, (t, skip * t, 1.0), 1e-10).unwrap();
+    let error = |l: &[f64]| (l[0] - flow[0]).abs().max((l[1] - flow[1]).abs());
+    let coarse = error(&map("s2", 0.02));
+    let fine = error(&map("triple_jump4", 0.005));
+    eprintln!("flow {flow:?}: s2 at 0.02 off by {coarse:.2e}, triple_jump4 at 0.005 by {fine:.2e}");
+    assert!(flow[0] < 0.0 && flow[0] + flow[1] < 0.0, "{flow:?}");
+    assert!(
+        fine < 2e-3 && fine < coarse / 10.0,
+        "{fine} against {coarse}"
     );
 }
 
@@ -309,27 +240,54 @@ fn indicators_agree_between_cpu_and_gpu() {
         ("spin_orbit", 2),
         ("quadratic_s", 3),
     ] {
-        let plan = indicators(
-            common::problem(name, "triple_jump4").unwrap(),
-            k,
-            4,
-            2000,
-            0.01,
-        );
+        let mut p = common::problem(name, "triple_jump4").unwrap();
+        p.observers.trajectory = Some(TrajectoryObs {
+            every: 100,
+            vars: vec!["t".into()],
+        });
+        let plan = indicators(p, k, 4, 2000, 0.01);
         let c = cpu::run::<f64>(&plan, None);
         let g = gpu::run::<f64>(ctx, &plan, None).unwrap().observations;
+        assert_eq!(c.frames, 21);
         for (what, a, b) in [
             ("lyapunov", &c.lyapunov, &g.lyapunov),
             ("fli", &c.fli, &g.fli),
             ("megno", &c.megno, &g.megno),
+            (
+                "trajectory_lyapunov",
+                &c.trajectory_lyapunov,
+                &g.trajectory_lyapunov,
+            ),
+            ("trajectory_fli", &c.trajectory_fli, &g.trajectory_fli),
+            ("trajectory_megno", &c.trajectory_megno, &g.trajectory_megno),
         ] {
+            assert_eq!(a.len(), b.len(), "{name} {what}");
+            assert!(!a.is_empty(), "{name} {what}");
             for (x, y) in a.iter().zip(b.iter()) {
                 assert!(
-                    (x - y).abs() <= 1e-9 * x.abs().max(1e-3),
+                    (x - y).abs() <= 1e-9 * x.abs().max(1e-3) || x.is_nan() && y.is_nan(),
                     "{name} {what}: CPU {x} GPU {y}"
                 );
             }
         }
+        running_values_end_at_the_outputs(name, &c);
+    }
+}
+
+/// The last trajectory frame (the run's last step) holds each indicator's
+/// output; the first (step 0) holds none yet.
+fn running_values_end_at_the_outputs(name: &str, o: &Observations<f64>) {
+    let (f, k) = (o.frames, o.exponents);
+    for i in 0..o.n {
+        let last = (i * f + f - 1) * k;
+        assert_eq!(
+            o.trajectory_lyapunov[last..last + k],
+            o.lyapunov[i * k..(i + 1) * k],
+            "{name}"
+        );
+        assert_eq!(o.trajectory_fli[i * f + f - 1], o.fli[i], "{name}");
+        assert_eq!(o.trajectory_megno[i * f + f - 1], o.megno[i], "{name}");
+        assert!(o.trajectory_fli[i * f].is_nan() && o.trajectory_lyapunov[i * f * k].is_nan());
     }
 }
 

@@ -185,6 +185,7 @@ def test_chaos_indicators_reach_the_dataset():
             "integrator": {"scheme": "triple_jump4", "dt": 0.05, "steps": 400},
             "output": {
                 "final": ["q"],
+                "trajectory": {"every": 40, "vars": ["q"]},
                 "lyapunov": {"vectors": 2, "every": 4},
                 "fli": True,
                 "megno": True,
@@ -200,3 +201,11 @@ def test_chaos_indicators_reach_the_dataset():
     np.testing.assert_allclose(total, -ds.alpha.broadcast_like(total), rtol=1e-10)
     assert (ds.lyapunov.isel(exponent=0) >= ds.lyapunov.isel(exponent=1)).all()
     assert np.isfinite(ds.fli).all() and np.isfinite(ds.megno).all()
+    # Running values per trajectory frame, ending at the outputs.
+    assert ds.trajectory_lyapunov.dims == ("alpha", "q", "frame", "exponent")
+    assert ds.trajectory_fli.dims == ds.trajectory_megno.dims == ("alpha", "q", "frame")
+    last = {"frame": -1}
+    np.testing.assert_array_equal(ds.trajectory_lyapunov.isel(last), ds.lyapunov)
+    np.testing.assert_array_equal(ds.trajectory_fli.isel(last), ds.fli)
+    np.testing.assert_array_equal(ds.trajectory_megno.isel(last), ds.megno)
+    assert np.isnan(ds.trajectory_fli.isel(frame=0)).all()

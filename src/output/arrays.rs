@@ -115,6 +115,7 @@ pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Ve
     if scene.megno.is_some() {
         out.push(scalar("megno.npy", real::<R>(), &obs.megno));
     }
+    out.extend(indicator_frames(scene, obs));
     // status: 0 ok, 1 non-finite, 2 stopped; status_step: the step it
     // became non-finite or stopped after (−1: neither).
     let (status, step): (Vec<u8>, Vec<i64>) = (0..obs.n)
@@ -127,6 +128,34 @@ pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Ve
     out.push(owned(scalar("status.npy", "|u1", &status)));
     out.push(owned(scalar("status_step.npy", "<i8", &step)));
     Ok(out)
+}
+
+/// The indicators' running values per trajectory frame:
+/// `trajectory_lyapunov.npy` (axes × frame × exponent),
+/// `trajectory_fli.npy`, `trajectory_megno.npy` (axes × frame).
+fn indicator_frames<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Vec<Array<'a>> {
+    let mut out = vec![];
+    if scene.trajectory.is_none() || obs.frames == 0 {
+        return out;
+    }
+    let framed = |file: &str, data: &'a [R]| Array {
+        inner: vec![obs.frames as u64],
+        inner_names: vec!["frame"],
+        ..scalar(file, real::<R>(), data)
+    };
+    if scene.lyapunov.is_some() {
+        let mut a = framed("trajectory_lyapunov.npy", &obs.trajectory_lyapunov);
+        a.inner.push(obs.exponents as u64);
+        a.inner_names.push("exponent");
+        out.push(a);
+    }
+    if scene.fli.is_some() {
+        out.push(framed("trajectory_fli.npy", &obs.trajectory_fli));
+    }
+    if scene.megno.is_some() {
+        out.push(framed("trajectory_megno.npy", &obs.trajectory_megno));
+    }
+    out
 }
 
 /// Each trajectory's resonance: the index into `r.ratios` of the one its

@@ -65,6 +65,8 @@ pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &Observations<R>) -> Result<V
     };
     files.extend(pictures.phase_portrait(d)?);
     files.extend(pictures.poincare_portrait(d)?);
+    files.extend(pictures.poincare_by_fli(d)?);
+    files.extend(pictures.running_indicators(d)?);
     files.extend(pictures.bifurcation_diagram(d)?);
     if let Some(r) = &scene.resonance {
         let index = crate::output::arrays::resonance(r, d)?;
@@ -343,6 +345,7 @@ impl<'a> Pictures<'a> {
             let label = &round_off_label(label, &grid, self.precision);
             let label = &match file.as_str() {
                 "megno" => clip_to(&mut grid, label, MEGNO_RANGE),
+                "fli" => clip_to(&mut grid, label, fli_range(self.scene)),
                 _ => clip_outliers(&mut grid, label),
             };
             let name = format!("{file}.png");
@@ -463,14 +466,123 @@ impl<'a> Pictures<'a> {
         let series: Vec<Series> = (0..xs.len())
             .map(|c| Series::new(&labels[c], &xs[c], &ys[c]))
             .collect();
-        let x_range = match wrap_x {
-            Some("2pi") => Some((0.0, 2.0 * PI)),
-            Some("pi") => Some((-PI, PI)),
-            _ => None,
+        let fig = self.figure(names[jx], names[jy]);
+        plot::point_cloud(
+            &self.dir.join("poincare.png"),
+            &fig,
+            &series,
+            x_range(wrap_x),
+            None,
+        )?;
+        Ok(Some("poincare.png".into()))
+    }
+
+    /// The Poincaré portrait with each orbit's points coloured by its FLI
+    /// (`poincare_fli.png`, on [`fli_range`]), if the run has both.
+    fn poincare_by_fli<R: Real>(&self, d: &Observations<R>) -> Result<Option<String>> {
+        if d.max_points == 0 || d.poincare.len() < 2 || d.fli.is_empty() {
+            return Ok(None);
+        }
+        let names: Vec<&str> = d.poincare.iter().map(|(v, _)| v.as_str()).collect();
+        let (jx, jy) = poincare_pair(self.scene, &names);
+        let wrap_x = self.scene.plot.wrap_x.as_deref();
+        let (mut x, mut y, mut fli) = (vec![], vec![], vec![]);
+        for i in 0..self.n {
+            let k = (d.poincare_count[i] as usize).min(d.max_points);
+            for p in i * d.max_points..i * d.max_points + k {
+                x.push(wrap(wrap_x, d.poincare[jx].1[p].to_f64()));
+                y.push(d.poincare[jy].1[p].to_f64());
+                fli.push(d.fli[i].to_f64());
+            }
+        }
+        let range = fli_range(self.scene);
+        let label = format!(
+            "the orbit's FLI (the largest in a pixel; clipped to [{}, {}])",
+            fmt_significant(range.0, 3),
+            fmt_significant(range.1, 3)
+        );
+        let by_value = plot::ByValue {
+            values: &fli,
+            range,
+            label: &label,
         };
         let fig = self.figure(names[jx], names[jy]);
-        plot::point_cloud(&self.dir.join("poincare.png"), &fig, &series, x_range, None)?;
-        Ok(Some("poincare.png".into()))
+        let file = "poincare_fli.png";
+        let series = Series::new("", &x, &y);
+        plot::valued_cloud(
+            &self.dir.join(file),
+            &fig,
+            &series,
+            &by_value,
+            x_range(wrap_x),
+            None,
+        )?;
+        Ok(Some(file.into()))
+    }
+
+    /// Each indicator's running value against the step for the trajectories
+    /// a phase portrait shows (`trajectory_lyapunov_1.png`,
+    /// `trajectory_fli.png`, `trajectory_megno.png`), if frames recorded them.
+    fn running_indicators<R: Real>(&self, d: &Observations<R>) -> Result<Vec<String>> {
+        let (frames, k) = (d.frames, d.exponents);
+        if frames <= 1 {
+            return Ok(vec![]);
+        }
+        let every = self.scene.trajectory.as_ref().map_or(1, |(e, _)| *e);
+        let step: Vec<f64> = (0..frames).map(|f| (f as u64 * every) as f64).collect();
+        let count = self.scene.plot.max_trajectories.max(1).min(self.n);
+        let chosen: Vec<usize> = (0..count).map(|c| c * self.n / count).collect();
+        let labels: Vec<String> = chosen
+            .iter()
+            .map(|i| trajectory_label(self.scene, *i, &self.strides))
+            .collect();
+        type Running<'d> = (
+            &'static str,
+            &'static str,
+            Box<dyn Fn(usize, usize) -> f64 + 'd>,
+        );
+        let mut running: Vec<Running> = vec![];
+        if !d.trajectory_lyapunov.is_empty() && k > 0 {
+            running.push((
+                "trajectory_lyapunov_1",
+                "λ1 so far",
+                Box::new(|i, f| d.trajectory_lyapunov[(i * frames + f) * k].to_f64()),
+            ));
+        }
+        if !d.trajectory_fli.is_empty() {
+            running.push((
+                "trajectory_fli",
+                "FLI so far",
+                Box::new(|i, f| d.trajectory_fli[i * frames + f].to_f64()),
+            ));
+        }
+        if !d.trajectory_megno.is_empty() {
+            running.push((
+                "trajectory_megno",
+                "MEGNO ⟨Y⟩ so far",
+                Box::new(|i, f| d.trajectory_megno[i * frames + f].to_f64()),
+            ));
+        }
+        let mut files = vec![];
+        for (file, label, at) in running {
+            let ys: Vec<Vec<f64>> = chosen
+                .iter()
+                .map(|i| (0..frames).map(|f| at(*i, f)).collect())
+                .collect();
+            let series: Vec<Series> = (0..chosen.len())
+                .map(|c| Series::new(&labels[c], &step, &ys[c]))
+                .collect();
+            let name = format!("{file}.png");
+            plot::lines(
+                &self.dir.join(&name),
+                &self.figure("step", label),
+                &series,
+                false,
+                false,
+            )?;
+            files.push(name);
+        }
+        Ok(files)
     }
 
     /// Which resonance each trajectory was captured in, over the first two
@@ -626,12 +738,30 @@ fn clip_outliers(grid: &mut [f64], label: &str) -> String {
 /// for quasi-periodic orbits, growing for chaotic ones.
 const MEGNO_RANGE: (f64, f64) = (0.0, 8.0);
 
+/// The FLI's colour range in maps and portraits: [0, 2 ln T], T the run's
+/// time. A regular orbit's deviation grows linearly (its FLI ends near
+/// ln T), a chaotic one's exponentially: FLI maps are read against ln T,
+/// and everything well beyond it is chaotic, so the scale saturates there.
+fn fli_range(scene: &Scene) -> (f64, f64) {
+    (0.0, (2.0 * scene.duration().ln()).max(1.0))
+}
+
 /// Clips the grid's values to `range` and says so in the returned label.
 fn clip_to(grid: &mut [f64], label: &str, (lo, hi): (f64, f64)) -> String {
     for x in grid.iter_mut().filter(|x| x.is_finite()) {
         *x = x.clamp(lo, hi);
     }
+    let (lo, hi) = (fmt_significant(lo, 3), fmt_significant(hi, 3));
     format!("{label} (colours clipped to [{lo}, {hi}])")
+}
+
+/// The x range of a portrait whose x is wrapped (`plot.wrap_x`).
+fn x_range(wrap_x: Option<&str>) -> Option<(f64, f64)> {
+    match wrap_x {
+        Some("2pi") => Some((0.0, 2.0 * PI)),
+        Some("pi") => Some((-PI, PI)),
+        _ => None,
+    }
 }
 
 /// Colours on a log scale: every finite value positive, spanning more than

@@ -574,6 +574,19 @@ fn load<R: Real>(scene: &Scene, src: &Source, obs: &mut Observations<R>) -> Resu
     if scene.megno.is_some() {
         obs.megno = src.values("megno.npy", n, size)?;
     }
+    if scene.trajectory.is_some() && obs.frames > 0 {
+        let frame = size * obs.frames as u64;
+        if scene.lyapunov.is_some() {
+            let row = frame * obs.exponents as u64;
+            obs.trajectory_lyapunov = src.values("trajectory_lyapunov.npy", n, row)?;
+        }
+        if scene.fli.is_some() {
+            obs.trajectory_fli = src.values("trajectory_fli.npy", n, frame)?;
+        }
+        if scene.megno.is_some() {
+            obs.trajectory_megno = src.values("trajectory_megno.npy", n, frame)?;
+        }
+    }
     let steps: Vec<i64> = src.values("status_step.npy", n, 8)?;
     let status: Vec<u8> = src.values("status.npy", n, 1)?;
     for (i, (s, step)) in status.iter().zip(&steps).enumerate() {

@@ -171,6 +171,13 @@ observations! {
     fli: Plain R, per one, when fli;
     /// MEGNO ⟨Y⟩ at the last sample.
     megno: Plain R, per one, when megno;
+    /// The exponents so far at each trajectory frame (`frames × exponents`
+    /// per trajectory; NaN before the first counted sample).
+    trajectory_lyapunov: Plain R, per frame_exponents, when lyapunov_frames;
+    /// The FLI so far at each trajectory frame (NaN before the first sample).
+    trajectory_fli: Plain R, per frames, when fli_frames;
+    /// ⟨Y⟩ so far at each trajectory frame (NaN before the first sample).
+    trajectory_megno: Plain R, per frames, when megno_frames;
     /// 0: ok; k > 0: non-finite at step k.
     nonfinite_step: Plain u32, per one, when always;
     /// 0: not stopped; k > 0: stopped by the stop condition after step k.
@@ -213,24 +220,37 @@ struct Shape {
     lyapunov: bool,
     fli: bool,
     megno: bool,
+    /// The indicators' running values per trajectory frame.
+    frame_exponents: u64,
+    lyapunov_frames: bool,
+    fli_frames: bool,
+    megno_frames: bool,
 }
 
 impl Shape {
     /// `None` if the frames per trajectory overflow.
     fn of(plan: &Plan) -> Option<Shape> {
         let max_points = plan.observers.poincare.as_ref().map_or(0, |p| p.max_points) as u64;
+        let frames = frames_per_trajectory(plan)?;
+        let exponents = plan.indicators.as_ref().map_or(0, |i| i.exponents()) as u64;
+        let o = &plan.observers;
+        let framed = frames > 0;
         Some(Shape {
             n: plan.n,
             one: 1,
-            frames: frames_per_trajectory(plan)?,
+            frames,
             max_points,
             always: true,
             points: max_points > 0,
             cycle: plan.cycle_var.is_some(),
-            exponents: plan.indicators.as_ref().map_or(0, |i| i.exponents()) as u64,
-            lyapunov: plan.observers.lyapunov.is_some(),
-            fli: plan.observers.fli.is_some(),
-            megno: plan.observers.megno.is_some(),
+            exponents,
+            lyapunov: o.lyapunov.is_some(),
+            fli: o.fli.is_some(),
+            megno: o.megno.is_some(),
+            frame_exponents: frames.checked_mul(exponents)?,
+            lyapunov_frames: framed && o.lyapunov.is_some(),
+            fli_frames: framed && o.fli.is_some(),
+            megno_frames: framed && o.megno.is_some(),
         })
     }
 }
@@ -303,6 +323,10 @@ impl<R: Real> Observations<R> {
             lyapunov: !self.lyapunov.is_empty(),
             fli: !self.fli.is_empty(),
             megno: !self.megno.is_empty(),
+            frame_exponents: (self.frames * self.exponents) as u64,
+            lyapunov_frames: !self.trajectory_lyapunov.is_empty(),
+            fli_frames: !self.trajectory_fli.is_empty(),
+            megno_frames: !self.trajectory_megno.is_empty(),
         }
     }
 

@@ -159,10 +159,21 @@ pub fn indicators_finish<R: Flows>(
     ok: bool,
     stop_step: u32,
 ) -> (Vec<R>, R, R) {
+    indicators_at(plan, slot, dt, ok, last_step(plan, stop_step))
+}
+
+/// The chaos indicators' values after step `last` (their running values,
+/// which trajectory frames record; at the run's end, the outputs).
+pub fn indicators_at<R: Flows>(
+    plan: &Plan,
+    slot: impl Fn(usize) -> R,
+    dt: R,
+    ok: bool,
+    last: u64,
+) -> (Vec<R>, R, R) {
     let Some(ind) = &plan.indicators else {
         return (vec![], R::nan(), R::nan());
     };
-    let last = last_step(plan, stop_step);
     let first = indicator_first(plan);
     let slot = |k: usize| slot(first + k);
     let lyap = |i: usize| {
@@ -180,6 +191,22 @@ pub fn indicators_finish<R: Flows>(
         value("fli_max"),
         value("megno_mean"),
     )
+}
+
+/// The real slots [`indicators_at`] reads (absolute indices), which the GPU
+/// records per trajectory frame; empty without a trajectory observer.
+pub fn indicator_frame_slots(plan: &Plan) -> Vec<usize> {
+    match (&plan.indicators, &plan.observers.trajectory) {
+        (Some(ind), Some(_)) => {
+            let first = indicator_first(plan);
+            let lyap = (0..ind.exponents()).map(|i| format!("lyap_{i}"));
+            lyap.chain(["fli_max".into(), "megno_mean".into()])
+                .filter_map(|name| ind.slot_of(&name))
+                .map(|k| first + k)
+                .collect()
+        }
+        _ => vec![],
+    }
 }
 
 #[cfg(test)]

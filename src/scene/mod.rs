@@ -322,6 +322,30 @@ impl Scene {
         }
     }
 
+    /// The longest integration time of the ensemble: `steps × dt` (the
+    /// largest dt), or `t_end − t0` (the smallest t0); within a preview's
+    /// step cap.
+    pub fn duration(&self) -> f64 {
+        let extreme = |input: Option<&Input>, max: bool| match input {
+            Some(Input::Const(v)) => *v,
+            Some(Input::Axis(k)) => {
+                let v = self.axes[*k].values.iter().copied();
+                if max {
+                    v.fold(f64::NEG_INFINITY, f64::max)
+                } else {
+                    v.fold(f64::INFINITY, f64::min)
+                }
+            }
+            None => 0.0,
+        };
+        let dt = extreme(Some(&self.dt), true);
+        let capped = |t: f64| self.step_cap.map_or(t, |cap| t.min(cap as f64 * dt));
+        match self.horizon {
+            Horizon::Steps(n) => capped(n as f64 * dt),
+            Horizon::TEnd(t_end) => capped(t_end - extreme(self.initial.get("t0"), false)),
+        }
+    }
+
     /// Number of trajectories. The size gate of [`Scene::parse`] refuses an
     /// ensemble whose count overflows (or whose status alone exceeds the
     /// memory), and [`Scene::preview`] only thins axes, so the product is

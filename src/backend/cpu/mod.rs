@@ -379,6 +379,7 @@ fn run_block<R: Flows>(
             eval_field(p, l, &mut regs, 0);
         }
         obs.observe(&after!(0));
+        obs.indicator_frame(&after!(0), 0);
     }
 
     let mut reported = n0;
@@ -436,6 +437,7 @@ fn run_block<R: Flows>(
             let bad: [bool; LANES] = std::array::from_fn(|i| bad >> i & 1 == 1);
             alive -= mark_nonfinite(&bad, &mut status, count, n - 1);
         }
+        obs.indicator_frame(&after!(n), bad);
         if let Some(stop) = &p.stop {
             let real = obs.slots();
             alive -= stop_lanes(

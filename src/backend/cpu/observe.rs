@@ -311,6 +311,38 @@ impl<R: Flows> BlockObservers<R> {
         }
     }
 
+    /// The indicators' running values, if step `n1` is a trajectory frame;
+    /// the lanes in `bad` (non-finite deviation vectors at this step) lose
+    /// the frame's state too, as on the GPU, whose thread leaves its loop.
+    pub fn indicator_frame(&self, s: &BlockStep<R>, bad: u64) {
+        let p = s.p;
+        let (Some(_), Some((frame, frames))) = (&p.indicators, frame_at(s)) else {
+            return;
+        };
+        let dt = s.l.at(p.dt_lane);
+        let o = &p.plan.observers;
+        for i in 0..s.count {
+            let row = (s.base + i) * frames + frame;
+            if bad >> i & 1 == 1 {
+                for column in &s.sink.trajectory {
+                    column.set(row, R::nan());
+                }
+            }
+            let slot = |k: usize| self.real[k][i];
+            let (lyap, fli, megno) =
+                slots::indicators_at(p.plan, slot, dt[i], s.status[i] == 0, s.n1);
+            for (j, x) in lyap.iter().enumerate() {
+                s.sink.trajectory_lyapunov.set(row * lyap.len() + j, *x);
+            }
+            if o.fli.is_some() {
+                s.sink.trajectory_fli.set(row, fli);
+            }
+            if o.megno.is_some() {
+                s.sink.trajectory_megno.set(row, megno);
+            }
+        }
+    }
+
     /// Final values, cycle statistics, point counts and status of the block.
     pub fn finish(
         &self,
@@ -389,17 +421,24 @@ pub fn write_finals<R: Flows>(
     }
 }
 
+/// `(frame, frames per trajectory)` if step `n1` is a trajectory frame.
+fn frame_at<R: Flows>(s: &BlockStep<R>) -> Option<(usize, usize)> {
+    let plan = s.p.plan;
+    let tr = plan.observers.trajectory.as_ref()?;
+    R::frame_due(s.n1 as i32, tr.every as i32).then(|| {
+        (
+            (s.n1 / tr.every) as usize,
+            (plan.steps / tr.every) as usize + 1,
+        )
+    })
+}
+
 /// A trajectory frame, if step `n1` is one: the state at the step's end.
 fn record_frame<R: Flows>(s: &BlockStep<R>) {
     let plan = s.p.plan;
-    let Some(tr) = &plan.observers.trajectory else {
+    let Some((frame, frames)) = frame_at(s) else {
         return;
     };
-    if !R::frame_due(s.n1 as i32, tr.every as i32) {
-        return;
-    }
-    let frame = (s.n1 / tr.every) as usize;
-    let frames = (plan.steps / tr.every) as usize + 1;
     let one = R::from_f64(1.0);
     for (j, v) in plan.trajectory_vars.iter().enumerate() {
         for i in 0..s.count {

@@ -211,6 +211,12 @@ fn shared_text(
     Ok(text)
 }
 
+/// Values per trajectory frame in `traj_out`: the recorded variables', then
+/// the indicators' slots that make their running values.
+pub(super) fn frame_width(plan: &Plan) -> usize {
+    plan.trajectory_vars.len() + slots::indicator_frame_slots(plan).len()
+}
+
 /// The chaos indicators' programs as WGSL functions over the kernel's
 /// locals: `tangent_step` (the state at the step's start is `prev_<v>`,
 /// the step number `nf`, the deviation vectors the slots `w<k>_<j>`), and
@@ -605,13 +611,15 @@ impl Gen<'_> {
             }
         }
         if plan.observers.trajectory.is_some() || plan.observers.poincare.is_some() {
-            let initial = self.observe_at("0u", true);
+            let mut initial = self.observe_at("0u", true);
+            initial.push_str(&self.indicator_frame("0u"));
             writeln!(begin, "    if u.step0 == 0u {{\n{initial}    }}").unwrap();
         }
         observe.push_str(&self.observe_at("n + 1u", false));
         observe.push_str(&self.cycle());
         observe.push_str(&self.average());
         observe.push_str(&self.indicators());
+        observe.push_str(&self.indicator_frame("n + 1u"));
         observe.push_str(&self.stop());
         (begin, observe)
     }
@@ -660,22 +668,47 @@ impl Gen<'_> {
 
     /// A trajectory frame, if step `n1` is one.
     fn frame(&self, n1: &str) -> String {
-        let mut s = String::new();
         let Some(tr) = &self.plan.observers.trajectory else {
-            return s;
+            return String::new();
         };
-        let nv = self.plan.trajectory_vars.len();
-        writeln!(
-            s,
-            "        if frame_due(i32({n1}), {}) {{\n            let fr = ({n1}) / {}u - u.frame0;",
-            tr.every, tr.every
-        )
-        .unwrap();
-        for (j, v) in self.plan.trajectory_vars.iter().enumerate() {
+        let values = self
+            .plan
+            .trajectory_vars
+            .iter()
+            .map(|v| self.value(v, "1.0", n1, false));
+        self.frame_writes(tr.every, n1, 0, values)
+    }
+
+    /// The indicators' slots that make their running values, if step `n1`
+    /// is a trajectory frame (after the frame's state in `traj_out`).
+    fn indicator_frame(&self, n1: &str) -> String {
+        let (Some(tr), Some(_)) = (&self.plan.observers.trajectory, &self.plan.indicators) else {
+            return String::new();
+        };
+        let names = slots::real(self.plan);
+        let values = slots::indicator_frame_slots(self.plan)
+            .into_iter()
+            .map(|k| names[k].0.clone());
+        self.frame_writes(tr.every, n1, self.plan.trajectory_vars.len(), values)
+    }
+
+    /// `values` as a trajectory frame's values `first…` if step `n1` is one.
+    fn frame_writes(
+        &self,
+        every: u64,
+        n1: &str,
+        first: usize,
+        values: impl Iterator<Item = String>,
+    ) -> String {
+        let width = frame_width(self.plan);
+        let mut s = format!(
+            "        if frame_due(i32({n1}), {every}) {{\n            let fr = ({n1}) / {every}u - u.frame0;\n"
+        );
+        for (j, value) in values.enumerate() {
+            let j = first + j;
             writeln!(
                 s,
-                "            traj_out[(fr * {nv}u + {j}u) * u.cap + i] = {};",
-                self.value(v, "1.0", n1, false)
+                "            traj_out[(fr * {width}u + {j}u) * u.cap + i] = {value};"
             )
             .unwrap();
         }

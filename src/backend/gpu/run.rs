@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use wgpu::util::DeviceExt;
 
-use super::codegen::{generate, LOOP_ITERATIONS};
+use super::codegen::{frame_width, generate, LOOP_ITERATIONS};
 use super::context::{GpuContext, GpuError};
 use super::time_table::{self, TimeTable};
 use crate::backend::checkpoint::Checkpoints;
@@ -308,7 +308,7 @@ impl Sizes {
         let b = std::mem::size_of::<R>() as u64;
         let (nv, tv, pv) = (
             plan.vars.len() as u64,
-            plan.trajectory_vars.len() as u64,
+            frame_width(plan) as u64,
             plan.poincare_vars.len() as u64,
         );
         let max_points = plan.observers.poincare.as_ref().map_or(0, |p| p.max_points) as u64;
@@ -585,7 +585,7 @@ impl Dispatcher<'_> {
             seconds += took;
             dispatches += 1;
             if nframes > 0 {
-                read_frames(ctx, sizes, bufs, out, base, count, frame0, nframes)?;
+                read_frames(ctx, plan, sizes, bufs, out, base, count, frame0, nframes)?;
             }
             if let Some(p) = progress {
                 p.fetch_add(count * nsteps, Ordering::Relaxed);
@@ -731,6 +731,7 @@ impl Dispatcher<'_> {
 #[allow(clippy::too_many_arguments)]
 fn read_frames<R: Flows>(
     ctx: &GpuContext,
+    plan: &Plan,
     s: &Sizes,
     bufs: &Buffers,
     out: &mut Observations<R>,
@@ -742,15 +743,49 @@ fn read_frames<R: Flows>(
     let (tv, cap) = (s.tv, s.cap);
     let frames_total = out.frames as u64;
     let frames: Vec<R> = read(ctx, &bufs.traj, &bufs.staging, nframes * tv * cap * s.b)?;
+    let at = |f: u64, j: usize, i: u64| frames[((f * tv + j as u64) * cap + i) as usize];
     for (j, (_, dst)) in out.trajectory.iter_mut().enumerate() {
         for f in 0..nframes {
             for i in 0..count {
-                let src = ((f * tv + j as u64) * cap + i) as usize;
-                dst[((base + i) * frames_total + frame0 + f) as usize] = frames[src];
+                dst[((base + i) * frames_total + frame0 + f) as usize] = at(f, j, i);
+            }
+        }
+    }
+    if plan.indicators.is_none() {
+        return Ok(());
+    }
+    // The indicators' slots of each frame make their running values, as
+    // the CPU makes them from its own slots.
+    let recorded = slots::indicator_frame_slots(plan);
+    let first = plan.trajectory_vars.len();
+    let every = plan.observers.trajectory.as_ref().map_or(1, |t| t.every);
+    for i in 0..count {
+        let g = (base + i) as usize;
+        let dt = lane_dt::<R>(plan, g);
+        for f in 0..nframes {
+            let slot = |k: usize| {
+                let m = recorded.iter().position(|r| *r == k);
+                m.map_or(R::nan(), |m| at(f, first + m, i))
+            };
+            let frame = frame0 + f;
+            let (lyap, fli, megno) = slots::indicators_at(plan, slot, dt, true, frame * every);
+            let row = g * out.frames + frame as usize;
+            let k = lyap.len();
+            out.trajectory_lyapunov[row * k..(row + 1) * k].copy_from_slice(&lyap);
+            if plan.observers.fli.is_some() {
+                out.trajectory_fli[row] = fli;
+            }
+            if plan.observers.megno.is_some() {
+                out.trajectory_megno[row] = megno;
             }
         }
     }
     Ok(())
+}
+
+/// Trajectory `g`'s step in the working precision.
+fn lane_dt<R: Flows>(plan: &Plan, g: usize) -> R {
+    R::from_f64(plan.binding("dt").value_at(plan.first + g, &plan.strides))
 }
 
 /// Maps a small MAP_READ buffer and returns its contents.
@@ -826,9 +861,18 @@ fn collect<R: Flows>(
             (k, _) => Some(u64::from(k).div_ceil(every.max(1))),
         };
         if let (Some(first), true) = (first_nan, every > 0) {
-            for (_, dst) in out.trajectory.iter_mut() {
-                for f in first..out.frames as u64 {
-                    dst[g * out.frames + f as usize] = R::nan();
+            let frames = out.frames;
+            let framed = out.trajectory.iter_mut().map(|(_, x)| (x, 1));
+            let k = out.exponents;
+            let indicators = [
+                (&mut out.trajectory_lyapunov, k),
+                (&mut out.trajectory_fli, 1),
+                (&mut out.trajectory_megno, 1),
+            ];
+            for (dst, width) in framed.chain(indicators) {
+                if !dst.is_empty() {
+                    dst[(g * frames + first as usize) * width..(g + 1) * frames * width]
+                        .fill(R::nan());
                 }
             }
         }
@@ -904,8 +948,8 @@ fn collect_observers<R: Flows>(
             mean[g] = slots::mean_finish(plan, slot(slots::MEAN0 + j), ok, stop);
         }
         if plan.indicators.is_some() {
-            let dt = R::from_f64(plan.binding("dt").value_at(plan.first + g, &plan.strides));
-            let (lyap, fli, megno) = slots::indicators_finish(plan, slot, dt, ok, stop);
+            let (lyap, fli, megno) =
+                slots::indicators_finish(plan, slot, lane_dt::<R>(plan, g), ok, stop);
             let k = lyap.len();
             out.lyapunov[g * k..(g + 1) * k].copy_from_slice(&lyap);
             if plan.observers.fli.is_some() {

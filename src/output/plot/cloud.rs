@@ -20,21 +20,29 @@ fn cloud_axis(fixed: Option<(f64, f64)>, data: Option<(f64, f64)>) -> Axis {
     }
 }
 
-/// Calls `hit(pixel index)` for every point of `s` inside the frame. The
-/// loop is the hot path of `point_cloud` (10⁸ points): no allocation, one
-/// multiply-add per coordinate, NaN and ±∞ rejected by the range tests.
-fn bin_points(s: &Series, xa: &Axis, ya: &Axis, w: usize, h: usize, mut hit: impl FnMut(usize)) {
+/// Calls `hit(pixel index, point index)` for every point of `s` inside the
+/// frame. The loop is the hot path of `point_cloud` (10⁸ points): no
+/// allocation, one multiply-add per coordinate, NaN and ±∞ rejected by the
+/// range tests.
+fn bin_points(
+    s: &Series,
+    xa: &Axis,
+    ya: &Axis,
+    w: usize,
+    h: usize,
+    mut hit: impl FnMut(usize, usize),
+) {
     let (wf, hf) = (w as f64, h as f64);
     let sx = wf / xa.span();
     let sy = hf / ya.span();
     let (x0, y1) = (xa.lo, ya.hi);
-    for (&x, &y) in s.x.iter().zip(s.y.iter()) {
+    for (p, (&x, &y)) in s.x.iter().zip(s.y.iter()).enumerate() {
         let fx = (x - x0) * sx;
         let fy = (y1 - y) * sy;
         if fx >= 0.0 && fx <= wf && fy >= 0.0 && fy <= hf {
             let i = (fx as usize).min(w - 1);
             let j = (fy as usize).min(h - 1);
-            hit(j * w + i);
+            hit(j * w + i, p);
         }
     }
 }
@@ -82,6 +90,8 @@ struct Bins {
     h: usize,
     counts: Vec<u32>,
     top: Vec<u32>,
+    /// Colouring by value: the largest value of each pixel's points.
+    value: Vec<f64>,
 }
 
 impl Bins {
@@ -114,6 +124,11 @@ impl Bins {
     }
 }
 
+/// Axis of the colour bar of values on `range`.
+fn value_axis(range: (f64, f64)) -> Axis {
+    Axis::new(false, Some(range), 0.0)
+}
+
 /// Axis of the colour bar: log10 of the points per pixel, up to `max`.
 fn count_axis(max: u32) -> Axis {
     Axis {
@@ -123,10 +138,19 @@ fn count_axis(max: u32) -> Axis {
     }
 }
 
+/// Points coloured by a value each (a Poincaré portrait by the orbit's
+/// FLI): the values, the colour range and the colour bar's label.
+pub struct ByValue<'a> {
+    pub values: &'a [f64],
+    pub range: (f64, f64),
+    pub label: &'a str,
+}
+
 /// A point cloud ready to draw: axes fixed before the layout, one colour
 /// per series.
 struct Cloud<'s, 'a> {
     series: &'s [Series<'a>],
+    by_value: Option<&'s ByValue<'a>>,
     colours: Vec<Rgb>,
     xa: Axis,
     ya: Axis,
@@ -140,6 +164,7 @@ struct Cloud<'s, 'a> {
 impl<'s, 'a> Cloud<'s, 'a> {
     fn new(
         series: &'s [Series<'a>],
+        by_value: Option<&'s ByValue<'a>>,
         x_range: Option<(f64, f64)>,
         y_range: Option<(f64, f64)>,
     ) -> Self {
@@ -151,6 +176,7 @@ impl<'s, 'a> Cloud<'s, 'a> {
         };
         Self {
             series,
+            by_value,
             colours: series
                 .iter()
                 .enumerate()
@@ -158,7 +184,9 @@ impl<'s, 'a> Cloud<'s, 'a> {
                 .collect(),
             xa: cloud_axis(x_range, ext_x),
             ya: cloud_axis(y_range, ext_y),
-            density: series.len() == 1 && series.iter().all(|s| s.color.is_none()),
+            density: by_value.is_none()
+                && series.len() == 1
+                && series.iter().all(|s| s.color.is_none()),
         }
     }
 
@@ -186,7 +214,10 @@ impl<'s, 'a> Cloud<'s, 'a> {
         }
         if let Some(side) = side {
             let height = f.h() as f64 + 110.0 * st.s;
-            let cb = ColorBar::new(count_axis(max), "points per pixel", vec![], height, st);
+            let cb = match self.by_value {
+                Some(v) => ColorBar::new(value_axis(v.range), v.label, vec![], height, st),
+                None => ColorBar::new(count_axis(max), "points per pixel", vec![], height, st),
+            };
             cb.draw(&side, st, &f)?;
         }
         Ok(())
@@ -200,7 +231,7 @@ impl<'s, 'a> Cloud<'s, 'a> {
         body: &Area<'b>,
         st: &Style,
     ) -> (Area<'b>, Option<Area<'b>>) {
-        if !self.density {
+        if !self.density && self.by_value.is_none() {
             return (body.clone(), None);
         }
         let probe = ColorBar::new(
@@ -220,9 +251,26 @@ impl<'s, 'a> Cloud<'s, 'a> {
     fn bin(&self, w: usize, h: usize) -> Bins {
         let (xa, ya) = (&self.xa, &self.ya);
         let mut counts = vec![0u32; w * h];
+        if let Some(v) = self.by_value {
+            let mut value = vec![f64::NEG_INFINITY; w * h];
+            for s in self.series {
+                bin_points(s, xa, ya, w, h, |k, p| {
+                    counts[k] = counts[k].saturating_add(1);
+                    // NaN (an orbit without a value) never wins.
+                    value[k] = value[k].max(v.values[p]);
+                });
+            }
+            return Bins {
+                w,
+                h,
+                counts,
+                top: vec![],
+                value,
+            };
+        }
         if self.density {
             for s in self.series {
-                bin_points(s, xa, ya, w, h, |k| {
+                bin_points(s, xa, ya, w, h, |k, _| {
                     counts[k] = counts[k].saturating_add(1);
                 });
             }
@@ -231,6 +279,7 @@ impl<'s, 'a> Cloud<'s, 'a> {
                 h,
                 counts,
                 top: vec![],
+                value: vec![],
             };
         }
         // Per series: its hits per pixel (and the pixels it touched, so
@@ -239,7 +288,7 @@ impl<'s, 'a> Cloud<'s, 'a> {
         let mut mine = vec![0u32; w * h];
         let mut touched: Vec<usize> = vec![];
         for (i, s) in self.series.iter().enumerate() {
-            bin_points(s, xa, ya, w, h, |k| {
+            bin_points(s, xa, ya, w, h, |k, _| {
                 if mine[k] == 0 {
                     touched.push(k);
                 }
@@ -254,7 +303,13 @@ impl<'s, 'a> Cloud<'s, 'a> {
             }
             touched.clear();
         }
-        Bins { w, h, counts, top }
+        Bins {
+            w,
+            h,
+            counts,
+            top,
+            value: vec![],
+        }
     }
 
     /// Background with the major grid lines, since the blit covers the
@@ -291,6 +346,17 @@ impl<'s, 'a> Cloud<'s, 'a> {
             return None;
         }
         let t = f64::from(n).ln() / lmax;
+        if let Some(v) = self.by_value {
+            let (lo, hi) = v.range;
+            let x = bins.value[k];
+            // A pixel whose points all lack a value is grey.
+            let grey = (160, 160, 160);
+            return Some(if x.is_finite() {
+                viridis(((x - lo) / (hi - lo)).clamp(0.0, 1.0))
+            } else {
+                grey
+            });
+        }
         if self.density {
             Some(viridis(t))
         } else {
@@ -372,6 +438,29 @@ pub(super) fn point_cloud_impl(
     y_range: Option<(f64, f64)>,
 ) -> Result<(), PlotError> {
     check_series(series)?;
-    let cloud = Cloud::new(series, x_range, y_range);
+    let cloud = Cloud::new(series, None, x_range, y_range);
+    render(path, fig, |body, st| cloud.draw(body, st, fig))
+}
+
+pub(super) fn valued_cloud_impl(
+    path: &Path,
+    fig: &Figure,
+    series: &Series,
+    by_value: &ByValue,
+    x_range: Option<(f64, f64)>,
+    y_range: Option<(f64, f64)>,
+) -> Result<(), PlotError> {
+    let series = std::slice::from_ref(series);
+    check_series(series)?;
+    let (lo, hi) = by_value.range;
+    if by_value.values.len() != series[0].x.len() || !(lo.is_finite() && hi.is_finite() && lo < hi)
+    {
+        return Err(PlotError::Input(format!(
+            "{} values for {} points, colour range [{lo}, {hi}]",
+            by_value.values.len(),
+            series[0].x.len()
+        )));
+    }
+    let cloud = Cloud::new(series, Some(by_value), x_range, y_range);
     render(path, fig, |body, st| cloud.draw(body, st, fig))
 }

@@ -59,12 +59,13 @@ use std::path::Path;
 
 use bars::bars_impl;
 use canvas::guarded;
-use cloud::point_cloud_impl;
+use cloud::{point_cloud_impl, valued_cloud_impl};
 use grid::{class_map_impl, heatmap_impl};
 use lines::lines_impl;
 use loglog::loglog_impl;
 
 pub use axis::{fmt_general, fmt_significant, log_scale};
+pub use cloud::ByValue;
 pub use figure::{palette, Figure, HeatMap, PlotError, Rgb, Series, Slope};
 
 /// Scalar field over a 2-D grid: `values[ix * y.len() + iy]` sits at
@@ -160,6 +161,21 @@ pub fn point_cloud(
     y_range: Option<(f64, f64)>,
 ) -> Result<(), PlotError> {
     guarded(|| point_cloud_impl(path, fig, series, x_range, y_range))
+}
+
+/// A point cloud coloured by a value per point (a Poincaré portrait by
+/// each orbit's FLI): a pixel takes viridis of the largest value among its
+/// points on `by_value.range` (values beyond it clipped, grey where no
+/// point has a value), with a colour bar labelled `by_value.label`.
+pub fn valued_cloud(
+    path: &Path,
+    fig: &Figure,
+    series: &Series,
+    by_value: &ByValue,
+    x_range: Option<(f64, f64)>,
+    y_range: Option<(f64, f64)>,
+) -> Result<(), PlotError> {
+    guarded(|| valued_cloud_impl(path, fig, series, by_value, x_range, y_range))
 }
 
 /// One polyline per series (phase portraits, error against time). A
