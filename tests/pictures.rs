@@ -71,6 +71,9 @@ fn observations(n: usize) -> Observations<f64> {
         lyapunov: vec![],
         fli: vec![],
         megno: vec![],
+        trajectory_lyapunov: vec![],
+        trajectory_fli: vec![],
+        trajectory_megno: vec![],
         nonfinite_step: vec![0; n],
         stop_step: vec![0; n],
     }

@@ -128,13 +128,11 @@ impl<R: Real> IndicatorTapes<R> {
         }
         let mut bad = 0u64;
         for &k in &self.tangent.outputs {
-            for i in (0..LANES).filter(|i| running >> i & 1 == 1) {
-                if !real[k][i].finite() {
-                    bad |= 1 << i;
-                }
+            for i in 0..LANES {
+                bad |= u64::from(!real[k][i].finite()) << i;
             }
         }
-        bad
+        bad & running
     }
 }
 
@@ -209,10 +207,15 @@ fn run<R: Real>(
         p.tape.run(regs, &arrays[..], at.isa);
     }
     // A lane that stopped or became non-finite keeps its indicators.
+    let running: [bool; LANES] = std::array::from_fn(|i| at.running >> i & 1 == 1);
     for (k, &slot) in p.outputs.iter().enumerate() {
         let out = p.tape.output(regs, k);
-        for i in (0..LANES).filter(|i| at.running >> i & 1 == 1) {
-            real[slot][i] = out[i];
+        if at.running == u64::MAX {
+            real[slot] = *out;
+            continue;
+        }
+        for i in 0..LANES {
+            real[slot][i] = if running[i] { out[i] } else { real[slot][i] };
         }
     }
 }

@@ -229,7 +229,11 @@ impl<R: Flows> BlockObservers<R> {
             return 0;
         };
         let running = s.running().fold(0u64, |b, i| b | 1 << i);
-        ind.after_step(s.l, s.prev, &mut self.real, regs, s.n1, running, s.p.isa)
+        // The padding lanes past `count` run too (nothing reads them), so
+        // that a block whose trajectories all run is written whole.
+        let padding = u64::MAX.checked_shl(s.count as u32).unwrap_or(0);
+        let lanes = running | padding;
+        running & ind.after_step(s.l, s.prev, &mut self.real, regs, s.n1, lanes, s.p.isa)
     }
 
     /// Cycle statistics over step `n → n+1`, inside the measuring window.

@@ -319,23 +319,43 @@ fn map2<R: Real, const N: usize>(
     }
 }
 
+/// `d[i] = f(a[i])` (or `f(a[i], b[i])`) for every lane, `f` called by
+/// name. A function passed as `impl Fn` is called through a shim that
+/// LLVM does not inline when the body is large (the transcendental
+/// functions), and the shim is compiled without the caller's target
+/// features: one lane at a time, `fma` and `floor` through libm. Spelled
+/// out, the body is inlined into the lane loop of `run_v3`/`run_v4` and
+/// vectorised, with the same operations, hence the same bits.
+macro_rules! lanes {
+    ($d:ident, $f:path, $a:ident) => {
+        for i in 0..$d.len() {
+            $d[i] = $f($a.at(i));
+        }
+    };
+    ($d:ident, $f:path, $a:ident, $b:ident) => {
+        for i in 0..$d.len() {
+            $d[i] = $f($a.at(i), $b.at(i));
+        }
+    };
+}
+
 #[inline(always)]
 fn unary<R: Real, const N: usize>(op: Prim, d: &mut [R; N], a: impl At<R>) {
     match op {
         Prim::Neg => map1(d, a, |x| -x),
         Prim::Call(f) => match f {
             Func::Sqrt => map1(d, a, R::sqrt),
-            Func::Exp => map1(d, a, R::exp_r),
-            Func::Log => map1(d, a, R::log_r),
-            Func::Sin => map1(d, a, R::sin_r),
-            Func::Cos => map1(d, a, R::cos_r),
-            Func::Tan => map1(d, a, R::tan_r),
-            Func::Atan => map1(d, a, R::atan_r),
-            Func::Sinh => map1(d, a, R::sinh_r),
-            Func::Cosh => map1(d, a, R::cosh_r),
-            Func::Tanh => map1(d, a, R::tanh_r),
+            Func::Exp => lanes!(d, R::exp_r, a),
+            Func::Log => lanes!(d, R::log_r, a),
+            Func::Sin => lanes!(d, R::sin_r, a),
+            Func::Cos => lanes!(d, R::cos_r, a),
+            Func::Tan => lanes!(d, R::tan_r, a),
+            Func::Atan => lanes!(d, R::atan_r, a),
+            Func::Sinh => lanes!(d, R::sinh_r, a),
+            Func::Cosh => lanes!(d, R::cosh_r, a),
+            Func::Tanh => lanes!(d, R::tanh_r, a),
             Func::Abs => map1(d, a, R::abs),
-            Func::Sign => map1(d, a, R::sign_r),
+            Func::Sign => lanes!(d, R::sign_r, a),
         },
         _ => unreachable!("binary operation {op:?} as unary"),
     }
@@ -348,7 +368,7 @@ fn binary<R: Real, const N: usize>(op: Prim, d: &mut [R; N], a: impl At<R>, b: i
         Prim::Sub => map2(d, a, b, |x, y| x - y),
         Prim::Mul => map2(d, a, b, |x, y| x * y),
         Prim::Div => map2(d, a, b, |x, y| x / y),
-        Prim::Call2(Func2::Pow) => map2(d, a, b, R::pow_r),
+        Prim::Call2(Func2::Pow) => lanes!(d, R::pow_r, a, b),
         Prim::Call2(Func2::Min) => map2(d, a, b, R::min_r),
         Prim::Call2(Func2::Max) => map2(d, a, b, R::max_r),
         _ => unreachable!("unary operation {op:?} as binary"),
