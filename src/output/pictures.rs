@@ -448,18 +448,11 @@ impl<'a> Pictures<'a> {
         let bands = Bands::of(self.n, &self.varying, &self.shape);
         let mut xs: Vec<Vec<f64>> = vec![vec![]; bands.count];
         let mut ys: Vec<Vec<f64>> = vec![vec![]; bands.count];
-        for i in 0..self.n {
-            let k = (d.poincare_count[i] as usize).min(d.max_points);
+        self.section_points(d, (jx, jy), |i, x, y| {
             let b = bands.of_orbit(i, &self.shape, &self.strides);
-            let (x, y) = (&mut xs[b], &mut ys[b]);
-            for p in 0..k {
-                x.push(wrap(
-                    wrap_x,
-                    d.poincare[jx].1[i * d.max_points + p].to_f64(),
-                ));
-                y.push(d.poincare[jy].1[i * d.max_points + p].to_f64());
-            }
-        }
+            xs[b].push(x);
+            ys[b].push(y);
+        });
         let labels: Vec<String> = (0..xs.len())
             .map(|b| bands.label(b, self.scene, &self.strides, self.n))
             .collect();
@@ -477,6 +470,25 @@ impl<'a> Pictures<'a> {
         Ok(Some("poincare.png".into()))
     }
 
+    /// Every kept section point as `point(orbit, x, y)`: variables `jx`
+    /// and `jy` of the section, x wrapped as `plot.wrap_x` says.
+    fn section_points<R: Real>(
+        &self,
+        d: &Observations<R>,
+        (jx, jy): (usize, usize),
+        mut point: impl FnMut(usize, f64, f64),
+    ) {
+        let wrap_x = self.scene.plot.wrap_x.as_deref();
+        for i in 0..self.n {
+            let first = i * d.max_points;
+            let k = (d.poincare_count[i] as usize).min(d.max_points);
+            for p in first..first + k {
+                let x = wrap(wrap_x, d.poincare[jx].1[p].to_f64());
+                point(i, x, d.poincare[jy].1[p].to_f64());
+            }
+        }
+    }
+
     /// The Poincaré portrait with each orbit's points coloured by its FLI
     /// (`poincare_fli.png`, on [`fli_range`]), if the run has both.
     fn poincare_by_fli<R: Real>(&self, d: &Observations<R>) -> Result<Option<String>> {
@@ -487,14 +499,11 @@ impl<'a> Pictures<'a> {
         let (jx, jy) = poincare_pair(self.scene, &names);
         let wrap_x = self.scene.plot.wrap_x.as_deref();
         let (mut x, mut y, mut fli) = (vec![], vec![], vec![]);
-        for i in 0..self.n {
-            let k = (d.poincare_count[i] as usize).min(d.max_points);
-            for p in i * d.max_points..i * d.max_points + k {
-                x.push(wrap(wrap_x, d.poincare[jx].1[p].to_f64()));
-                y.push(d.poincare[jy].1[p].to_f64());
-                fli.push(d.fli[i].to_f64());
-            }
-        }
+        self.section_points(d, (jx, jy), |i, px, py| {
+            x.push(px);
+            y.push(py);
+            fli.push(d.fli[i].to_f64());
+        });
         let range = fli_range(self.scene);
         let label = format!(
             "the orbit's FLI (the largest in a pixel; clipped to [{}, {}])",

@@ -11,11 +11,11 @@ use std::io::{self, Read, Write};
 
 use crate::models::lanes::{Lanes, LANES};
 use crate::models::Flows;
-use crate::plan::observations::Sink;
+use crate::plan::observations::{Rows, Sink};
 use crate::plan::section::{Recorded, SectionKind, SectionStep};
 use crate::plan::slots;
 use crate::plan::snapshot::{get, put};
-use crate::plan::ObsVar;
+use crate::plan::{ObsVar, Plan};
 
 use super::program::Program;
 
@@ -301,17 +301,9 @@ impl<R: Flows> BlockObservers<R> {
         for i in 0..count {
             let (nonfinite, stop) = slots::split_status(status[i]);
             let slot = |k: usize| self.real[k][i];
-            let (lyap, fli, megno) =
-                slots::indicators_finish(p.plan, slot, dt[i], nonfinite == 0, stop);
-            for (j, x) in lyap.iter().enumerate() {
-                sink.lyapunov.set((base + i) * lyap.len() + j, *x);
-            }
-            if p.plan.observers.fli.is_some() {
-                sink.fli.set(base + i, fli);
-            }
-            if p.plan.observers.megno.is_some() {
-                sink.megno.set(base + i, megno);
-            }
+            let values = slots::indicators_finish(p.plan, slot, dt[i], nonfinite == 0, stop);
+            let columns = [&sink.lyapunov, &sink.fli, &sink.megno];
+            put_indicators(p.plan, columns, base + i, values);
         }
     }
 
@@ -324,7 +316,12 @@ impl<R: Flows> BlockObservers<R> {
             return;
         };
         let dt = s.l.at(p.dt_lane);
-        let o = &p.plan.observers;
+        let sink = s.sink;
+        let columns = [
+            &sink.trajectory_lyapunov,
+            &sink.trajectory_fli,
+            &sink.trajectory_megno,
+        ];
         for i in 0..s.count {
             let row = (s.base + i) * frames + frame;
             if bad >> i & 1 == 1 {
@@ -333,17 +330,8 @@ impl<R: Flows> BlockObservers<R> {
                 }
             }
             let slot = |k: usize| self.real[k][i];
-            let (lyap, fli, megno) =
-                slots::indicators_at(p.plan, slot, dt[i], s.status[i] == 0, s.n1);
-            for (j, x) in lyap.iter().enumerate() {
-                s.sink.trajectory_lyapunov.set(row * lyap.len() + j, *x);
-            }
-            if o.fli.is_some() {
-                s.sink.trajectory_fli.set(row, fli);
-            }
-            if o.megno.is_some() {
-                s.sink.trajectory_megno.set(row, megno);
-            }
+            let values = slots::indicators_at(p.plan, slot, dt[i], s.status[i] == 0, s.n1);
+            put_indicators(p.plan, columns, row, values);
         }
     }
 
@@ -435,6 +423,25 @@ fn frame_at<R: Flows>(s: &BlockStep<R>) -> Option<(usize, usize)> {
             (plan.steps / tr.every) as usize + 1,
         )
     })
+}
+
+/// The indicators' values `(exponents, FLI, MEGNO)` as row `row` of their
+/// columns (outputs or running values), those the plan asks for.
+fn put_indicators<R: Copy>(
+    plan: &Plan,
+    [l, f, m]: [&Rows<R>; 3],
+    row: usize,
+    (lyap, fli, megno): (Vec<R>, R, R),
+) {
+    for (j, x) in lyap.iter().enumerate() {
+        l.set(row * lyap.len() + j, *x);
+    }
+    if plan.observers.fli.is_some() {
+        f.set(row, fli);
+    }
+    if plan.observers.megno.is_some() {
+        m.set(row, megno);
+    }
 }
 
 /// A trajectory frame, if step `n1` is one: the state at the step's end.

@@ -768,19 +768,33 @@ fn read_frames<R: Flows>(
                 m.map_or(R::nan(), |m| at(f, first + m, i))
             };
             let frame = frame0 + f;
-            let (lyap, fli, megno) = slots::indicators_at(plan, slot, dt, true, frame * every);
-            let row = g * out.frames + frame as usize;
-            let k = lyap.len();
-            out.trajectory_lyapunov[row * k..(row + 1) * k].copy_from_slice(&lyap);
-            if plan.observers.fli.is_some() {
-                out.trajectory_fli[row] = fli;
-            }
-            if plan.observers.megno.is_some() {
-                out.trajectory_megno[row] = megno;
-            }
+            let values = slots::indicators_at(plan, slot, dt, true, frame * every);
+            let columns = [
+                &mut out.trajectory_lyapunov,
+                &mut out.trajectory_fli,
+                &mut out.trajectory_megno,
+            ];
+            put_indicators(columns, g * out.frames + frame as usize, values);
         }
     }
     Ok(())
+}
+
+/// The indicators' values `(exponents, FLI, MEGNO)` as row `row` of their
+/// columns (outputs or running values); a column the plan lacks is empty.
+fn put_indicators<R: Copy>(
+    columns: [&mut Vec<R>; 3],
+    row: usize,
+    (lyap, fli, megno): (Vec<R>, R, R),
+) {
+    let [l, f, m] = columns;
+    let k = lyap.len();
+    l[row * k..(row + 1) * k].copy_from_slice(&lyap);
+    for (column, value) in [(f, fli), (m, megno)] {
+        if !column.is_empty() {
+            column[row] = value;
+        }
+    }
 }
 
 /// Trajectory `g`'s step in the working precision.
@@ -885,10 +899,8 @@ fn collect<R: Flows>(
 
 /// `t0 + steps·dt` of trajectory `g`, in the working precision.
 fn time_at<R: Flows>(plan: &Plan, g: usize, steps: u64) -> R {
-    let g = plan.first + g;
-    let t0 = R::from_f64(plan.binding("t0").value_at(g, &plan.strides));
-    let dt = R::from_f64(plan.binding("dt").value_at(g, &plan.strides));
-    t0 + R::from_f64(steps as f64) * dt
+    let t0 = R::from_f64(plan.binding("t0").value_at(plan.first + g, &plan.strides));
+    t0 + R::from_f64(steps as f64) * lane_dt::<R>(plan, g)
 }
 
 /// Poincaré points, cycle statistics and time averages of a finished chunk, from the
@@ -948,16 +960,8 @@ fn collect_observers<R: Flows>(
             mean[g] = slots::mean_finish(plan, slot(slots::MEAN0 + j), ok, stop);
         }
         if plan.indicators.is_some() {
-            let (lyap, fli, megno) =
-                slots::indicators_finish(plan, slot, lane_dt::<R>(plan, g), ok, stop);
-            let k = lyap.len();
-            out.lyapunov[g * k..(g + 1) * k].copy_from_slice(&lyap);
-            if plan.observers.fli.is_some() {
-                out.fli[g] = fli;
-            }
-            if plan.observers.megno.is_some() {
-                out.megno[g] = megno;
-            }
+            let values = slots::indicators_finish(plan, slot, lane_dt::<R>(plan, g), ok, stop);
+            put_indicators([&mut out.lyapunov, &mut out.fli, &mut out.megno], g, values);
         }
     }
     Ok(())
