@@ -16,7 +16,7 @@ use crate::models::{lane_emden, Model};
 use crate::num::precision::Precision;
 use crate::plan::observations::Observations;
 use crate::plan::observers::{CycleObs, TrajectoryObs};
-use crate::plan::scheme::{Scheme, SchemeKind, SCHEME_NAMES};
+use crate::plan::scheme::{Scheme, SchemeKind, COMPOSITIONS, SCHEME_NAMES};
 use crate::plan::{Plan, Problem, Source};
 
 /// Maximum that treats NaN as infinitely bad (`f64::max` would drop it).
@@ -416,6 +416,11 @@ pub(crate) struct OrderProblem {
     /// f64 round-off: on van der Pol over t = 3, an order-10 scheme is still
     /// pre-asymptotic at 23 steps, where its error (5e-13) meets round-off.
     pub max_order: u32,
+    /// In f32, are the optimised compositions (`COMPOSITIONS`, error
+    /// constants 10–100× below the triple jump's) still pre-asymptotic where
+    /// their error meets round-off? `mclachlan4` on van der Pol fits 4.25
+    /// over 5e-3 → 5.5e-5; they are measured in f64 there.
+    pub f32_hides_small_constants: bool,
 }
 
 fn order_problems() -> Vec<OrderProblem> {
@@ -435,6 +440,7 @@ fn order_problems() -> Vec<OrderProblem> {
         vars: vec!["q", "p"],
         reference: vec![q, p],
         max_order: 10,
+        f32_hides_small_constants: false,
     };
     // Van der Pol: reference by CPU f64 RK4 with a step 10⁴ times finer than
     // any measured one (its error, ~10⁻¹⁵, is far below the errors fitted).
@@ -454,6 +460,7 @@ fn order_problems() -> Vec<OrderProblem> {
         vars: vec!["q", "s"],
         reference: vec![first(&o, "q"), first(&o, "s")],
         max_order: 8,
+        f32_hides_small_constants: true,
     };
     vec![damped, vdp]
 }
@@ -571,8 +578,9 @@ fn convergence_orders(engine: &Target, f32: bool) -> Vec<Check> {
 /// The measured order of `scheme` on `op` against its nominal order ± `tol`;
 /// `None` where it does not apply: in f32, orders above 4 cannot be seen
 /// between roundoff and the non-asymptotic regime (they are checked in
-/// f64), an order above the problem's `max_order`, and a comparison method
-/// the model lacks.
+/// f64; nor an optimised composition where the problem hides it in f32),
+/// an order above the problem's `max_order`, and a comparison method the
+/// model lacks.
 pub(crate) fn order_check(
     engine: &Target,
     op: &OrderProblem,
@@ -581,7 +589,10 @@ pub(crate) fn order_check(
     tol: f64,
 ) -> Option<Check> {
     let s = Scheme::by_name(scheme)?;
-    if (f32 && s.order > 4) || s.order > op.max_order {
+    let optimised = COMPOSITIONS.iter().any(|c| c.name == scheme);
+    if (f32 && (s.order > 4 || optimised && op.f32_hides_small_constants))
+        || s.order > op.max_order
+    {
         return None;
     }
     // The order-10 fit spans the least steps: ±0.2 (SPEC §1.3's "≥ 10").

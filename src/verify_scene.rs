@@ -130,6 +130,7 @@ fn order_problem(scene: &Scene) -> Result<OrderProblem, String> {
         reference,
         // A DOP853 reference at tolerance 1e-14 hides order 10.
         max_order: 8,
+        f32_hides_small_constants: true,
     })
 }
 
