@@ -24,14 +24,18 @@ pub enum Scenario {
     SpinOrbitS2,
     /// Perturbed Kepler S2 (α = 0.01, θ = 2π), per-trajectory eccentricity.
     KeplerS2,
+    /// Van der Pol written as Liénard formulas (`f = -epsilon*(1 - q^2)`,
+    /// `g = q`), S2, the ensemble of `VdpS2`: what a formula model costs.
+    LienardFormulaS2,
 }
 
-pub const SCENARIOS: [Scenario; 5] = [
+pub const SCENARIOS: [Scenario; 6] = [
     Scenario::VdpS2,
     Scenario::VdpS2WithP,
     Scenario::VdpYoshida6a,
     Scenario::SpinOrbitS2,
     Scenario::KeplerS2,
+    Scenario::LienardFormulaS2,
 ];
 
 impl Scenario {
@@ -43,6 +47,7 @@ impl Scenario {
             Scenario::VdpYoshida6a => "van_der_pol/yoshida6a",
             Scenario::SpinOrbitS2 => "spin_orbit/s2",
             Scenario::KeplerS2 => "kepler/s2",
+            Scenario::LienardFormulaS2 => "lienard_formula/s2",
         }
     }
 
@@ -54,13 +59,21 @@ impl Scenario {
     pub fn plan(self, n: usize, steps: u64) -> Plan {
         let frac = |i: usize| i as f64 / n as f64;
         let mut p = match self {
-            Scenario::VdpS2 | Scenario::VdpS2WithP | Scenario::VdpYoshida6a => {
+            Scenario::VdpS2
+            | Scenario::VdpS2WithP
+            | Scenario::VdpYoshida6a
+            | Scenario::LienardFormulaS2 => {
                 let scheme = if self == Scenario::VdpYoshida6a {
                     "yoshida6a"
                 } else {
                     "s2"
                 };
-                let mut p = Problem::new(Model::VanDerPol, scheme).expect("scheme");
+                let model = if self == Scenario::LienardFormulaS2 {
+                    formula_van_der_pol()
+                } else {
+                    Model::VanDerPol
+                };
+                let mut p = Problem::new(model, scheme).expect("scheme");
                 // The peers' ensemble: q0 = 2 + 0.5 i/N, ε = 0.1 + 10 i/N, s0 = 0.
                 let q0 = p.axis("i", (0..n).map(|i| 2.0 + 0.5 * frac(i)).collect());
                 p = p.initial("q", q0).param(
@@ -105,6 +118,60 @@ impl Scenario {
         p.dt = Source::Const(0.01);
         p.steps = steps;
         Plan::new(&p).expect("benchmark plans are valid")
+    }
+}
+
+/// Van der Pol as a Liénard scene's formulas.
+fn formula_van_der_pol() -> Model {
+    use crate::models::formula::{FormulaModel, Kind, Source as Formulas};
+    let source = Formulas {
+        kind: Kind::Lienard,
+        texts: vec![
+            ("f".into(), "-epsilon*(1 - q^2)".into()),
+            ("g".into(), "q".into()),
+        ],
+        params: vec!["epsilon".into()],
+        forcing_frequency: None,
+    };
+    Model::Formula(FormulaModel::get(&source).expect("valid formulas"))
+}
+
+/// Median trajectory-steps/s of `plan` on the CPU with `threads` threads.
+pub fn cpu_rate(plan: &Plan, precision: Precision, threads: usize, repeats: usize) -> f64 {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("thread pool");
+    pool.install(|| {
+        rate(plan, repeats, |pl| {
+            seconds(&Engine::Cpu, pl, precision).unwrap_or(f64::NAN)
+        })
+    })
+}
+
+/// Median trajectory-steps/s of `plan` on the GPU `engine`; `None` for f64
+/// on an adapter without SHADER_F64.
+pub fn gpu_rate(
+    engine: &Engine,
+    plan: &Plan,
+    precision: Precision,
+    repeats: usize,
+) -> Result<Option<f64>, GpuError> {
+    if let Engine::Gpu(c) = engine {
+        if precision == Precision::F64 && !c.shader_f64 {
+            return Ok(None);
+        }
+    }
+    let mut err = None;
+    let r = rate(plan, repeats, |pl| {
+        seconds(engine, pl, precision).unwrap_or_else(|e| {
+            err = Some(e);
+            f64::NAN
+        })
+    });
+    match err {
+        Some(e) => Err(e),
+        None => Ok(Some(r)),
     }
 }
 

@@ -24,6 +24,7 @@ pub mod scene;
 pub mod output;
 
 pub mod bench;
+pub mod doctor;
 pub mod report;
 pub mod verify;
 pub mod verify_scene;

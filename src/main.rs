@@ -5,7 +5,7 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::Duration;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 
 use reeb::backend::gpu::{list_adapters, GpuContext};
@@ -167,7 +167,7 @@ enum Command {
         /// Backends: cpu, gpu (default: cpu, and gpu when an adapter exists).
         #[arg(long, value_delimiter = ',')]
         backend: Vec<String>,
-        /// Scenarios (default: all): van_der_pol/s2, van_der_pol/s2_with_p, van_der_pol/yoshida6a, spin_orbit/s2, kepler/s2.
+        /// Scenarios (default: all): van_der_pol/s2, van_der_pol/s2_with_p, van_der_pol/yoshida6a, spin_orbit/s2, kepler/s2, lienard_formula/s2.
         #[arg(long, value_delimiter = ',')]
         scenario: Vec<String>,
         /// Precisions.
@@ -188,6 +188,23 @@ enum Command {
         /// Also write the rows as JSON lines to this file.
         #[arg(long)]
         json: Option<PathBuf>,
+    },
+    /// Check and measure the GPU backend on this machine: the adapters, `verify` on the
+    /// GPU in f32 and f64, the CPU–GPU agreement of every model, throughput on both
+    /// backends; a table, and one JSON file. Exit status 1 when a check fails.
+    Doctor {
+        /// The JSON report (replaced only if it is an earlier `reeb doctor` report).
+        #[arg(long, default_value = "reeb-doctor.json")]
+        out: PathBuf,
+        /// The adapter to check, by its index in `reeb info` (default: the one `--backend gpu` takes).
+        #[arg(long)]
+        adapter: Option<usize>,
+        /// Ensemble sizes of the throughput rows (default: 1000000,10000000; 10000,100000 on a software adapter).
+        #[arg(long, value_delimiter = ',')]
+        n: Vec<usize>,
+        /// Skip `reeb verify` (minutes on a software adapter).
+        #[arg(long)]
+        skip_verify: bool,
     },
     /// Run the oracles of SPEC §4 and measure the convergence order of every scheme;
     /// with a scene, measure its scheme's order (and S2's, Yoshida 6A's) on it
@@ -316,6 +333,12 @@ fn main() -> ExitCode {
         } => bench(
             backend, scenario, precision, n, steps, threads, repeats, json,
         ),
+        Command::Doctor {
+            out,
+            adapter,
+            n,
+            skip_verify,
+        } => doctor(out, adapter, n, skip_verify),
         Command::Verify {
             scene,
             backend,
@@ -594,6 +617,63 @@ fn bench(
     Ok(ExitCode::SUCCESS)
 }
 
+/// `reeb doctor`: the checks and measurements of `reeb::doctor`, a table on
+/// stdout, the report in `out`.
+fn doctor(
+    out: PathBuf,
+    adapter: Option<usize>,
+    n: Vec<usize>,
+    skip_verify: bool,
+) -> Result<ExitCode> {
+    if n.contains(&0) {
+        anyhow::bail!("--n: ensemble sizes must be at least 1");
+    }
+    check_doctor_out(&out)?;
+    let opts = reeb::doctor::DoctorOptions {
+        adapter,
+        sizes: (!n.is_empty()).then_some(n),
+        skip_verify,
+    };
+    let report = reeb::doctor::run(&opts, |line| eprintln!("doctor: {line}"));
+    print!("{}", report.table());
+    let tmp = out.with_extension("json.partial");
+    std::fs::write(&tmp, serde_json::to_string_pretty(&report)? + "\n")
+        .and_then(|_| std::fs::rename(&tmp, &out))
+        .with_context(|| format!("--out {}", out.display()))?;
+    println!("report: {}", out.display());
+    Ok(if report.healthy() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
+}
+
+/// `reeb doctor --out FILE` replaces only an earlier report, and its folder
+/// must exist: both known before minutes of measurements.
+fn check_doctor_out(out: &Path) -> Result<()> {
+    let parent = out.parent().filter(|p| !p.as_os_str().is_empty());
+    if let Some(p) = parent.filter(|p| !p.is_dir()) {
+        anyhow::bail!(
+            "--out {}: the folder {} does not exist",
+            out.display(),
+            p.display()
+        );
+    }
+    if out.exists() {
+        let earlier = std::fs::read_to_string(out)
+            .ok()
+            .and_then(|s| serde_json::from_str::<serde_json::Value>(&s).ok())
+            .is_some_and(|v| v.get("adapters").is_some() && v.get("bench").is_some());
+        if !earlier {
+            anyhow::bail!(
+                "--out {}: the file exists and is not a `reeb doctor` report; name another file",
+                out.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Sizes, steps, threads and repeats a benchmark can run (each ≥ 1; the
 /// largest ensemble's final values fit in memory).
 fn check_bench_args(sizes: &[usize], steps: u64, threads: &[usize], repeats: usize) -> Result<()> {
@@ -643,20 +723,14 @@ fn bench_cpu(
     threads: &[usize],
     repeats: usize,
 ) -> Vec<(String, usize, f64)> {
-    use reeb::bench::{rate, seconds};
     threads
         .iter()
         .map(|t| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(*t)
-                .build()
-                .expect("thread pool");
-            let r = pool.install(|| {
-                rate(plan, repeats, |pl| {
-                    seconds(&Engine::Cpu, pl, p).unwrap_or(f64::NAN)
-                })
-            });
-            ("cpu".to_string(), *t, r)
+            (
+                "cpu".to_string(),
+                *t,
+                reeb::bench::cpu_rate(plan, p, *t, repeats),
+            )
         })
         .collect()
 }
@@ -669,24 +743,14 @@ fn bench_gpu(
     repeats: usize,
     label: &str,
 ) -> Result<Vec<(String, usize, f64)>> {
-    use reeb::bench::{rate, seconds};
     let Some(engine @ Engine::Gpu(c)) = gpu else {
         anyhow::bail!("no GPU adapter for --backend gpu");
     };
-    if p == Precision::F64 && !c.shader_f64 {
-        return Ok(vec![]);
+    match reeb::bench::gpu_rate(engine, plan, p, repeats) {
+        Ok(Some(r)) => Ok(vec![(format!("gpu: {}", c.info.name), 0, r)]),
+        Ok(None) => Ok(vec![]),
+        Err(e) => anyhow::bail!("gpu {label}: {e}"),
     }
-    let mut err = None;
-    let r = rate(plan, repeats, |pl| {
-        seconds(engine, pl, p).unwrap_or_else(|e| {
-            err = Some(e.to_string());
-            f64::NAN
-        })
-    });
-    if let Some(e) = err {
-        anyhow::bail!("gpu {label}: {e}");
-    }
-    Ok(vec![(format!("gpu: {}", c.info.name), 0, r)])
 }
 
 /// One line of `reeb bench` (and of its JSON lines).
@@ -744,11 +808,7 @@ fn report(kind: ReportKind) -> Result<ExitCode> {
 }
 
 fn info() -> Result<ExitCode> {
-    let isa = match reeb::backend::cpu::isa() {
-        reeb::backend::cpu::Isa::V4 => "AVX-512",
-        reeb::backend::cpu::Isa::V3 => "AVX2 + FMA",
-        reeb::backend::cpu::Isa::Baseline => "portable (no AVX2)",
-    };
+    let isa = reeb::backend::cpu::isa().label();
     println!(
         "reeb {}; CPU backend: {} threads (rayon), {isa} kernels",
         env!("CARGO_PKG_VERSION"),

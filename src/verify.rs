@@ -4,6 +4,7 @@
 
 pub mod check;
 pub mod indicators;
+pub mod samples;
 
 use std::f64::consts::PI;
 
@@ -590,8 +591,7 @@ pub(crate) fn order_check(
 ) -> Option<Check> {
     let s = Scheme::by_name(scheme)?;
     let optimised = COMPOSITIONS.iter().any(|c| c.name == scheme);
-    if (f32 && (s.order > 4 || optimised && op.f32_hides_small_constants))
-        || s.order > op.max_order
+    if (f32 && (s.order > 4 || optimised && op.f32_hides_small_constants)) || s.order > op.max_order
     {
         return None;
     }

@@ -22,4 +22,13 @@ impl Isa {
             Isa::V4 => "v4 (AVX-512)",
         }
     }
+
+    /// Its instruction set in a word: "AVX-512", "AVX2 + FMA", "portable".
+    pub fn label(self) -> &'static str {
+        match self {
+            Isa::Baseline => "portable (no AVX2)",
+            Isa::V3 => "AVX2 + FMA",
+            Isa::V4 => "AVX-512",
+        }
+    }
 }

@@ -55,6 +55,8 @@ pub struct AdapterSummary {
     pub max_buffer_size: u64,
     pub max_compute_workgroups_per_dimension: u32,
     pub max_storage_buffers_per_shader_stage: u32,
+    /// Every feature the adapter offers, as wgpu names them.
+    pub features: Vec<String>,
 }
 
 fn summary(a: &wgpu::Adapter) -> AdapterSummary {
@@ -74,6 +76,7 @@ fn summary(a: &wgpu::Adapter) -> AdapterSummary {
         max_buffer_size: l.max_buffer_size,
         max_compute_workgroups_per_dimension: l.max_compute_workgroups_per_dimension,
         max_storage_buffers_per_shader_stage: l.max_storage_buffers_per_shader_stage,
+        features: f.iter_names().map(|(name, _)| name.to_string()).collect(),
     }
 }
 

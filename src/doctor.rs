@@ -1,0 +1,433 @@
+//! `reeb doctor`: one command that checks and measures the GPU backend on the
+//! machine it runs on — in the binary, since a GPU machine may have neither
+//! network nor a Rust toolchain. It lists the adapters, runs `reeb verify` on
+//! the GPU in f32 and f64 (where the adapter has SHADER_F64), compares the
+//! GPU with the CPU on every model × a few schemes × both precisions, and
+//! measures both backends' throughput; the whole as one JSON report.
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::backend::gpu::{is_software, list_adapters, AdapterSummary, GpuContext};
+use crate::backend::Engine;
+use crate::bench::{self, Scenario};
+use crate::models::MODEL_NAMES;
+use crate::num::precision::Precision;
+use crate::plan::{Plan, Problem, Source};
+use crate::verify::samples::{first_var, problem};
+use crate::verify::{run_all, Target};
+
+/// Schemes of the agreement check: S2, a classical and an optimised
+/// composition, and RK4 (a comparison method with its own kernels).
+pub const AGREEMENT_SCHEMES: [&str; 4] = ["s2", "yoshida6a", "kahanli8", "rk4"];
+/// CPU–GPU tolerances of the agreement check, relative to max(1, |cpu|),
+/// over 60 steps: those of `tests/gpu.rs`.
+pub const TOLERANCE_F32: f64 = 2e-4;
+pub const TOLERANCE_F64: f64 = 1e-10;
+/// The throughput scenarios.
+pub const BENCH_SCENARIOS: [Scenario; 4] = [
+    Scenario::VdpS2,
+    Scenario::SpinOrbitS2,
+    Scenario::VdpYoshida6a,
+    Scenario::LienardFormulaS2,
+];
+
+/// What to run.
+pub struct DoctorOptions {
+    /// Adapter index of `reeb info`'s list (default: the one `--backend gpu` takes).
+    pub adapter: Option<usize>,
+    /// Ensemble sizes of the throughput rows (default: 10⁶ and 10⁷ on a
+    /// hardware adapter, 10⁴ and 10⁵ on a software one or none).
+    pub sizes: Option<Vec<usize>>,
+    /// Skip `reeb verify` (the longest part on a software adapter).
+    pub skip_verify: bool,
+}
+
+/// The report (`reeb-doctor.json`).
+#[derive(Debug, Serialize)]
+pub struct Report {
+    pub reeb: &'static str,
+    pub cpu: Cpu,
+    pub adapters: Vec<AdapterSummary>,
+    /// The adapter checked, as `--backend gpu` names it; `None` without one.
+    pub adapter: Option<String>,
+    pub software_adapter: bool,
+    pub verify: Vec<VerifyRun>,
+    pub agreement: Vec<Agreement>,
+    pub bench: Vec<BenchRow>,
+    /// What could not be done, and why.
+    pub problems: Vec<String>,
+    pub seconds: f64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Cpu {
+    pub model: String,
+    pub isa: &'static str,
+    pub threads: usize,
+}
+
+/// `reeb verify --backend gpu` at one precision.
+#[derive(Debug, Serialize)]
+pub struct VerifyRun {
+    pub precision: Precision,
+    pub passed: usize,
+    pub failed: usize,
+    /// The failed rows: name, expected, measured.
+    pub failures: Vec<String>,
+    pub seconds: f64,
+}
+
+/// The largest CPU–GPU difference of one model × scheme × precision.
+#[derive(Debug, Serialize)]
+pub struct Agreement {
+    pub model: String,
+    pub scheme: String,
+    pub precision: Precision,
+    /// max |gpu − cpu| / max(1, |cpu|) over the final values; NaN marks a
+    /// run that failed or a finite/non-finite mismatch.
+    pub worst: f64,
+    pub tolerance: f64,
+    pub pass: bool,
+    pub error: Option<String>,
+}
+
+/// One throughput measurement.
+#[derive(Debug, Serialize)]
+pub struct BenchRow {
+    pub backend: String,
+    pub scenario: &'static str,
+    pub precision: Precision,
+    pub n: usize,
+    pub steps: u64,
+    pub traj_steps_per_s: f64,
+}
+
+/// Runs every part, calling `progress` with a line as each begins.
+pub fn run(opts: &DoctorOptions, mut progress: impl FnMut(&str)) -> Report {
+    let start = Instant::now();
+    let mut problems = vec![];
+    let adapters = list_adapters();
+    let gpu = match GpuContext::on(opts.adapter) {
+        Ok(c) => Some(c),
+        Err(e) => {
+            problems.push(format!("no GPU backend: {e}"));
+            None
+        }
+    };
+    let software = gpu.as_ref().is_none_or(|c| is_software(&c.info));
+    let adapter = gpu.as_ref().map(|c| c.describe());
+    let mut engine = gpu.map(|c| Engine::Gpu(Box::new(c)));
+    let f64_ok = matches!(&engine, Some(Engine::Gpu(c)) if c.shader_f64);
+    if engine.is_some() && !f64_ok {
+        problems.push("the adapter has no SHADER_F64: f64 is checked on the CPU only".into());
+    }
+    let precisions: Vec<Precision> = [Precision::F32, Precision::F64]
+        .into_iter()
+        .filter(|p| *p == Precision::F32 || f64_ok)
+        .collect();
+    let mut verify = vec![];
+    if !opts.skip_verify {
+        for &p in &precisions {
+            let Some(e) = engine.take() else { break };
+            progress(&format!("verify on the GPU, {p}"));
+            let (run, e) = verify_on(e, p);
+            verify.push(run);
+            engine = Some(e);
+        }
+    }
+    let mut agreement = vec![];
+    if let Some(e) = &engine {
+        progress("CPU–GPU agreement: every model × s2, yoshida6a, kahanli8, rk4");
+        for &p in &precisions {
+            agreement.extend(agree(e, p));
+        }
+    }
+    let sizes = opts.sizes.clone().unwrap_or(if software {
+        vec![10_000, 100_000]
+    } else {
+        vec![1_000_000, 10_000_000]
+    });
+    let bench = throughput(engine.as_ref(), &sizes, &mut progress, &mut problems);
+    Report {
+        reeb: env!("CARGO_PKG_VERSION"),
+        cpu: cpu(),
+        adapters,
+        adapter,
+        software_adapter: software,
+        verify,
+        agreement,
+        bench,
+        problems,
+        seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+fn cpu() -> Cpu {
+    let model = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|m| m.trim().to_string())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    Cpu {
+        model,
+        isa: crate::backend::cpu::isa().label(),
+        threads: crate::backend::cpu::threads(),
+    }
+}
+
+/// `reeb verify` on `engine` at `precision`; gives the engine back.
+fn verify_on(engine: Engine, precision: Precision) -> (VerifyRun, Engine) {
+    let t = Instant::now();
+    let target = Target { engine, precision };
+    let rows = run_all(&target, |_| {});
+    let failures: Vec<String> = rows
+        .iter()
+        .filter(|c| !c.pass)
+        .map(|c| {
+            format!(
+                "{}: expected {}, measured {}",
+                c.name, c.expected, c.measured
+            )
+        })
+        .collect();
+    let run = VerifyRun {
+        precision,
+        passed: rows.len() - failures.len(),
+        failed: failures.len(),
+        failures,
+        seconds: t.elapsed().as_secs_f64(),
+    };
+    (run, target.engine)
+}
+
+/// A sample ensemble of `model`: 16 initial values of its first variable
+/// (±5 %), 60 steps of 0.05, every integrated variable's final value.
+fn ensemble(model: &str, scheme: &str) -> Option<Problem> {
+    let mut p = problem(model, scheme)?;
+    let x = first_var(model);
+    let x0 = match p.initial.get(x) {
+        Some(Source::Const(v)) => *v,
+        _ => 1.0,
+    };
+    let values = (0..16)
+        .map(|i| x0 * (0.95 + 0.1 * i as f64 / 15.0))
+        .collect();
+    let ax = p.axis("x0", values);
+    p = p.initial(x, ax);
+    p.dt = Source::Const(0.05);
+    p.steps = 60;
+    // The comparison methods do not integrate the optional variable (p of
+    // the Liénard systems).
+    let spec = p.model.spec();
+    let splitting = p.scheme.is_splitting();
+    p.observers.final_vars = spec
+        .vars
+        .iter()
+        .filter(|v| splitting || spec.optional_var != Some(**v))
+        .map(|v| v.to_string())
+        .collect();
+    Some(p)
+}
+
+/// Every model × [`AGREEMENT_SCHEMES`] at `precision`.
+fn agree(gpu: &Engine, precision: Precision) -> Vec<Agreement> {
+    let tolerance = match precision {
+        Precision::F32 => TOLERANCE_F32,
+        Precision::F64 => TOLERANCE_F64,
+    };
+    let mut rows = vec![];
+    for model in MODEL_NAMES {
+        for scheme in AGREEMENT_SCHEMES {
+            let Some(p) = ensemble(model, scheme) else {
+                continue;
+            };
+            let (worst, error) = match difference(gpu, &p, precision) {
+                Ok(w) => (w, None),
+                Err(e) => (f64::NAN, Some(e)),
+            };
+            rows.push(Agreement {
+                model: model.to_string(),
+                scheme: scheme.to_string(),
+                precision,
+                worst,
+                tolerance,
+                pass: worst <= tolerance,
+                error,
+            });
+        }
+    }
+    rows
+}
+
+/// max |gpu − cpu| / max(1, |cpu|) over the final values of `p`.
+fn difference(gpu: &Engine, p: &Problem, precision: Precision) -> Result<f64, String> {
+    let plan = Plan::new(p).map_err(|e| e.to_string())?;
+    let (g, _) = gpu.run_f64(&plan, precision).map_err(|e| e.to_string())?;
+    let (c, _) = Engine::Cpu
+        .run_f64(&plan, precision)
+        .map_err(|e| e.to_string())?;
+    let mut worst = 0.0f64;
+    for ((_, gv), (_, cv)) in g.final_values.iter().zip(&c.final_values) {
+        for (a, b) in gv.iter().zip(cv) {
+            let d = match (a.is_finite(), b.is_finite()) {
+                (true, true) => (a - b).abs() / b.abs().max(1.0),
+                (false, false) => 0.0,
+                _ => f64::NAN,
+            };
+            worst = if d.is_nan() { f64::NAN } else { worst.max(d) };
+        }
+    }
+    Ok(worst)
+}
+
+/// [`BENCH_SCENARIOS`] × both precisions × `sizes` on the GPU (1000 steps)
+/// and the CPU (every thread; steps capped at 2·10⁹ trajectory-steps per run,
+/// at least 100: the rate per trajectory-step is what counts).
+fn throughput(
+    gpu: Option<&Engine>,
+    sizes: &[usize],
+    progress: &mut impl FnMut(&str),
+    problems: &mut Vec<String>,
+) -> Vec<BenchRow> {
+    const STEPS: u64 = 1000;
+    const REPEATS: usize = 3;
+    let mut rows = vec![];
+    for s in BENCH_SCENARIOS {
+        for p in [Precision::F32, Precision::F64] {
+            for &n in sizes {
+                progress(&format!("bench {} {p} n = {n}", s.label()));
+                if let Some(g) = gpu {
+                    match bench::gpu_rate(g, &s.plan(n, STEPS), p, REPEATS) {
+                        Ok(Some(r)) => rows.push(row("gpu", s, p, n, STEPS, r)),
+                        Ok(None) => {}
+                        Err(e) => problems.push(format!("gpu {} {p} n = {n}: {e}", s.label())),
+                    }
+                }
+                let steps = (2_000_000_000 / n as u64).clamp(100, STEPS);
+                let threads = crate::backend::cpu::threads();
+                let r = bench::cpu_rate(&s.plan(n, steps), p, threads, REPEATS);
+                rows.push(row("cpu", s, p, n, steps, r));
+            }
+        }
+    }
+    rows
+}
+
+fn row(backend: &str, s: Scenario, p: Precision, n: usize, steps: u64, r: f64) -> BenchRow {
+    BenchRow {
+        backend: backend.to_string(),
+        scenario: s.label(),
+        precision: p,
+        n,
+        steps,
+        traj_steps_per_s: r,
+    }
+}
+
+impl Report {
+    /// The table `reeb doctor` prints.
+    pub fn table(&self) -> String {
+        let mut t = String::new();
+        let line = |t: &mut String, s: String| {
+            t.push_str(&s);
+            t.push('\n');
+        };
+        line(
+            &mut t,
+            format!("reeb {} doctor, {:.0} s", self.reeb, self.seconds),
+        );
+        line(
+            &mut t,
+            format!(
+                "CPU: {}, {} kernels, {} threads",
+                self.cpu.model, self.cpu.isa, self.cpu.threads
+            ),
+        );
+        for (k, a) in self.adapters.iter().enumerate() {
+            line(
+                &mut t,
+                format!(
+                    "adapter {k}: {} ({}, {}, driver {}), f64 shaders {}",
+                    a.name,
+                    a.backend,
+                    a.device_type,
+                    a.driver,
+                    if a.shader_f64 { "yes" } else { "no" }
+                ),
+            );
+        }
+        if let Some(a) = &self.adapter {
+            line(&mut t, format!("checked: {a}"));
+        }
+        for v in &self.verify {
+            line(
+                &mut t,
+                format!(
+                    "verify gpu {}: {} passed, {} failed ({:.0} s)",
+                    v.precision, v.passed, v.failed, v.seconds
+                ),
+            );
+            for f in &v.failures {
+                line(&mut t, format!("  FAIL {f}"));
+            }
+        }
+        for p in [Precision::F32, Precision::F64] {
+            let rows: Vec<&Agreement> =
+                self.agreement.iter().filter(|a| a.precision == p).collect();
+            if rows.is_empty() {
+                continue;
+            }
+            let worst = rows.iter().map(|a| a.worst).fold(0.0, f64::max);
+            let failed: Vec<String> = rows
+                .iter()
+                .filter(|a| !a.pass)
+                .map(|a| format!("{} {} ({:e})", a.model, a.scheme, a.worst))
+                .collect();
+            line(
+                &mut t,
+                format!(
+                    "agreement {p}: {} of {} within {:e} (worst {worst:.1e}){}",
+                    rows.len() - failed.len(),
+                    rows.len(),
+                    rows[0].tolerance,
+                    if failed.is_empty() {
+                        String::new()
+                    } else {
+                        format!("; outside: {}", failed.join(", "))
+                    }
+                ),
+            );
+        }
+        line(
+            &mut t,
+            format!(
+                "{:<6} {:<24} {:>9} {:>10} {:>6} {:>14}",
+                "", "scenario", "precision", "n", "steps", "traj-steps/s"
+            ),
+        );
+        for b in &self.bench {
+            line(
+                &mut t,
+                format!(
+                    "{:<6} {:<24} {:>9} {:>10} {:>6} {:>14.3e}",
+                    b.backend, b.scenario, b.precision, b.n, b.steps, b.traj_steps_per_s
+                ),
+            );
+        }
+        for p in &self.problems {
+            line(&mut t, format!("note: {p}"));
+        }
+        t
+    }
+
+    /// Did every check pass (verify and agreement)?
+    pub fn healthy(&self) -> bool {
+        self.verify.iter().all(|v| v.failed == 0) && self.agreement.iter().all(|a| a.pass)
+    }
+}
