@@ -96,8 +96,12 @@ def ratio(name, a, b, target):
         other = (b[0], b[1], n, p)
         if other in rate:
             v = rate[(label, model, n, p)] / rate[other]
-            flag = "" if v >= target else "  (below)"
-            print(f"| {name} | {n} | {p} | {v:.2f}{flag} | ≥ {target} |")
+            t = target_of(name, p, target)
+            flag = "" if v >= t else "  (below)"
+            print(f"| {name} | {n} | {p} | {v:.2f}{flag} | ≥ {t} |")
+# Issue 34: f64 on AVX2 at ≥ 1.2× the C built for the same ISA.
+def target_of(name, p, default):
+    return 1.2 if name == "van der Pol: reeb v3 / C v3" and p == "f64" else default
 ratio("van der Pol: reeb v3 / C v3", ("reeb v3", "van_der_pol"), ("c v3", "van_der_pol"), 0.9)
 ratio("van der Pol: reeb / JAX", ("reeb", "van_der_pol"), ("jax", "van_der_pol"), 1.5)
 ratio("van der Pol: reeb v3 / JAX v3", ("reeb v3", "van_der_pol"), ("jax v3", "van_der_pol"), 1.5)

@@ -121,6 +121,99 @@ impl Scenario {
     }
 }
 
+/// What `reeb bench` measures.
+pub struct BenchOptions {
+    /// "cpu", "gpu"; empty: the CPU, and the GPU when an adapter exists.
+    pub backends: Vec<String>,
+    /// Empty: every scenario.
+    pub scenarios: Vec<Scenario>,
+    pub precisions: Vec<Precision>,
+    pub sizes: Vec<usize>,
+    pub steps: u64,
+    /// CPU thread counts; empty: 1 and every thread.
+    pub threads: Vec<usize>,
+    pub repeats: usize,
+}
+
+/// One measurement: `backend` is "cpu" or "gpu: <adapter>" ("gpu" in
+/// `reeb doctor`'s report, which names the adapter once), `threads` 0 on
+/// the GPU.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Row {
+    pub backend: String,
+    pub scenario: &'static str,
+    pub precision: Precision,
+    pub n: usize,
+    pub steps: u64,
+    pub threads: usize,
+    pub traj_steps_per_s: f64,
+}
+
+/// Every backend × scenario × precision × size (× thread count on the CPU),
+/// in that order, handing each row to `each` as it is measured.
+pub fn run(opts: &BenchOptions, mut each: impl FnMut(&Row)) -> Result<(), String> {
+    if let Some(b) = opts
+        .backends
+        .iter()
+        .find(|b| !["cpu", "gpu"].contains(&b.as_str()))
+    {
+        return Err(format!("--backend: unknown backend `{b}` (cpu or gpu)"));
+    }
+    let gpu = Engine::gpu(None);
+    let backends: Vec<&str> = match (opts.backends.is_empty(), gpu.is_ok()) {
+        (false, _) => opts.backends.iter().map(String::as_str).collect(),
+        (true, true) => vec!["cpu", "gpu"],
+        (true, false) => vec!["cpu"],
+    };
+    let gpu = match (backends.contains(&"gpu"), gpu) {
+        (true, Err(e)) => return Err(format!("--backend gpu: {e}")),
+        (_, g) => g.ok(),
+    };
+    let scenarios = match opts.scenarios.is_empty() {
+        true => SCENARIOS.to_vec(),
+        false => opts.scenarios.clone(),
+    };
+    let all = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = match (opts.threads.is_empty(), all > 1) {
+        (false, _) => opts.threads.clone(),
+        (true, true) => vec![1, all],
+        (true, false) => vec![1],
+    };
+    for b in backends {
+        for &s in &scenarios {
+            for &p in &opts.precisions {
+                for &n in &opts.sizes {
+                    let plan = s.plan(n, opts.steps);
+                    let row = |backend: String, threads, r| Row {
+                        backend,
+                        scenario: s.label(),
+                        precision: p,
+                        n,
+                        steps: opts.steps,
+                        threads,
+                        traj_steps_per_s: r,
+                    };
+                    match (b, &gpu) {
+                        ("gpu", Some(g @ Engine::Gpu(c))) => {
+                            match gpu_rate(g, &plan, p, opts.repeats) {
+                                Ok(Some(r)) => each(&row(format!("gpu: {}", c.info.name), 0, r)),
+                                Ok(None) => {}
+                                Err(e) => return Err(format!("gpu {}: {e}", s.label())),
+                            }
+                        }
+                        _ => {
+                            for &t in &threads {
+                                each(&row("cpu".into(), t, cpu_rate(&plan, p, t, opts.repeats)));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Van der Pol as a Liénard scene's formulas.
 fn formula_van_der_pol() -> Model {
     use crate::models::formula::{FormulaModel, Kind, Source as Formulas};
@@ -157,10 +250,8 @@ pub fn gpu_rate(
     precision: Precision,
     repeats: usize,
 ) -> Result<Option<f64>, GpuError> {
-    if let Engine::Gpu(c) = engine {
-        if precision == Precision::F64 && !c.shader_f64 {
-            return Ok(None);
-        }
+    if !engine.runs(precision) {
+        return Ok(None);
     }
     let mut err = None;
     let r = rate(plan, repeats, |pl| {

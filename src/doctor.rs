@@ -9,9 +9,9 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::backend::gpu::{is_software, list_adapters, AdapterSummary, GpuContext};
+use crate::backend::gpu::{is_software, list_adapters, AdapterSummary};
 use crate::backend::Engine;
-use crate::bench::{self, Scenario};
+use crate::bench::{self, Row, Scenario};
 use crate::models::MODEL_NAMES;
 use crate::num::precision::Precision;
 use crate::plan::{Plan, Problem, Source};
@@ -55,7 +55,7 @@ pub struct Report {
     pub software_adapter: bool,
     pub verify: Vec<VerifyRun>,
     pub agreement: Vec<Agreement>,
-    pub bench: Vec<BenchRow>,
+    pub bench: Vec<Row>,
     /// What could not be done, and why.
     pub problems: Vec<String>,
     pub seconds: f64,
@@ -93,33 +93,25 @@ pub struct Agreement {
     pub error: Option<String>,
 }
 
-/// One throughput measurement.
-#[derive(Debug, Serialize)]
-pub struct BenchRow {
-    pub backend: String,
-    pub scenario: &'static str,
-    pub precision: Precision,
-    pub n: usize,
-    pub steps: u64,
-    pub traj_steps_per_s: f64,
-}
-
 /// Runs every part, calling `progress` with a line as each begins.
 pub fn run(opts: &DoctorOptions, mut progress: impl FnMut(&str)) -> Report {
     let start = Instant::now();
     let mut problems = vec![];
     let adapters = list_adapters();
-    let gpu = match GpuContext::on(opts.adapter) {
-        Ok(c) => Some(c),
+    let mut engine = match Engine::gpu(opts.adapter) {
+        Ok(e) => Some(e),
         Err(e) => {
             problems.push(format!("no GPU backend: {e}"));
             None
         }
     };
-    let software = gpu.as_ref().is_none_or(|c| is_software(&c.info));
-    let adapter = gpu.as_ref().map(|c| c.describe());
-    let mut engine = gpu.map(|c| Engine::Gpu(Box::new(c)));
-    let f64_ok = matches!(&engine, Some(Engine::Gpu(c)) if c.shader_f64);
+    let ctx = match &engine {
+        Some(Engine::Gpu(c)) => Some(c),
+        _ => None,
+    };
+    let software = ctx.is_none_or(|c| is_software(&c.info));
+    let adapter = ctx.map(|c| c.describe());
+    let f64_ok = engine.as_ref().is_some_and(|e| e.runs(Precision::F64));
     if engine.is_some() && !f64_ok {
         problems.push("the adapter has no SHADER_F64: f64 is checked on the CPU only".into());
     }
@@ -294,7 +286,7 @@ fn throughput(
     sizes: &[usize],
     progress: &mut impl FnMut(&str),
     problems: &mut Vec<String>,
-) -> Vec<BenchRow> {
+) -> Vec<Row> {
     const STEPS: u64 = 1000;
     const REPEATS: usize = 3;
     let mut rows = vec![];
@@ -304,7 +296,7 @@ fn throughput(
                 progress(&format!("bench {} {p} n = {n}", s.label()));
                 if let Some(g) = gpu {
                     match bench::gpu_rate(g, &s.plan(n, STEPS), p, REPEATS) {
-                        Ok(Some(r)) => rows.push(row("gpu", s, p, n, STEPS, r)),
+                        Ok(Some(r)) => rows.push(row("gpu", s, p, (n, STEPS, 0), r)),
                         Ok(None) => {}
                         Err(e) => problems.push(format!("gpu {} {p} n = {n}: {e}", s.label())),
                     }
@@ -312,20 +304,22 @@ fn throughput(
                 let steps = (2_000_000_000 / n as u64).clamp(100, STEPS);
                 let threads = crate::backend::cpu::threads();
                 let r = bench::cpu_rate(&s.plan(n, steps), p, threads, REPEATS);
-                rows.push(row("cpu", s, p, n, steps, r));
+                rows.push(row("cpu", s, p, (n, steps, threads), r));
             }
         }
     }
     rows
 }
 
-fn row(backend: &str, s: Scenario, p: Precision, n: usize, steps: u64, r: f64) -> BenchRow {
-    BenchRow {
+/// A row of the report: `(n, steps, threads)` of the measurement.
+fn row(backend: &str, s: Scenario, p: Precision, size: (usize, u64, usize), r: f64) -> Row {
+    Row {
         backend: backend.to_string(),
         scenario: s.label(),
         precision: p,
-        n,
-        steps,
+        n: size.0,
+        steps: size.1,
+        threads: size.2,
         traj_steps_per_s: r,
     }
 }

@@ -345,7 +345,7 @@ fn main() -> ExitCode {
             precision,
         } => {
             let engine = if backend == "gpu" {
-                GpuContext::new().map(|ctx| Engine::Gpu(Box::new(ctx)))
+                Engine::gpu(None)
             } else {
                 Ok(Engine::Cpu)
             };
@@ -557,28 +557,15 @@ fn bench(
     repeats: usize,
     json: Option<PathBuf>,
 ) -> Result<ExitCode> {
-    use reeb::bench::{Scenario, SCENARIOS};
+    use reeb::bench::{BenchOptions, Scenario};
     check_bench_args(&sizes, steps, &threads, repeats)?;
-    let scenarios: Vec<Scenario> = if scenarios.is_empty() {
-        SCENARIOS.to_vec()
-    } else {
-        scenarios
-            .iter()
-            .map(|s| Scenario::by_label(s).ok_or_else(|| anyhow::anyhow!("unknown scenario `{s}`")))
-            .collect::<Result<_>>()?
-    };
-    let all = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let threads = match (threads.is_empty(), all > 1) {
-        (false, _) => threads,
-        (true, true) => vec![1, all],
-        (true, false) => vec![1],
-    };
-    let gpu = GpuContext::new().ok().map(|c| Engine::Gpu(Box::new(c)));
-    let backends = match (backends.is_empty(), gpu.is_some()) {
-        (false, _) => backends,
-        (true, true) => vec!["cpu".to_string(), "gpu".to_string()],
-        (true, false) => vec!["cpu".to_string()],
-    };
+    let scenarios = scenarios
+        .iter()
+        .map(|s| {
+            Scenario::by_label(s)
+                .ok_or_else(|| anyhow::anyhow!("--scenario: unknown scenario `{s}`"))
+        })
+        .collect::<Result<Vec<_>>>()?;
     let mut out = json.map(std::fs::File::create).transpose()?;
     println!(
         "reeb {} bench: {steps} steps per run, median of {repeats}",
@@ -588,32 +575,23 @@ fn bench(
         "{:<40} {:<24} {:>9} {:>10} {:>8} {:>16}",
         "backend", "scenario", "precision", "n", "threads", "traj-steps/s"
     );
-    for b in &backends {
-        for s in &scenarios {
-            for p in &precisions {
-                for n in &sizes {
-                    let plan = s.plan(*n, steps);
-                    let rows = match b.as_str() {
-                        "cpu" => bench_cpu(&plan, *p, &threads, repeats),
-                        "gpu" => bench_gpu(gpu.as_ref(), &plan, *p, repeats, s.label())?,
-                        other => anyhow::bail!("unknown backend `{other}` (cpu or gpu)"),
-                    };
-                    for (name, t, r) in rows {
-                        let row = BenchRow {
-                            name,
-                            scenario: s.label().to_string(),
-                            precision: *p,
-                            n: *n,
-                            steps,
-                            threads: t,
-                            rate: r,
-                        };
-                        row.print(out.as_mut())?;
-                    }
-                }
-            }
+    let opts = BenchOptions {
+        backends,
+        scenarios,
+        precisions,
+        sizes,
+        steps,
+        threads,
+        repeats,
+    };
+    let mut written = Ok(());
+    reeb::bench::run(&opts, |row| {
+        if written.is_ok() {
+            written = print_bench_row(row, out.as_mut());
         }
-    }
+    })
+    .map_err(anyhow::Error::msg)?;
+    written?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -716,74 +694,25 @@ fn check_bench_args(sizes: &[usize], steps: u64, threads: &[usize], repeats: usi
     Ok(())
 }
 
-/// (backend, threads, trajectory-steps/s) per thread count, on the CPU.
-fn bench_cpu(
-    plan: &reeb::plan::Plan,
-    p: Precision,
-    threads: &[usize],
-    repeats: usize,
-) -> Vec<(String, usize, f64)> {
-    threads
-        .iter()
-        .map(|t| {
-            (
-                "cpu".to_string(),
-                *t,
-                reeb::bench::cpu_rate(plan, p, *t, repeats),
-            )
-        })
-        .collect()
-}
-
-/// (backend, 0, trajectory-steps/s) on the GPU, if it runs this precision.
-fn bench_gpu(
-    gpu: Option<&Engine>,
-    plan: &reeb::plan::Plan,
-    p: Precision,
-    repeats: usize,
-    label: &str,
-) -> Result<Vec<(String, usize, f64)>> {
-    let Some(engine @ Engine::Gpu(c)) = gpu else {
-        anyhow::bail!("no GPU adapter for --backend gpu");
+/// One line of `reeb bench`, and its JSON line.
+fn print_bench_row(r: &reeb::bench::Row, json: Option<&mut std::fs::File>) -> Result<()> {
+    use std::io::Write;
+    let th = match r.threads {
+        0 => "-".to_string(),
+        t => t.to_string(),
     };
-    match reeb::bench::gpu_rate(engine, plan, p, repeats) {
-        Ok(Some(r)) => Ok(vec![(format!("gpu: {}", c.info.name), 0, r)]),
-        Ok(None) => Ok(vec![]),
-        Err(e) => anyhow::bail!("gpu {label}: {e}"),
+    println!(
+        "{:<40} {:<24} {:>9} {:>10} {:>8} {:>16.4e}",
+        r.backend, r.scenario, r.precision, r.n, th, r.traj_steps_per_s
+    );
+    if let Some(f) = json {
+        writeln!(
+            f,
+            "{}",
+            serde_json::json!({"backend": r.backend, "scenario": r.scenario, "precision": r.precision.name(), "n": r.n, "steps": r.steps, "threads": r.threads, "traj_steps_per_s": r.traj_steps_per_s})
+        )?;
     }
-}
-
-/// One line of `reeb bench` (and of its JSON lines).
-struct BenchRow {
-    name: String,
-    scenario: String,
-    precision: Precision,
-    n: usize,
-    steps: u64,
-    threads: usize,
-    rate: f64,
-}
-
-impl BenchRow {
-    fn print(&self, json: Option<&mut std::fs::File>) -> Result<()> {
-        use std::io::Write;
-        let th = match self.threads {
-            0 => "-".to_string(),
-            t => t.to_string(),
-        };
-        println!(
-            "{:<40} {:<24} {:>9} {:>10} {:>8} {:>16.4e}",
-            self.name, self.scenario, self.precision, self.n, th, self.rate
-        );
-        if let Some(f) = json {
-            writeln!(
-                f,
-                "{}",
-                serde_json::json!({"backend": self.name, "scenario": self.scenario, "precision": self.precision.name(), "n": self.n, "steps": self.steps, "threads": self.threads, "traj_steps_per_s": self.rate})
-            )?;
-        }
-        Ok(())
-    }
+    Ok(())
 }
 
 fn report(kind: ReportKind) -> Result<ExitCode> {

@@ -137,8 +137,7 @@ fn order_problem(scene: &Scene) -> Result<OrderProblem, String> {
 /// The scene's ensemble over its first steps on the CPU and the GPU: the
 /// largest difference relative to max(1, |value|), `None` without a GPU.
 fn agreement(scene: &Scene, precision: Precision) -> Option<Check> {
-    let ctx = crate::backend::gpu::GpuContext::new().ok()?;
-    let gpu = Engine::Gpu(Box::new(ctx));
+    let gpu = Engine::gpu(None).ok()?;
     let mut capped = scene.clone();
     capped.step_cap = Some(AGREEMENT_STEPS);
     let name = format!(

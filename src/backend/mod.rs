@@ -92,6 +92,20 @@ impl Engine {
         }
     }
 
+    /// The GPU backend on adapter `index` of `reeb info`'s list, or on the
+    /// one `--backend gpu` takes: the one way a GPU engine is built.
+    pub fn gpu(index: Option<usize>) -> Result<Engine, GpuError> {
+        Ok(Engine::Gpu(Box::new(GpuContext::on(index)?)))
+    }
+
+    /// Does this engine run `precision`? A GPU without SHADER_F64 runs f32 only.
+    pub fn runs(&self, precision: Precision) -> bool {
+        match self {
+            Engine::Cpu => true,
+            Engine::Gpu(ctx) => precision == Precision::F32 || ctx.shader_f64,
+        }
+    }
+
     pub fn name(&self) -> &'static str {
         match self {
             Engine::Cpu => "cpu",

@@ -224,12 +224,9 @@ fn configurations<'a>(
     let mut out = vec![];
     for (_, engine) in engines {
         for p in precisions {
-            if let (Engine::Gpu(ctx), Precision::F64) = (engine, p) {
-                if !ctx.shader_f64 {
-                    continue;
-                }
+            if engine.runs(*p) {
+                out.push((engine, *p));
             }
-            out.push((engine, *p));
         }
     }
     out
