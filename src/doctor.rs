@@ -420,8 +420,11 @@ impl Report {
         t
     }
 
-    /// Did every check pass (verify and agreement)?
+    /// Was there a GPU to check, and did every check pass (verify and
+    /// agreement)?
     pub fn healthy(&self) -> bool {
-        self.verify.iter().all(|v| v.failed == 0) && self.agreement.iter().all(|a| a.pass)
+        self.adapter.is_some()
+            && self.verify.iter().all(|v| v.failed == 0)
+            && self.agreement.iter().all(|a| a.pass)
     }
 }

@@ -191,7 +191,7 @@ enum Command {
     },
     /// Check and measure the GPU backend on this machine: the adapters, `verify` on the
     /// GPU in f32 and f64, the CPU–GPU agreement of every model, throughput on both
-    /// backends; a table, and one JSON file. Exit status 1 when a check fails.
+    /// backends; a table, and one JSON file. Exit status 1 when a check fails or no adapter exists.
     Doctor {
         /// The JSON report (replaced only if it is an earlier `reeb doctor` report).
         #[arg(long, default_value = "reeb-doctor.json")]
