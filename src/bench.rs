@@ -159,15 +159,17 @@ pub fn run(opts: &BenchOptions, mut each: impl FnMut(&Row)) -> Result<(), String
     {
         return Err(format!("--backend: unknown backend `{b}` (cpu or gpu)"));
     }
-    let gpu = Engine::gpu(None);
-    let backends: Vec<&str> = match (opts.backends.is_empty(), gpu.is_ok()) {
+    // A device is opened only when the GPU may be measured.
+    let asked = |b: &str| opts.backends.is_empty() || opts.backends.iter().any(|x| x == b);
+    let gpu = asked("gpu").then(|| Engine::gpu(None));
+    let backends: Vec<&str> = match (opts.backends.is_empty(), matches!(gpu, Some(Ok(_)))) {
         (false, _) => opts.backends.iter().map(String::as_str).collect(),
         (true, true) => vec!["cpu", "gpu"],
         (true, false) => vec!["cpu"],
     };
-    let gpu = match (backends.contains(&"gpu"), gpu) {
-        (true, Err(e)) => return Err(format!("--backend gpu: {e}")),
-        (_, g) => g.ok(),
+    let gpu = match gpu {
+        Some(Err(e)) if backends.contains(&"gpu") => return Err(format!("--backend gpu: {e}")),
+        g => g.and_then(Result::ok),
     };
     let scenarios = match opts.scenarios.is_empty() {
         true => SCENARIOS.to_vec(),

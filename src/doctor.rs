@@ -16,7 +16,7 @@ use crate::models::MODEL_NAMES;
 use crate::num::precision::Precision;
 use crate::plan::{Plan, Problem, Source};
 use crate::verify::samples::{first_var, problem};
-use crate::verify::{run_all, Target};
+use crate::verify::{largest_difference, run_all, Target};
 
 /// Schemes of the agreement check: S2, a classical and an optimised
 /// composition, and RK4 (a comparison method with its own kernels).
@@ -85,8 +85,9 @@ pub struct Agreement {
     pub model: String,
     pub scheme: String,
     pub precision: Precision,
-    /// max |gpu − cpu| / max(1, |cpu|) over the final values; NaN marks a
-    /// run that failed or a finite/non-finite mismatch.
+    /// max |gpu − cpu| / max(1, |cpu|) over the final values: infinite
+    /// where one is finite and the other not, NaN where a run failed
+    /// (both `null` in the JSON).
     pub worst: f64,
     pub tolerance: f64,
     pub pass: bool,
@@ -257,25 +258,15 @@ fn agree(gpu: &Engine, precision: Precision) -> Vec<Agreement> {
     rows
 }
 
-/// max |gpu − cpu| / max(1, |cpu|) over the final values of `p`.
+/// max |gpu − cpu| / max(1, |cpu|) over the final values of `p`; infinite
+/// where one backend's value is finite and the other's not.
 fn difference(gpu: &Engine, p: &Problem, precision: Precision) -> Result<f64, String> {
     let plan = Plan::new(p).map_err(|e| e.to_string())?;
     let (g, _) = gpu.run_f64(&plan, precision).map_err(|e| e.to_string())?;
     let (c, _) = Engine::Cpu
         .run_f64(&plan, precision)
         .map_err(|e| e.to_string())?;
-    let mut worst = 0.0f64;
-    for ((_, gv), (_, cv)) in g.final_values.iter().zip(&c.final_values) {
-        for (a, b) in gv.iter().zip(cv) {
-            let d = match (a.is_finite(), b.is_finite()) {
-                (true, true) => (a - b).abs() / b.abs().max(1.0),
-                (false, false) => 0.0,
-                _ => f64::NAN,
-            };
-            worst = if d.is_nan() { f64::NAN } else { worst.max(d) };
-        }
-    }
-    Ok(worst)
+    Ok(largest_difference(&c, &g, false))
 }
 
 /// [`BENCH_SCENARIOS`] × both precisions × `sizes` on the GPU (1000 steps)

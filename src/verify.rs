@@ -8,7 +8,7 @@ pub mod samples;
 
 use std::f64::consts::PI;
 
-pub(crate) use check::{bound, check, failed, fmt};
+pub(crate) use check::{bound, check, failed, fmt, largest_difference};
 pub use check::{Check, Target};
 
 use crate::backend::Engine;
@@ -505,7 +505,8 @@ fn measure_order(
     // Order 10 crosses nine decades in a factor of 8 in the step: finer
     // steps and a lower floor (the problems of order 10 are exact) give it
     // four points.
-    let order = Scheme::by_name(scheme).map_or(2, |s| s.order);
+    let (order, evaluations) =
+        Scheme::by_name(scheme).map_or((2, 1), |s| (s.order, s.evaluations()));
     let (ratio, floor) = if order >= 10 && !f32 {
         (2f64.powf(0.25), 1e-13)
     } else {
@@ -518,10 +519,9 @@ fn measure_order(
         let steps = steps_f.round() as u64;
         let e = order_error(engine, op, scheme, steps)?;
         // Accumulated roundoff grows like the number of stages times u.
-        let evaluations = Scheme::by_name(scheme).map_or(1, |s| s.evaluations()) as f64;
         let roundoff = 2.0
             * steps as f64
-            * evaluations
+            * evaluations as f64
             * if f32 {
                 f32::EPSILON as f64 / 2.0
             } else {

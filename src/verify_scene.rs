@@ -11,7 +11,9 @@ use crate::plan::observations::Observations;
 use crate::plan::{Plan, Problem, Source};
 use crate::reference::truth::dop853_of;
 use crate::scene::{Input, Scene};
-use crate::verify::{bound, failed, fmt, order_check, Check, OrderProblem, Target};
+use crate::verify::{
+    bound, failed, fmt, largest_difference, order_check, Check, OrderProblem, Target,
+};
 
 /// Horizon of the order measurement: long enough to see the scheme's
 /// global error, short enough to stay out of chaos.
@@ -199,21 +201,4 @@ fn f32_agreement(name: String, plan: &Plan, c: &Observations<f64>, g: &Observati
         fmt(cpu_err)
     );
     bound("agreement", name, &what, gpu_err, (2.0 * cpu_err).max(1e-3))
-}
-
-/// The largest difference of two runs' final values, relative to
-/// max(1, |a|); infinite where one is finite and the other not, unless
-/// `finite_only` (f32 and f64 may stop an escaping orbit at different steps).
-fn largest_difference(a: &Observations<f64>, b: &Observations<f64>, finite_only: bool) -> f64 {
-    let mut worst = 0.0f64;
-    for ((_, a), (_, b)) in a.final_values.iter().zip(&b.final_values) {
-        for (x, y) in a.iter().zip(b) {
-            if x.is_finite() && y.is_finite() {
-                worst = worst.max((x - y).abs() / x.abs().max(1.0));
-            } else if x.is_finite() != y.is_finite() && !finite_only {
-                worst = f64::INFINITY;
-            }
-        }
-    }
-    worst
 }

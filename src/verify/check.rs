@@ -95,3 +95,24 @@ pub(crate) fn fmt(x: f64) -> String {
         format!("{x:.4e}")
     }
 }
+
+/// The largest difference of two runs' final values, relative to
+/// max(1, |a|); infinite where one is finite and the other not, unless
+/// `finite_only` (f32 and f64 may stop an escaping orbit at different steps).
+pub(crate) fn largest_difference(
+    a: &Observations<f64>,
+    b: &Observations<f64>,
+    finite_only: bool,
+) -> f64 {
+    let mut worst = 0.0f64;
+    for ((_, a), (_, b)) in a.final_values.iter().zip(&b.final_values) {
+        for (x, y) in a.iter().zip(b) {
+            if x.is_finite() && y.is_finite() {
+                worst = worst.max((x - y).abs() / x.abs().max(1.0));
+            } else if x.is_finite() != y.is_finite() && !finite_only {
+                worst = f64::INFINITY;
+            }
+        }
+    }
+    worst
+}
