@@ -1,5 +1,5 @@
-// reeb driver: one invocation integrates one trajectory over the window of
-// steps [u.step0, u.step0 + u.nsteps). src/backend/gpu/codegen.rs splices the
+// reeb driver: one invocation integrates one or several trajectories over
+// the window of steps [u.step0, u.step0 + u.nsteps). src/backend/gpu/codegen.rs splices the
 // plan's code in at the `{{...}}` markers: the inputs (constants, or values
 // looked up along the ensemble's axes), the step (the plan's ops as calls of
 // the shared functions), the finite test and the observers.
@@ -39,10 +39,21 @@ struct Uniforms {
 // kernels whose plan shares them; src/backend/gpu/time_table.rs).
 {{TIME_TABLE}}
 
-@compute @workgroup_size(64)
+// The launch (src/backend/gpu/tuning.rs): {{WORKGROUP}} invocations per
+// workgroup, each integrating {{PER_THREAD}} trajectories, thread + k·threads,
+// so that neighbouring invocations read neighbouring trajectories.
+@compute @workgroup_size({{WORKGROUP}})
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
         @builtin(local_invocation_index) li: u32) {
-    let i = (wg.y * nwg.x + wg.x) * 64u + li;
+    let thread = (wg.y * nwg.x + wg.x) * {{WORKGROUP}}u + li;
+    let threads = nwg.x * nwg.y * {{WORKGROUP}}u;
+    for (var k = 0u; k < {{PER_THREAD}}u; k = k + 1u) {
+        trajectory(thread + k * threads);
+    }
+}
+
+// One trajectory over the window.
+fn trajectory(i: u32) {
     if i >= u.count {
         return;
     }

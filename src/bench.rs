@@ -3,7 +3,7 @@
 //! alone (no kernel compilation, no upload: the GPU timing is the dispatches'),
 //! as the median of several repeats.
 
-use crate::backend::gpu::GpuError;
+use crate::backend::BackendError;
 use crate::backend::Engine;
 use crate::models::Model;
 use crate::num::precision::Precision;
@@ -251,7 +251,7 @@ pub fn gpu_rate(
     plan: &Plan,
     precision: Precision,
     repeats: usize,
-) -> Result<Option<f64>, GpuError> {
+) -> Result<Option<f64>, BackendError> {
     if !engine.runs(precision) {
         return Ok(None);
     }
@@ -283,7 +283,7 @@ pub fn median(mut v: Vec<f64>) -> f64 {
 /// Seconds of one integration of `plan` on `engine`, as the backend times it
 /// (wall clock on the CPU; timestamp queries on a GPU that has them, after
 /// the first call has compiled and cached the kernel).
-pub fn seconds(engine: &Engine, plan: &Plan, precision: Precision) -> Result<f64, GpuError> {
+pub fn seconds(engine: &Engine, plan: &Plan, precision: Precision) -> Result<f64, BackendError> {
     Ok(match precision {
         Precision::F32 => engine.run::<f32>(plan, None)?.seconds,
         Precision::F64 => engine.run::<f64>(plan, None)?.seconds,
@@ -295,4 +295,48 @@ pub fn rate(plan: &Plan, repeats: usize, mut once: impl FnMut(&Plan) -> f64) -> 
     once(plan);
     let times: Vec<f64> = (0..repeats.max(1)).map(|_| once(plan)).collect();
     plan.traj_steps() as f64 / median(times)
+}
+
+/// One plan shape tuned by `reeb tune`.
+pub struct Tuning {
+    pub shape: String,
+    pub tuned: crate::backend::gpu::tuning::Tuned,
+}
+
+/// `reeb tune`: probes again, on `engine`'s adapter, the plan shapes of
+/// `scene` (its sub-runs), or those of the benchmark scenarios, in each of
+/// `precisions` the adapter runs, and caches them; `row` sees each.
+pub fn tune(
+    engine: &Engine,
+    scene: Option<&crate::scene::Scene>,
+    precisions: &[Precision],
+    mut row: impl FnMut(&Tuning),
+) -> Result<Vec<Tuning>, BackendError> {
+    use crate::backend::tune;
+    let Engine::Gpu(ctx) = engine else {
+        return Ok(vec![]);
+    };
+    let plans: Vec<Plan> = match scene {
+        Some(s) => s
+            .sub_runs()
+            .map_err(|e| BackendError::Tuning(e.to_string()))?
+            .into_iter()
+            .map(|r| r.plan)
+            .collect(),
+        None => SCENARIOS.iter().map(|s| s.plan(1 << 20, 1000)).collect(),
+    };
+    let mut out: Vec<Tuning> = vec![];
+    for &p in precisions.iter().filter(|p| engine.runs(**p)) {
+        for plan in &plans {
+            let shape = tune::shape(ctx, plan, p);
+            if out.iter().any(|t| t.shape == shape) {
+                continue;
+            }
+            let (tuned, _) = tune::tuned(ctx, plan, p, true)?;
+            let t = Tuning { shape, tuned };
+            row(&t);
+            out.push(t);
+        }
+    }
+    Ok(out)
 }

@@ -3,7 +3,6 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
-use std::time::Duration;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
@@ -11,7 +10,7 @@ use clap::{Parser, Subcommand};
 use reeb::backend::gpu::{list_adapters, GpuContext};
 use reeb::backend::Engine;
 use reeb::num::precision::Precision;
-use reeb::output::run::{gates, run_scene, Gated, RunOptions};
+use reeb::output::run::{gates, run_scene, Gated, RunOptions, TaskOptions};
 use reeb::output::stream::Watch;
 use reeb::scene::{BackendChoice, Scene};
 use reeb::verify::{run_all, Target};
@@ -27,69 +26,17 @@ struct Cli {
     command: Command,
 }
 
-/// How `reeb run` streams, resumes and shards.
-#[derive(clap::Args)]
-struct StreamArgs {
-    /// Continue the run a kill interrupted in DIR.partial (the same scene):
-    /// finished chunks are kept, the others integrated.
-    #[arg(long)]
-    resume: bool,
-    /// Integrate only the K-th of N contiguous parts of the ensemble into the
-    /// shared DIR.partial (0 <= K < N); `reeb merge DIR` finishes the run.
-    #[arg(long, value_name = "K/N")]
-    shard: Option<reeb::output::run::Shard>,
-    /// Trajectories per chunk, the unit of memory, checkpoint and shard
-    /// (default: outputs of at most 1 GiB per chunk).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
-    chunk_trajectories: Option<u64>,
-    /// Run on GPU adapter INDEX (as `reeb info` numbers them from 0): one
-    /// shard per GPU of a node.
-    #[arg(long, value_name = "INDEX")]
-    adapter: Option<usize>,
-    /// Override the scene's output.format: npy (one file per array) or zarr
-    /// (one Zarr v3 store, DIR/run.zarr, for xarray and dask).
-    #[arg(long)]
-    format: Option<reeb::scene::Format>,
-    /// Save the integrator's state inside a chunk every SECONDS (long
-    /// horizons: a kill then loses at most that much; every finished chunk
-    /// is kept too); 0: only finished chunks.
-    #[arg(long, value_name = "SECONDS", default_value = "300", value_parser = seconds)]
-    checkpoint_every: Duration,
-}
-
-/// A number of seconds, 0 or more (fractions allowed).
-fn seconds(s: &str) -> Result<Duration, String> {
-    let x: f64 = s
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{s}` is not a number of seconds"))?;
-    Duration::try_from_secs_f64(x)
-        .map_err(|_| format!("`{s}`: seconds must be 0 or more, and finite"))
-}
-
 #[derive(Subcommand)]
 enum Command {
     /// Integrate a scene: arrays (.npy), summary.json and pictures in one directory.
     Run {
         /// The scene file (TOML).
         scene: PathBuf,
-        /// Output directory (default: runs/<scene name>).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Override the scene's backend: auto, cpu or gpu.
-        #[arg(long)]
-        backend: Option<BackendChoice>,
-        /// Override the scene's precision: f32 or f64.
-        #[arg(long)]
-        precision: Option<Precision>,
         /// Quick look: at most 4 values per axis and 2000 steps per plan, into runs/<name>-preview.
         #[arg(long)]
         preview: bool,
-        /// Replace the output directory even when it holds files reeb did not write (they are deleted).
-        #[arg(long)]
-        force: bool,
         #[command(flatten)]
-        stream: StreamArgs,
+        opts: RunOptions,
     },
     /// Run a scene on a Slurm cluster: a job array of N shards (each
     /// `reeb run --shard K/N --resume`) and a merge job after it.
@@ -114,22 +61,9 @@ enum Command {
         /// Write the batch scripts without submitting them.
         #[arg(long)]
         dry_run: bool,
-        /// Override the scene's backend in every task: auto, cpu or gpu.
-        #[arg(long)]
-        backend: Option<BackendChoice>,
-        /// Override the scene's precision in every task.
-        #[arg(long)]
-        precision: Option<Precision>,
-        /// Override the scene's output.format: npy or zarr.
-        #[arg(long)]
-        format: Option<reeb::scene::Format>,
-        /// Trajectories per chunk.
-        #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
-        chunk_trajectories: Option<u64>,
-        /// Seconds between checkpoints inside a chunk, in every task
-        /// (default 300; 0: only finished chunks).
-        #[arg(long, value_name = "SECONDS", value_parser = seconds)]
-        checkpoint_every: Option<Duration>,
+        /// What every task runs with (as `reeb run`'s flags).
+        #[command(flatten)]
+        task: TaskOptions,
     },
     /// Finish a run integrated in shards (`reeb run --shard K/N`): check that
     /// every shard finished, then write summary.json and the pictures.
@@ -206,6 +140,20 @@ enum Command {
         #[arg(long)]
         skip_verify: bool,
     },
+    /// Measure again, and cache, the GPU launch of each plan shape (model and
+    /// precision) on an adapter: workgroup size, trajectories per invocation,
+    /// time per dispatch, with the CPU's rate beside it (what `--backend auto`
+    /// weighs). Without a scene: the models of `reeb bench`'s scenarios.
+    Tune {
+        /// A scene whose plans to tune.
+        scene: Option<PathBuf>,
+        /// The adapter, by its index in `reeb info` (default: the one `--backend gpu` takes).
+        #[arg(long)]
+        adapter: Option<usize>,
+        /// Precisions.
+        #[arg(long, value_delimiter = ',', default_value = "f32,f64")]
+        precision: Vec<Precision>,
+    },
     /// Run the oracles of SPEC §4 and measure the convergence order of every scheme;
     /// with a scene, measure its scheme's order (and S2's, Yoshida 6A's) on it
     /// against DOP853, and the CPU–GPU agreement on it.
@@ -260,13 +208,9 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Run {
             scene,
-            out,
-            backend,
-            precision,
             preview,
-            force,
-            stream,
-        } => run(scene, out, backend, precision, preview, force, stream),
+            opts,
+        } => run(scene, preview, opts),
         Command::Merge { dir, force } => merge(&dir, force),
         Command::Slurm {
             scene,
@@ -276,32 +220,8 @@ fn main() -> ExitCode {
             gpus_per_task,
             time,
             dry_run,
-            backend,
-            precision,
-            format,
-            chunk_trajectories,
-            checkpoint_every,
+            task,
         } => {
-            let mut run_args: Vec<String> = vec![];
-            let mut pass = |flag: &str, v: Option<String>| {
-                if let Some(v) = v {
-                    run_args.extend([flag.to_string(), v]);
-                }
-            };
-            pass(
-                "--backend",
-                backend.map(|b| format!("{b:?}").to_lowercase()),
-            );
-            pass("--precision", precision.map(|p| p.name().to_string()));
-            pass("--format", format.map(|f| f.name().to_string()));
-            pass(
-                "--chunk-trajectories",
-                chunk_trajectories.map(|n| n.to_string()),
-            );
-            pass(
-                "--checkpoint-every",
-                checkpoint_every.map(|d| d.as_secs_f64().to_string()),
-            );
             let opts = reeb::output::slurm::SlurmOptions {
                 shards: usize::try_from(shards).unwrap_or(usize::MAX),
                 out: PathBuf::new(),
@@ -309,9 +229,9 @@ fn main() -> ExitCode {
                 gpus_per_task,
                 time,
                 dry_run,
-                run_args,
+                run_args: task.to_args(),
             };
-            slurm(&scene, out, precision, opts)
+            slurm(&scene, out, task.precision, opts)
         }
         Command::Check {
             scene,
@@ -339,6 +259,11 @@ fn main() -> ExitCode {
             n,
             skip_verify,
         } => doctor(out, adapter, n, skip_verify),
+        Command::Tune {
+            scene,
+            adapter,
+            precision,
+        } => tune(scene, adapter, precision),
         Command::Verify {
             scene,
             backend,
@@ -363,38 +288,15 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(
-    scene: PathBuf,
-    out: Option<PathBuf>,
-    backend: Option<BackendChoice>,
-    precision: Option<Precision>,
-    preview: bool,
-    force: bool,
-    stream: StreamArgs,
-) -> Result<ExitCode> {
+fn run(scene: PathBuf, preview: bool, mut opts: RunOptions) -> Result<ExitCode> {
     let mut scene = Scene::load(&scene)?;
     if preview {
         scene = scene.preview(4, 2000);
     }
     let watch = Arc::new(Watch::default());
     interrupt::forward_to(watch.stop.clone());
-    let opts = RunOptions {
-        out,
-        backend,
-        precision,
-        progress: true,
-        max_output_bytes: None,
-        force,
-        resume: stream.resume,
-        shard: stream.shard,
-        chunk_trajectories: stream
-            .chunk_trajectories
-            .map(|n| usize::try_from(n).unwrap_or(usize::MAX)),
-        adapter: stream.adapter,
-        format: stream.format,
-        checkpoint_every: Some(stream.checkpoint_every),
-        watch: Some(watch),
-    };
+    opts.progress = true;
+    opts.watch = Some(watch);
     let report = match run_scene(&scene, &opts) {
         Ok(report) => report,
         Err(e) => match interrupt::received() {
@@ -766,6 +668,7 @@ fn info() -> Result<ExitCode> {
             a.max_storage_buffers_per_shader_stage
         );
     }
+    print_tuning(&adapters);
     match GpuContext::new() {
         Ok(ctx) => println!(
             "--backend gpu uses: {}; --backend auto uses: {}",
@@ -773,12 +676,73 @@ fn info() -> Result<ExitCode> {
             if reeb::backend::gpu::is_software(&ctx.info) {
                 "the CPU (the adapter is a software one)"
             } else {
-                "the GPU"
+                "the faster of the GPU and the CPU for each plan shape and precision, as the tuning measured them"
             }
         ),
         Err(e) => println!("--backend gpu: unavailable ({e}); --backend auto uses the CPU"),
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `reeb tune`: a row per plan shape probed again, and where they are kept.
+fn tune(scene: Option<PathBuf>, adapter: Option<usize>, precisions: Vec<Precision>) -> Result<ExitCode> {
+    use reeb::backend::gpu::tuning;
+    let engine = Engine::gpu(adapter).context("reeb tune measures a GPU adapter")?;
+    let scene = scene.as_deref().map(Scene::load).transpose()?;
+    println!("reeb {} tune: {}", env!("CARGO_PKG_VERSION"), engine.describe());
+    println!(
+        "{:<28} {:<60} {:>14} {:>14} {:>8}",
+        "shape", "launch", "GPU steps/s", "CPU steps/s", "probe s"
+    );
+    let rows = reeb::bench::tune(&engine, scene.as_ref(), &precisions, |t| {
+        println!(
+            "{:<28} {:<60} {:>14.4e} {:>14.4e} {:>8.2}",
+            t.shape,
+            t.tuned.launch.describe(),
+            t.tuned.gpu_rate,
+            t.tuned.cpu_rate,
+            t.tuned.probe_seconds
+        );
+    })?;
+    if rows.is_empty() {
+        anyhow::bail!("nothing to tune: the adapter runs none of the precisions asked for");
+    }
+    if let Some(dir) = tuning::cache_dir() {
+        println!("cached in {}", dir.join(tuning::CACHE_FILE).display());
+    }
+    let env = tuning::Overrides::from_env().map_err(anyhow::Error::msg)?;
+    if env != tuning::Overrides::default() {
+        println!("note: the environment overrides these choices ({env:?})");
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `reeb info`'s tuning lines: the cached launches of each adapter, and
+/// the environment's overrides.
+fn print_tuning(adapters: &[reeb::backend::gpu::AdapterSummary]) {
+    use reeb::backend::gpu::tuning::{cache_dir, Cache, Overrides, CACHE_FILE, ENV};
+    let cache = Cache::load();
+    let file = cache_dir().map_or("(no cache directory)".into(), |d| d.join(CACHE_FILE).display().to_string());
+    println!("GPU tuning (cache: {file}):");
+    for (k, a) in adapters.iter().enumerate() {
+        let tuned = cache.tuned.get(&a.tuning_key);
+        if tuned.is_none_or(|t| t.is_empty()) {
+            println!("  adapter {k}: not tuned yet (the first run of a plan shape probes it, about 1 s; or `reeb tune --adapter {k}`)");
+        }
+        for (shape, t) in tuned.into_iter().flatten() {
+            println!(
+                "  adapter {k}, {shape}: {}; GPU {:.3e}, CPU {:.3e} trajectory-steps/s",
+                t.launch.describe(),
+                t.gpu_rate,
+                t.cpu_rate
+            );
+        }
+    }
+    match Overrides::from_env() {
+        Ok(o) if o == Overrides::default() => {}
+        Ok(o) => println!("  overridden by the environment: {o:?}"),
+        Err(e) => println!("  error in the environment: {e} ({})", ENV.join(", ")),
+    }
 }
 
 fn verify(engine: &Target, scene: Option<&Path>) -> anyhow::Result<ExitCode> {

@@ -9,7 +9,8 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use reeb::backend::checkpoint::{Checkpoints, Contents};
-use reeb::backend::gpu::{self, GpuError};
+use reeb::backend::gpu;
+use reeb::backend::BackendError;
 use reeb::backend::Engine;
 use reeb::models::Flows;
 use reeb::plan::observations::{Col, Observations};
@@ -107,7 +108,7 @@ fn same<R: Flows>(label: &str, a: &Observations<R>, b: &Observations<R>) {
     }
 }
 
-type Run<'r, R> = &'r dyn Fn(Option<&mut Checkpoints>) -> Result<Observations<R>, GpuError>;
+type Run<'r, R> = &'r dyn Fn(Option<&mut Checkpoints>) -> Result<Observations<R>, BackendError>;
 
 /// Runs `run` uninterrupted, paused for a snapshot at every chance, and
 /// continued from its first, middle and last snapshots: all bitwise equal.

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use reeb::backend::Engine;
 use reeb::num::precision::Precision;
-use reeb::output::run::{run_scene, RunOptions};
+use reeb::output::run::{run_scene, RunOptions, TaskOptions};
 use reeb::scene::{BackendChoice, Scene};
 
 mod common;
@@ -39,7 +39,10 @@ fn every_scene_runs_on_the_cpu_and_writes_its_files() {
         let out = tmp(&small.name);
         let opts = RunOptions {
             out: Some(out.clone()),
-            backend: Some(BackendChoice::Cpu),
+            task: TaskOptions {
+                backend: Some(BackendChoice::Cpu),
+                ..TaskOptions::default()
+            },
             ..RunOptions::default()
         };
         let report =
@@ -188,7 +191,10 @@ fn every_scene_agrees_between_cpu_and_gpu() {
         let out = tmp(&format!("{}-gpu", scene.name));
         let opts = RunOptions {
             out: Some(out.clone()),
-            backend: Some(BackendChoice::Gpu),
+            task: TaskOptions {
+                backend: Some(BackendChoice::Gpu),
+                ..TaskOptions::default()
+            },
             ..RunOptions::default()
         };
         run_scene(&scene, &opts).unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
@@ -203,7 +209,10 @@ fn a_failed_run_leaves_no_complete_looking_directory() {
     // An output budget of 1 byte: refused before any work, with the estimate.
     let opts = RunOptions {
         out: Some(out.clone()),
-        backend: Some(BackendChoice::Cpu),
+        task: TaskOptions {
+            backend: Some(BackendChoice::Cpu),
+            ..TaskOptions::default()
+        },
         max_output_bytes: Some(1),
         ..RunOptions::default()
     };
@@ -216,7 +225,10 @@ fn a_failed_run_leaves_no_complete_looking_directory() {
     // A successful run replaces the directory; no .partial remains.
     let opts = RunOptions {
         out: Some(out.clone()),
-        backend: Some(BackendChoice::Cpu),
+        task: TaskOptions {
+            backend: Some(BackendChoice::Cpu),
+            ..TaskOptions::default()
+        },
         ..RunOptions::default()
     };
     run_scene(&scene, &opts).unwrap();

@@ -226,3 +226,87 @@ fn the_dry_run_hint_is_quoted_for_the_shell() {
         "{line}"
     );
 }
+
+/// Every option a task takes travels to it: written back as arguments by
+/// `TaskOptions::to_args`, parsed by `reeb run`'s own definition, they are
+/// the same options (issue 35, point 5).
+#[test]
+fn every_task_option_reaches_each_task_unchanged() {
+    use reeb::output::run::{RunOptions, TaskOptions};
+    let all = TaskOptions {
+        backend: Some(reeb::scene::BackendChoice::Gpu),
+        precision: Some(reeb::num::precision::Precision::F32),
+        format: Some(reeb::scene::Format::Zarr),
+        chunk_trajectories: Some(4096),
+        checkpoint_every: Some(std::time::Duration::from_secs_f64(2.5)),
+        adapter: Some(1),
+    };
+    let back = RunOptions::parse_args(&all.to_args()).unwrap();
+    assert_eq!(back.task, all);
+    assert_eq!(
+        RunOptions::parse_args(&[]).unwrap().task,
+        TaskOptions::default()
+    );
+
+    let d = tmp("task-options");
+    let scene = grid_scene(&d, 1.0, 50, "cpu");
+    let out = d.join("run");
+    ok(&[
+        "slurm",
+        s(&scene),
+        "--shards",
+        "2",
+        "--out",
+        s(&out),
+        "--dry-run",
+        "--precision",
+        "f32",
+        "--chunk-trajectories",
+        "7",
+        "--checkpoint-every",
+        "2.5",
+    ]);
+    let script = std::fs::read_to_string(format!("{}.slurm/shards.sbatch", s(&out))).unwrap();
+    assert!(
+        script.contains("--resume --precision f32 --chunk-trajectories 7 --checkpoint-every 2.5\n"),
+        "{script}"
+    );
+}
+
+/// The Python keywords are `reeb run`'s options, by name, and a wrong
+/// value is refused naming its keyword.
+#[test]
+fn run_options_by_keyword_name_the_keyword_they_refuse() {
+    use reeb::output::run::RunOptions;
+    let names = RunOptions::names();
+    for n in [
+        "out",
+        "force",
+        "resume",
+        "shard",
+        "backend",
+        "precision",
+        "format",
+        "chunk_trajectories",
+        "checkpoint_every",
+        "adapter",
+    ] {
+        assert!(names.iter().any(|x| x == n), "{n} in {names:?}");
+    }
+    let pair = |k: &str, v: &str| vec![(k.to_string(), Some(v.to_string()))];
+    let e = RunOptions::from_pairs(&pair("chunk_trajectories", "0")).unwrap_err();
+    assert!(e.starts_with("chunk_trajectories: "), "{e}");
+    let e = RunOptions::from_pairs(&pair("checkpoint_every", "-1")).unwrap_err();
+    assert!(
+        e.starts_with("checkpoint_every: ") && e.contains("0 or more"),
+        "{e}"
+    );
+    let e = RunOptions::from_pairs(&pair("colour", "red")).unwrap_err();
+    assert!(e.starts_with("colour: not an option"), "{e}");
+    let o = RunOptions::from_pairs(&[
+        ("shard".into(), Some("1/4".into())),
+        ("resume".into(), None),
+    ])
+    .unwrap();
+    assert!(o.resume && o.shard.is_some_and(|s| (s.index, s.count) == (1, 4)));
+}

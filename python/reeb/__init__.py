@@ -21,13 +21,14 @@ capture fractions in ``attrs["capture_fractions"]``.
 """
 
 from . import dask, report
-from ._api import check, info, open, run, verify
+from ._api import check, info, open, run, run_options, verify
 from ._scene import scene_toml
 from .errors import InternalError, ReebError, SceneError
 from ._reeb import __version__
 
 __all__ = [
     "run",
+    "run_options",
     "open",
     "check",
     "verify",

@@ -47,6 +47,7 @@ def run(
     force: bool = False,
     preview: bool = False,
     checkpoint_every: Optional[float] = None,
+    **options: Any,
 ):
     """Integrates ``scene`` and returns its outputs as an ``xarray.Dataset``.
 
@@ -65,12 +66,20 @@ def run(
     memory instead). ``preview``: at most 4 values per axis and 2000
     steps. ``progress``: a tqdm bar over trajectory-steps.
 
+    Every other option of ``reeb run`` is a keyword too, spelt as its flag
+    with ``_`` for ``-`` (``reeb.run_options()`` lists them):
+    ``chunk_trajectories=N``, ``format="zarr"``, ``resume=True`` (with
+    ``out``), ``adapter=K``; ``shard`` is for ``reeb.dask.run`` and
+    ``reeb run --shard``, since a shard is not a whole run.
+
     The GIL is released while the engine runs; Ctrl-C stops the run within a
     second and raises ``KeyboardInterrupt`` (a run into ``out`` then leaves
     ``out.partial``, which ``reeb run --resume`` continues, never ``out``).
     Errors raise ``reeb.SceneError`` (with ``.field``, ``.line``,
     ``.message``) or ``reeb.ReebError``.
     """
+    if "shard" in options:
+        raise ValueError("shard: reeb.run returns a whole run; run shards with reeb.dask.run, or reeb run --shard K/N and reeb merge")
     text, path = resolve(scene)
     temporary = None
     if out is None:
@@ -90,6 +99,7 @@ def run(
             preview=preview,
             checkpoint_every=checkpoint_every,
             progress=bar,
+            **options,
         )
         bar.close()
         ds = open(target)
@@ -177,6 +187,12 @@ def verify(*, backend: str = "cpu", precision: str = "f64") -> List[Dict[str, An
     order on ``backend`` in ``precision``; one dict per check (``check``,
     ``pass``, ``expected``, ``measured``, ``tolerance``)."""
     return json.loads(_reeb.verify(backend, precision))
+
+
+def run_options() -> List[str]:
+    """The keywords of ``reeb.run`` that are ``reeb run``'s options (its
+    flags, ``_`` for ``-``)."""
+    return list(_reeb.run_option_names())
 
 
 def info() -> Dict[str, Any]:

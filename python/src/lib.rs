@@ -11,8 +11,9 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
 
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyDict};
 
 use reeb::backend::gpu::{list_adapters, GpuContext};
 use reeb::backend::Engine;
@@ -121,58 +122,61 @@ fn watched<T: Send>(
 
 /// Runs the scene `text` (read from `path`) into the directory `out`, as
 /// `reeb run` does; returns `summary.json`'s text. `progress(done, total)`
-/// is called with trajectory-steps as the run goes.
-/// `shard` is `"K/N"` (as `--shard`), `resume` continues `out.partial`,
-/// `format` and `chunk_trajectories` override the scene's as the flags do.
+/// is called with trajectory-steps as the run goes. The other keywords are
+/// `reeb run`'s options (`run_option_names()`: `backend`, `shard="K/N"`,
+/// `checkpoint_every`, …), read by the same definition as its flags: a
+/// value is the flag's text, `True` a flag given, `None` and `False` none.
 #[pyfunction]
-#[pyo3(signature = (text, path, out, backend=None, precision=None, force=false, preview=false, checkpoint_every=None, progress=None, shard=None, resume=false, format=None, chunk_trajectories=None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (text, path, out, preview=false, progress=None, **options))]
 fn run(
     py: Python,
     text: &str,
     path: &str,
     out: PathBuf,
-    backend: Option<&str>,
-    precision: Option<&str>,
-    force: bool,
     preview: bool,
-    checkpoint_every: Option<f64>,
     progress: Option<Bound<PyAny>>,
-    shard: Option<&str>,
-    resume: bool,
-    format: Option<&str>,
-    chunk_trajectories: Option<usize>,
+    options: Option<&Bound<PyDict>>,
 ) -> PyResult<String> {
+    let mut opts = run_options(options)?;
     let mut scene = Scene::parse(Path::new(path), text).map_err(|e| scene_error(py, &e))?;
     if preview {
         scene = scene.preview(4, 2000);
     }
-    let checkpoint_every = checkpoint_every
-        .map(|s| {
-            Duration::try_from_secs_f64(s).map_err(|_| {
-                PyValueError::new_err(format!(
-                    "checkpoint_every: {s} is not a number of seconds ≥ 0"
-                ))
-            })
-        })
-        .transpose()?;
     let watch = Arc::new(Watch::default());
-    let opts = RunOptions {
-        out: Some(out),
-        backend: parse::<BackendChoice>("backend", backend)?,
-        precision: parse::<Precision>("precision", precision)?,
-        force,
-        checkpoint_every,
-        watch: Some(watch.clone()),
-        shard: parse("shard", shard)?,
-        resume,
-        format: parse("format", format)?,
-        chunk_trajectories,
-        ..Default::default()
-    };
+    opts.out = Some(out);
+    opts.watch = Some(watch.clone());
     let report = watched(py, &watch, progress.as_ref(), || run_scene(&scene, &opts))?;
     let report = report.map_err(|e| error(py, e))?;
     Ok(serde_json::to_string_pretty(&report.summary).unwrap_or_default())
+}
+
+/// Keyword arguments as [`RunOptions`]; `out` is the positional argument.
+fn run_options(options: Option<&Bound<PyDict>>) -> PyResult<RunOptions> {
+    let (names, mut pairs) = (RunOptions::names(), vec![]);
+    for (k, v) in options.into_iter().flatten() {
+        let name: String = k.extract()?;
+        if name == "out" || !names.contains(&name) {
+            return Err(PyTypeError::new_err(format!(
+                "run() got an unexpected keyword argument '{name}' (run options: {})",
+                names.join(", ")
+            )));
+        }
+        if v.is_none() || (v.is_instance_of::<PyBool>() && !v.is_truthy()?) {
+            continue;
+        }
+        let value = match v.is_instance_of::<PyBool>() {
+            true => None,
+            false => Some(v.str()?.to_string()),
+        };
+        pairs.push((name, value));
+    }
+    RunOptions::from_pairs(&pairs).map_err(PyValueError::new_err)
+}
+
+/// The keywords of `run` that are `reeb run`'s options.
+#[pyfunction]
+fn run_option_names() -> Vec<String> {
+    RunOptions::names()
 }
 
 /// `reeb merge DIR`: checks that every shard of the run in `DIR.partial`
@@ -315,6 +319,7 @@ fn _panic(py: Python, message: String) -> PyResult<()> {
 #[pymodule]
 fn _reeb(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(run, m)?)?;
+    m.add_function(wrap_pyfunction!(run_option_names, m)?)?;
     m.add_function(wrap_pyfunction!(check, m)?)?;
     m.add_function(wrap_pyfunction!(merge, m)?)?;
     m.add_function(wrap_pyfunction!(verify, m)?)?;

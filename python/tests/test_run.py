@@ -97,6 +97,30 @@ def test_out_writes_the_run_as_reeb_run_does(tmp_path, reeb_cli):
     same_data(ds, reeb.open(tmp_path / "cli"))
 
 
+def test_the_keywords_of_run_are_the_options_of_reeb_run(tmp_path, reeb_cli):
+    """One definition (issue 35, point 5): reeb.run's keywords are reeb
+    run's flags, checked against the list the engine's own parser gives."""
+    import inspect
+
+    names = set(reeb.run_options())
+    assert {"backend", "precision", "out", "force", "resume", "format", "chunk_trajectories", "checkpoint_every", "adapter"} <= names
+    explicit = set(inspect.signature(reeb.run).parameters) - {"scene", "progress", "preview", "options"}
+    assert explicit <= names, explicit - names
+    help_text = cli(reeb_cli, "run", "--help")
+    for n in names:
+        assert "--" + n.replace("_", "-") in help_text, n
+    # Options only a keyword reaches: the chunk size changes the chunks, not the values.
+    chunked = reeb.run(VAN_DER_POL, out=tmp_path / "chunked", chunk_trajectories=3, progress=False)
+    same_data(chunked, reeb.run(VAN_DER_POL, progress=False))
+    assert json.loads((tmp_path / "chunked" / "summary.json").read_text())["chunks"]["trajectories"] == 3
+    with pytest.raises(TypeError, match="colour"):
+        reeb.run(VAN_DER_POL, colour="red", progress=False)
+    with pytest.raises(ValueError, match="^chunk_trajectories: "):
+        reeb.run(VAN_DER_POL, chunk_trajectories=0, progress=False)
+    with pytest.raises(ValueError, match="^shard: "):
+        reeb.run(VAN_DER_POL, shard="0/2", progress=False)
+
+
 def test_a_zarr_run_opens_lazily_with_the_same_values(tmp_path):
     scene = json.loads(json.dumps(VAN_DER_POL))
     scene["output"]["format"] = "zarr"

@@ -5,6 +5,8 @@
 
 pub mod checkpoint;
 pub mod cpu;
+pub mod error;
+pub mod tune;
 pub mod gpu;
 
 use std::sync::atomic::{AtomicBool, AtomicU64};
@@ -15,6 +17,7 @@ use crate::plan::observations::Observations;
 use crate::plan::snapshot::Header;
 use crate::plan::Plan;
 use checkpoint::Checkpoints;
+pub use error::BackendError;
 use gpu::{GpuContext, GpuError};
 
 /// Which backend a run asks for.
@@ -35,6 +38,57 @@ impl std::str::FromStr for BackendChoice {
             "cpu" => Ok(BackendChoice::Cpu),
             "gpu" => Ok(BackendChoice::Gpu),
             _ => Err(format!("`{s}` is not a backend (auto, cpu, gpu)")),
+        }
+    }
+}
+
+impl BackendChoice {
+    /// The name a scene and `--backend` use.
+    pub fn name(self) -> &'static str {
+        match self {
+            BackendChoice::Auto => "auto",
+            BackendChoice::Cpu => "cpu",
+            BackendChoice::Gpu => "gpu",
+        }
+    }
+}
+
+/// `--adapters`: the GPU adapters one run spreads its chunks over.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Adapters {
+    /// Every hardware GPU of the machine.
+    All,
+    /// These, by their index in `reeb info`'s list (one twice: two
+    /// devices on one adapter).
+    List(Vec<usize>),
+}
+
+impl std::str::FromStr for Adapters {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Adapters, String> {
+        if s.trim() == "all" {
+            return Ok(Adapters::All);
+        }
+        let list = s
+            .split(',')
+            .map(|k| {
+                k.trim().parse::<usize>().map_err(|_| {
+                    format!("`{k}` is not an adapter index (`all`, or indices as `reeb info` numbers them, e.g. 0,1)")
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Adapters::List(list))
+    }
+}
+
+impl std::fmt::Display for Adapters {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Adapters::All => write!(f, "all"),
+            Adapters::List(v) => {
+                let v: Vec<String> = v.iter().map(usize::to_string).collect();
+                write!(f, "{}", v.join(","))
+            }
         }
     }
 }
@@ -61,40 +115,94 @@ impl Engine {
     pub fn resolve(
         choice: BackendChoice,
         precision: Precision,
-    ) -> Result<(Engine, Option<String>), GpuError> {
-        Engine::resolve_on(choice, precision, None)
+    ) -> Result<(Engine, Option<String>), BackendError> {
+        Engine::resolve_for(choice, precision, None, None)
     }
 
     /// [`Engine::resolve`] with the GPU pinned to adapter `index` (`--adapter`:
-    /// one shard per GPU of a node); a pinned adapter is used even when it
-    /// is a software one.
-    pub fn resolve_on(
+    /// one shard per GPU of a node), and, given the `plan` to run, `auto`
+    /// taking the faster of that GPU and the CPU for the plan's shape, as
+    /// the tuning probe measured them (`tune.rs`); the notice says which
+    /// and why. With `--adapter`, `auto` weighs even a software adapter.
+    pub fn resolve_for(
         choice: BackendChoice,
         precision: Precision,
         index: Option<usize>,
-    ) -> Result<(Engine, Option<String>), GpuError> {
+        plan: Option<&Plan>,
+    ) -> Result<(Engine, Option<String>), BackendError> {
         let f64_missing = |ctx: &GpuContext| precision == Precision::F64 && !ctx.shader_f64;
-        match (choice, index) {
-            (BackendChoice::Cpu, _) => Ok((Engine::Cpu, None)),
-            (BackendChoice::Gpu, _) | (BackendChoice::Auto, Some(_)) => {
-                let ctx = GpuContext::on(index)?;
+        let ctx = match (choice, GpuContext::on(index)) {
+            (BackendChoice::Cpu, _) => return Ok((Engine::Cpu, None)),
+            (BackendChoice::Gpu, ctx) => {
+                let ctx = ctx?;
+                tune::check_env(&ctx)?;
                 if f64_missing(&ctx) {
-                    return Err(GpuError::NoF64(ctx.describe()));
+                    return Err(GpuError::NoF64(ctx.describe()).into());
                 }
-                Ok((Engine::Gpu(Box::new(ctx)), None))
+                return Ok((Engine::Gpu(Box::new(ctx)), None));
             }
-            (BackendChoice::Auto, None) => Ok(match GpuContext::new() {
-                Err(e) => (Engine::Cpu, Some(format!("note: no GPU adapter ({}); running on the CPU", first_line(&e.to_string())))),
-                Ok(ctx) if gpu::is_software(&ctx.info) => (Engine::Cpu, Some(format!("note: only a software GPU adapter ({}); running on the CPU (use --backend gpu to run it anyway)", ctx.info.name))),
-                Ok(ctx) if f64_missing(&ctx) => (Engine::Cpu, Some(format!("note: {} has no f64 shaders; running on the CPU", ctx.info.name))),
-                Ok(ctx) => (Engine::Gpu(Box::new(ctx)), None),
-            }),
+            (BackendChoice::Auto, Err(e)) if index.is_none() => return Ok((Engine::Cpu, Some(format!("note: no GPU adapter ({}); running on the CPU", first_line(&e.to_string()))))),
+            (BackendChoice::Auto, ctx) => ctx?,
+        };
+        if index.is_none() && gpu::is_software(&ctx.info) {
+            return Ok((Engine::Cpu, Some(format!("note: only a software GPU adapter ({}); running on the CPU (use --backend gpu to run it anyway)", ctx.info.name))));
+        }
+        if f64_missing(&ctx) {
+            return Ok((Engine::Cpu, Some(format!("note: {} has no f64 shaders; running on the CPU", ctx.info.name))));
+        }
+        tune::check_env(&ctx)?;
+        let Some(plan) = plan else {
+            return Ok((Engine::Gpu(Box::new(ctx)), None));
+        };
+        match tune::tuned(&ctx, plan, precision, false) {
+            Ok((t, _)) => {
+                let gpu = t.gpu_rate >= t.cpu_rate;
+                let notice = tune::auto_notice(&ctx.info.name, precision, &t);
+                let engine = match gpu {
+                    true => Engine::Gpu(Box::new(ctx)),
+                    false => Engine::Cpu,
+                };
+                Ok((engine, Some(notice)))
+            }
+            Err(e) => Ok((Engine::Cpu, Some(format!("note: measuring {} failed ({}); running on the CPU", ctx.info.name, first_line(&e.to_string()))))),
+        }
+    }
+
+    /// One GPU engine for each adapter of `adapters` (`--adapters`), each
+    /// with its own device and queue, and the notice naming them.
+    pub fn resolve_many(
+        precision: Precision,
+        adapters: &Adapters,
+    ) -> Result<(Vec<Engine>, String), BackendError> {
+        let indices = match adapters {
+            Adapters::All => gpu::every_gpu()?,
+            Adapters::List(v) => v.clone(),
+        };
+        let mut engines = vec![];
+        for k in indices {
+            let ctx = GpuContext::on(Some(k))?;
+            tune::check_env(&ctx)?;
+            if precision == Precision::F64 && !ctx.shader_f64 {
+                return Err(GpuError::NoF64(ctx.describe()).into());
+            }
+            engines.push(Engine::Gpu(Box::new(ctx)));
+        }
+        let names: Vec<String> = engines.iter().filter_map(Engine::adapter).collect();
+        let notice = format!("note: {} GPU devices, the chunks shared among them: {}", names.len(), names.join("; "));
+        Ok((engines, notice))
+    }
+
+    /// `adapter K: NAME` for a GPU engine.
+    pub fn adapter(&self) -> Option<String> {
+        match self {
+            Engine::Cpu => None,
+            Engine::Gpu(ctx) => Some(format!("adapter {}: {}", ctx.index, ctx.info.name)),
         }
     }
 
     /// The GPU backend on adapter `index` of `reeb info`'s list, or on the
     /// one `--backend gpu` takes: the one way a GPU engine is built.
-    pub fn gpu(index: Option<usize>) -> Result<Engine, GpuError> {
+    pub fn gpu(index: Option<usize>) -> Result<Engine, BackendError> {
         Ok(Engine::Gpu(Box::new(GpuContext::on(index)?)))
     }
 
@@ -135,7 +243,7 @@ impl Engine {
         &self,
         plan: &Plan,
         progress: Option<&AtomicU64>,
-    ) -> Result<Integration<R>, GpuError> {
+    ) -> Result<Integration<R>, BackendError> {
         self.run_resumable(plan, progress, None)
     }
 
@@ -146,11 +254,11 @@ impl Engine {
         plan: &Plan,
         progress: Option<&AtomicU64>,
         cp: Option<&mut Checkpoints>,
-    ) -> Result<Integration<R>, GpuError> {
+    ) -> Result<Integration<R>, BackendError> {
         Ok(match self {
             Engine::Cpu => {
                 // Arrays whose lengths overflow are refused, not allocated.
-                Observations::<R>::lengths(plan).map_err(GpuError::TooLarge)?;
+                Observations::<R>::lengths(plan).map_err(BackendError::TooLarge)?;
                 let (observations, seconds) = cpu::resumable::<R>(plan, progress, cpu::isa(), cp)?;
                 Integration {
                     observations,
@@ -159,7 +267,8 @@ impl Engine {
                 }
             }
             Engine::Gpu(ctx) => {
-                let r = gpu::run_resumable::<R>(ctx, plan, progress, &Default::default(), cp)?;
+                let opts = Engine::launch::<R>(ctx, plan)?;
+                let r = gpu::run_resumable::<R>(ctx, plan, progress, &opts, cp)?;
                 Integration {
                     observations: r.observations,
                     seconds: r.seconds,
@@ -171,12 +280,21 @@ impl Engine {
 
     /// The header a snapshot of `plan` taken by this engine has (a
     /// snapshot continues only on the engine that computes the same bits).
-    pub fn snapshot_header<R: Flows>(&self, plan: &Plan) -> Result<Header, GpuError> {
+    pub fn snapshot_header<R: Flows>(&self, plan: &Plan) -> Result<Header, BackendError> {
         let engine = match self {
             Engine::Cpu => cpu::fingerprint(cpu::isa()),
-            Engine::Gpu(ctx) => gpu::fingerprint::<R>(ctx, plan, &Default::default())?,
+            Engine::Gpu(ctx) => gpu::fingerprint::<R>(ctx, plan, &Engine::launch::<R>(ctx, plan)?)?,
         };
         Ok(Header::of::<R>(plan, engine))
+    }
+
+    /// The GPU options of `plan`: its launch tuned for this adapter.
+    fn launch<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<gpu::GpuOptions, BackendError> {
+        let chosen = tune::launch_for(ctx, plan, Precision::of::<R>())?;
+        Ok(gpu::GpuOptions {
+            launch: Some(chosen.launch),
+            ..Default::default()
+        })
     }
 
     /// [`Engine::run`] in a precision chosen at run time, widened to f64 for
@@ -185,18 +303,18 @@ impl Engine {
         &self,
         plan: &Plan,
         precision: Precision,
-    ) -> Result<(Observations<f64>, f64), GpuError> {
+    ) -> Result<(Observations<f64>, f64), BackendError> {
         self.run_f64_until(plan, precision, None)
     }
 
-    /// [`Engine::run_f64`] that ends with `GpuError::Stopped` soon after
+    /// [`Engine::run_f64`] that ends with `BackendError::Stopped` soon after
     /// `stop` is set (Ctrl-C in Python).
     pub fn run_f64_until(
         &self,
         plan: &Plan,
         precision: Precision,
         stop: Option<&AtomicBool>,
-    ) -> Result<(Observations<f64>, f64), GpuError> {
+    ) -> Result<(Observations<f64>, f64), BackendError> {
         let mut save = |_: checkpoint::Contents| Ok(());
         let mut cp = stop.map(|s| Checkpoints {
             every: None,

@@ -130,6 +130,14 @@ pub enum Precision {
 }
 
 impl Precision {
+    /// The precision of the type `R`.
+    pub fn of<R: Real>() -> Precision {
+        match R::NAME {
+            "f64" => Precision::F64,
+            _ => Precision::F32,
+        }
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Precision::F32 => "f32",

@@ -33,6 +33,9 @@ pub struct Record {
     /// The adapter's description (not compared: a shard may run on any
     /// GPU of its kind).
     pub adapter: String,
+    /// Why this backend (`--backend auto`'s notice), if it was chosen.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub choice: Option<String>,
     pub format: String,
     pub chunks: Chunks,
 }
@@ -53,6 +56,10 @@ pub struct Done {
     /// The CPU kernels' instruction set, if the CPU integrated the chunk.
     #[serde(default)]
     pub cpu_isa: Option<String>,
+    /// The GPU device that integrated the chunk (`#1 adapter 0: NAME` when
+    /// a run spread over several), if a GPU did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub device: Option<String>,
 }
 
 /// What a chunk wrote into one array: its size and CRC-32.

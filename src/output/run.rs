@@ -16,7 +16,7 @@ use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 
-use crate::backend::Engine;
+use crate::backend::{Adapters, Engine};
 use crate::models::Flows;
 use crate::num::precision::Precision;
 use crate::output::arrays::write_axes;
@@ -38,42 +38,183 @@ pub struct RunReport {
     pub line: String,
 }
 
-/// Options of `reeb run` that override the scene.
-#[derive(Default)]
+/// Options of `reeb run`: the one definition of its flags (flattened into
+/// `reeb run`'s command line), of the Python `reeb.run` keywords (parsed by
+/// the same definition) and, through [`TaskOptions::to_args`], of what each
+/// Slurm task runs with.
+#[derive(clap::Args, Default, Debug, Clone)]
 pub struct RunOptions {
+    /// Output directory (default: runs/<scene name>).
+    #[arg(long)]
     pub out: Option<PathBuf>,
-    pub backend: Option<BackendChoice>,
-    pub precision: Option<Precision>,
+    /// Replace the output directory even when it holds files reeb did not write (they are deleted).
+    #[arg(long)]
+    pub force: bool,
+    /// Continue the run a kill interrupted in DIR.partial (the same scene):
+    /// finished chunks are kept, the others integrated.
+    #[arg(long)]
+    pub resume: bool,
+    /// Integrate only the K-th of N contiguous parts of the ensemble into the
+    /// shared DIR.partial (0 <= K < N); `reeb merge DIR` finishes the run.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<Shard>,
+    #[command(flatten)]
+    pub task: TaskOptions,
     /// Show a progress bar (on stderr, when it is a terminal).
+    #[arg(skip)]
     pub progress: bool,
     /// Largest output size accepted before running (default: the free disk
     /// where the outputs go).
+    #[arg(skip)]
     pub max_output_bytes: Option<u64>,
-    /// Replace `out` even when it holds files reeb did not write.
-    pub force: bool,
-    /// Continue the chunks a killed run of the same scene left in `out.partial`.
-    pub resume: bool,
-    /// Integrate only this part of the ensemble (`--shard K/N`).
-    pub shard: Option<Shard>,
-    /// Trajectories per chunk (default: outputs of at most 1 GiB per chunk).
-    pub chunk_trajectories: Option<usize>,
-    /// Run on this GPU adapter (`--adapter`, as `reeb info` numbers them).
-    pub adapter: Option<usize>,
-    /// Override the scene's `output.format` (`--format`).
-    pub format: Option<Format>,
-    /// Time between checkpoints of the integrator's state inside a chunk
-    /// (`--checkpoint-every`): `None` for [`CHECKPOINT_EVERY`], zero for
-    /// none (then only finished chunks are kept).
-    pub checkpoint_every: Option<Duration>,
     /// Followed from another thread (progress, a request to stop).
+    #[arg(skip)]
     pub watch: Option<Arc<Watch>>,
+}
+
+/// The options every part of one run takes alike: a `reeb run`, and each
+/// task of `reeb slurm` (which passes them on with [`TaskOptions::to_args`]).
+#[derive(clap::Args, Default, Debug, Clone, PartialEq)]
+pub struct TaskOptions {
+    /// Override the scene's backend: auto, cpu or gpu.
+    #[arg(long)]
+    pub backend: Option<BackendChoice>,
+    /// Override the scene's precision: f32 or f64.
+    #[arg(long)]
+    pub precision: Option<Precision>,
+    /// Override the scene's output.format: npy (one file per array) or zarr
+    /// (one Zarr v3 store, DIR/run.zarr, for xarray and dask).
+    #[arg(long)]
+    pub format: Option<Format>,
+    /// Trajectories per chunk, the unit of memory, checkpoint and shard
+    /// (default: outputs of at most 1 GiB per chunk).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub chunk_trajectories: Option<u64>,
+    /// Save the integrator's state inside a chunk every SECONDS (long
+    /// horizons: a kill then loses at most that much; every finished chunk
+    /// is kept too); 0: only finished chunks [default: 300].
+    #[arg(long, value_name = "SECONDS", value_parser = seconds)]
+    pub checkpoint_every: Option<Duration>,
+    /// Run on GPU adapter INDEX (as `reeb info` numbers them from 0): one
+    /// shard per GPU of a node.
+    #[arg(long, value_name = "INDEX")]
+    pub adapter: Option<usize>,
+    /// Spread the chunks over several GPU adapters, one device and queue
+    /// each: `all` (every GPU of the machine) or indices as `reeb info`
+    /// numbers them (e.g. 0,1; an index twice opens two devices on it).
+    /// The arrays are bitwise those of a one-adapter run.
+    #[arg(long, value_name = "all|I,J", conflicts_with = "adapter")]
+    pub adapters: Option<Adapters>,
+}
+
+impl TaskOptions {
+    /// `--chunk-trajectories` as a count of rows.
+    fn chunk_rows(&self) -> Option<usize> {
+        self.chunk_trajectories
+            .map(|n| usize::try_from(n).unwrap_or(usize::MAX))
+    }
+
+    /// These options as `reeb run` arguments (what a Slurm task is given):
+    /// parsed back by [`RunOptions`], they are these options again.
+    pub fn to_args(&self) -> Vec<String> {
+        let TaskOptions {
+            backend,
+            precision,
+            format,
+            chunk_trajectories,
+            checkpoint_every,
+            adapter,
+            adapters,
+        } = self;
+        let pairs = [
+            ("--backend", backend.map(|b| b.name().to_string())),
+            ("--precision", precision.map(|p| p.name().to_string())),
+            ("--format", format.map(|f| f.name().to_string())),
+            (
+                "--chunk-trajectories",
+                chunk_trajectories.map(|n| n.to_string()),
+            ),
+            (
+                "--checkpoint-every",
+                checkpoint_every.map(|d| d.as_secs_f64().to_string()),
+            ),
+            ("--adapter", adapter.map(|k| k.to_string())),
+            ("--adapters", adapters.as_ref().map(Adapters::to_string)),
+        ];
+        pairs
+            .into_iter()
+            .filter_map(|(flag, v)| v.map(|v| [flag.to_string(), v]))
+            .flatten()
+            .collect()
+    }
+}
+
+impl RunOptions {
+    /// The long names of `reeb run`'s options (`chunk_trajectories`, …):
+    /// the keywords the Python `run` takes besides the scene.
+    pub fn names() -> Vec<String> {
+        use clap::Args;
+        RunOptions::augment_args(clap::Command::new("run"))
+            .get_arguments()
+            .filter_map(|a| a.get_long())
+            .map(|l| l.replace('-', "_"))
+            .collect()
+    }
+
+    /// Options from `(name, value)` pairs as [`RunOptions::names`] spells
+    /// them, each parsed as its flag is (`None`: a flag given bare). An
+    /// error names the keyword.
+    pub fn from_pairs(pairs: &[(String, Option<String>)]) -> Result<RunOptions, String> {
+        let names = RunOptions::names();
+        let mut args = vec![];
+        for (name, value) in pairs {
+            if !names.contains(name) {
+                return Err(format!(
+                    "{name}: not an option of run (options: {})",
+                    names.join(", ")
+                ));
+            }
+            let flag = format!("--{}", name.replace('_', "-"));
+            let arg = match value {
+                Some(v) => format!("{flag}={v}"),
+                None => flag,
+            };
+            RunOptions::parse_args(std::slice::from_ref(&arg))
+                .map_err(|e| format!("{name}: {e}"))?;
+            args.push(arg);
+        }
+        RunOptions::parse_args(&args)
+    }
+
+    /// Options from `reeb run`'s arguments (without the scene).
+    pub fn parse_args(args: &[String]) -> Result<RunOptions, String> {
+        use clap::{Args, FromArgMatches};
+        let cmd = RunOptions::augment_args(clap::Command::new("run").no_binary_name(true));
+        let clean = |e: clap::Error| {
+            let text = e.render().to_string();
+            let first = text.lines().next().unwrap_or_default();
+            first.trim_start_matches("error: ").to_string()
+        };
+        let m = cmd.try_get_matches_from(args).map_err(clean)?;
+        RunOptions::from_arg_matches(&m).map_err(clean)
+    }
+}
+
+/// A number of seconds, 0 or more (fractions allowed).
+pub fn seconds(s: &str) -> Result<Duration, String> {
+    let x: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number of seconds"))?;
+    Duration::try_from_secs_f64(x)
+        .map_err(|_| format!("`{s}`: seconds must be 0 or more, and finite"))
 }
 
 /// The default time between checkpoints inside a chunk.
 pub const CHECKPOINT_EVERY: Duration = Duration::from_secs(300);
 
 fn checkpoint_every(opts: &RunOptions) -> Option<Duration> {
-    match opts.checkpoint_every {
+    match opts.task.checkpoint_every {
         None => Some(CHECKPOINT_EVERY),
         Some(d) if d.is_zero() => None,
         d => d,
@@ -105,8 +246,8 @@ impl std::str::FromStr for Shard {
 
 /// Runs `scene` and writes its directory (or, with a shard, its part of it).
 pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
-    let precision = opts.precision.unwrap_or(scene.precision);
-    let choice = opts.backend.unwrap_or(scene.backend);
+    let precision = opts.task.precision.unwrap_or(scene.precision);
+    let choice = opts.task.backend.unwrap_or(scene.backend);
     let Gated {
         warnings,
         subs,
@@ -124,8 +265,11 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
         (None, true) => Mode::Resume,
         (None, false) => Mode::Fresh,
     };
-    if opts.adapter.is_some() && choice == BackendChoice::Cpu {
+    if opts.task.adapter.is_some() && choice == BackendChoice::Cpu {
         bail!("--adapter pins a GPU adapter, and this run's backend is cpu; leave out one or the other");
+    }
+    if opts.task.adapters.is_some() && choice == BackendChoice::Cpu {
+        bail!("--adapters spreads the run over GPU adapters, and this run's backend is cpu; leave out one or the other");
     }
     let claim = directory::claim_as(&out, &[&scene.path], opts.force, mode)?;
     // A run continued needs room only for what it has not written yet.
@@ -134,19 +278,38 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
         _ => directory::disk_usage(claim.dir()),
     };
     claim.check_space(estimate.bytes.saturating_sub(written))?;
-    let (engine, notice) = Engine::resolve_on(choice, precision, opts.adapter)?;
-    if let Some(n) = notice {
+    let (engines, notice) = engines(choice, precision, &opts.task, &subs)?;
+    if let Some(n) = &notice {
         eprintln!("{n}");
     }
     let made = Made {
-        engine: Some(&engine),
+        engines: &engines,
         precision,
         warnings: &warnings,
+        notice,
     };
     match precision {
         Precision::F32 => run_typed::<f32>(scene, &subs, claim, opts, &made),
         Precision::F64 => run_typed::<f64>(scene, &subs, claim, opts, &made),
     }
+}
+
+/// The engines of a run: one (`--backend`, `--adapter`; `auto` weighing
+/// the GPU against the CPU on the first plan), or one per adapter of
+/// `--adapters`; and the notice saying what was chosen.
+fn engines(
+    choice: BackendChoice,
+    precision: Precision,
+    task: &TaskOptions,
+    subs: &[SubRun],
+) -> Result<(Vec<Engine>, Option<String>)> {
+    if let Some(list) = &task.adapters {
+        let (engines, notice) = Engine::resolve_many(precision, list)?;
+        return Ok((engines, Some(notice)));
+    }
+    let first = subs.first().map(|s| &s.plan);
+    let (engine, notice) = Engine::resolve_for(choice, precision, task.adapter, first)?;
+    Ok((vec![engine], notice))
 }
 
 /// What passed the gates of a run.
@@ -202,12 +365,13 @@ fn gates_crediting(
     })
 }
 
-/// How a run is made: engine (none for `reeb merge`), precision, and the
-/// warnings it was given.
+/// How a run is made: engines (none for `reeb merge`), precision, the
+/// warnings it was given, and why its backend (`auto`'s notice).
 struct Made<'a> {
-    engine: Option<&'a Engine>,
+    engines: &'a [Engine],
     precision: Precision,
     warnings: &'a [SceneWarning],
+    notice: Option<String>,
 }
 
 fn run_typed<R: Flows>(
@@ -217,9 +381,8 @@ fn run_typed<R: Flows>(
     opts: &RunOptions,
     made: &Made,
 ) -> Result<RunReport> {
-    let engine = made.engine.context("an engine")?;
     let dir = claim.dir().to_path_buf();
-    let record = record_of(scene, subs, opts, made, engine, &dir)?;
+    let record = record_of(scene, subs, opts, made, &dir)?;
     // From here on a failure keeps the finished chunks for --resume.
     claim.keep();
     let all = 0..record.chunks.count();
@@ -229,7 +392,8 @@ fn run_typed<R: Flows>(
     let target = Target {
         scene,
         subs,
-        engine: Some(engine),
+        engines: made.engines,
+        device: None,
         chunks: &record.chunks,
         dir: &dir,
         format: format_of(&record)?,
@@ -272,9 +436,10 @@ fn record_of(
     subs: &[SubRun],
     opts: &RunOptions,
     made: &Made,
-    engine: &Engine,
     dir: &Path,
 ) -> Result<Record> {
+    let engine = made.engines.first().context("an engine")?;
+    let adapters: Vec<String> = made.engines.iter().map(Engine::describe).collect();
     let mut record = Record {
         reeb_version: env!("CARGO_PKG_VERSION").into(),
         scene_path: scene.path.display().to_string(),
@@ -282,9 +447,10 @@ fn record_of(
         preview: scene.preview,
         precision: made.precision.name().into(),
         backend: engine.name().into(),
-        adapter: engine.describe(),
-        format: opts.format.unwrap_or(scene.format).name().into(),
-        chunks: chunks_of(scene, subs, opts.chunk_trajectories, made.precision),
+        adapter: adapters.join("; "),
+        choice: made.notice.clone(),
+        format: opts.task.format.unwrap_or(scene.format).name().into(),
+        chunks: chunks_of(scene, subs, opts.task.chunk_rows(), made.precision),
     };
     // A run continued keeps its chunks unless asked for others (shards on
     // machines of different memory agree on the first shard's).
@@ -295,7 +461,7 @@ fn record_of(
             dir.display()
         );
     }
-    if opts.chunk_trajectories.is_none() && old.chunks.shape == record.chunks.shape {
+    if opts.task.chunk_trajectories.is_none() && old.chunks.shape == record.chunks.shape {
         record.chunks = old.chunks.clone();
     }
     record.check_same(&old, dir)?;
@@ -337,9 +503,10 @@ pub fn merge(out: &Path, force: bool) -> Result<RunReport> {
     let warnings = scene.checks(precision)?;
     let subs = scene.sub_runs()?;
     let made = Made {
-        engine: None,
+        engines: &[],
         precision,
         warnings: &warnings,
+        notice: None,
     };
     match precision {
         Precision::F32 => merge_typed::<f32>(&scene, &subs, claim, &record, &made),
@@ -362,7 +529,8 @@ fn merge_typed<R: Flows>(
     let mut target = Target {
         scene,
         subs,
-        engine: None,
+        engines: &[],
+        device: None,
         chunks: &record.chunks,
         dir: &dir,
         format: format_of(record)?,
@@ -374,25 +542,28 @@ fn merge_typed<R: Flows>(
         return finish::<R>(scene, subs, claim, record, made);
     }
     let choice: BackendChoice = record.backend.parse().map_err(anyhow::Error::msg)?;
-    let (engine, _) = Engine::resolve_on(choice, made.precision, None).with_context(|| {
+    let (engine, _) = Engine::resolve_for(choice, made.precision, None, None).with_context(|| {
         format!(
             "{} chunk(s) must be integrated again on the run's backend ({}), which this machine lacks; run the shards that hold them again with --resume where it is",
             bad.len(),
             record.backend
         )
     })?;
-    target.engine = Some(&engine);
     eprintln!(
         "integrating {} chunk(s) again on {}",
         bad.len(),
         engine.describe()
     );
+    let engines = [engine];
+    target.engines = &engines;
     for k in bad {
         stream::integrate::<R>(&target, k..k + 1, false)?;
     }
     let made = Made {
-        engine: Some(&engine),
-        ..*made
+        engines: &engines,
+        precision: made.precision,
+        warnings: made.warnings,
+        notice: None,
     };
     finish::<R>(scene, subs, claim, record, &made)
 }
@@ -462,6 +633,7 @@ fn finish<R: Flows>(
         max_steps,
         chunks: done.len(),
         cpu_isa: (!levels.is_empty()).then(|| levels.join(" + ")),
+        devices: devices(&done),
         warnings,
     };
     let mut summary = summary(scene, subs, made, record, &ran, &files);
@@ -493,8 +665,21 @@ fn finish<R: Flows>(
             String::new()
         },
         out.display()
-    );
+    ) + &shares(&ran);
     Ok(RunReport { out, summary, line })
+}
+
+/// `; chunks by device: #0 adapter 0: NAME 5, #1 adapter 1: NAME 4` for a
+/// run spread over several devices.
+fn shares(ran: &Ran) -> String {
+    let Some(serde_json::Value::Array(list)) = &ran.devices else {
+        return String::new();
+    };
+    let each: Vec<String> = list
+        .iter()
+        .map(|d| format!("{} {}", d["device"].as_str().unwrap_or("?"), d["chunks"]))
+        .collect();
+    format!("; chunks by device: {}", each.join(", "))
 }
 
 /// Each array's dimension names (the scene's axes, then `frame`, `point`,
@@ -509,6 +694,23 @@ fn dims_of<R: Flows>(scene: &Scene, subs: &[SubRun]) -> Result<serde_json::Value
         })
         .collect();
     Ok(dims.into())
+}
+
+/// What each GPU device did, when the chunks name more than one: its
+/// chunks, trajectory-steps and integration seconds.
+fn devices(done: &[journal::Done]) -> Option<serde_json::Value> {
+    let mut by: std::collections::BTreeMap<&str, (u64, u64, f64)> = Default::default();
+    for d in done {
+        if let Some(name) = &d.device {
+            let e = by.entry(name).or_default();
+            *e = (e.0 + 1, e.1 + d.traj_steps, e.2 + d.seconds);
+        }
+    }
+    (by.len() > 1).then(|| {
+        by.iter()
+            .map(|(name, (chunks, steps, secs))| serde_json::json!({"device": name, "chunks": chunks, "traj_steps": steps, "seconds": secs}))
+            .collect()
+    })
 }
 
 /// The CPU levels the chunks were integrated at, each once, with the
@@ -541,6 +743,8 @@ struct Ran {
     chunks: usize,
     /// The level(s) the CPU kernels ran at (`None`: not the CPU).
     cpu_isa: Option<String>,
+    /// What each GPU device integrated, when a run spread over several.
+    devices: Option<serde_json::Value>,
     /// The scene's warnings, and the run's own.
     warnings: Vec<String>,
 }
@@ -632,6 +836,7 @@ fn summary(
         },
         "backend": record.backend,
         "adapter": record.adapter,
+        "backend_choice": record.choice,
         "precision": made.precision.name(),
         "ensemble_size": n,
         "shape": scene.shape(),
@@ -652,6 +857,9 @@ fn summary(
         // The chunks' own levels: a merge may run on another node.
         if ran.cpu_isa.is_some() {
             map.insert("cpu_isa".into(), ran.cpu_isa.clone().into());
+        }
+        if let Some(d) = &ran.devices {
+            map.insert("devices".into(), d.clone());
         }
     }
     value

@@ -33,11 +33,15 @@ use crate::scene::{Format, Scene, SubRun};
 const PICTURE_BUDGET: u64 = 1 << 30;
 
 /// What a streamed run integrates, and where.
+#[derive(Clone, Copy)]
 pub struct Target<'a> {
     pub scene: &'a Scene,
     pub subs: &'a [SubRun],
-    /// The engine that integrates (`None`: the chunks are only checked).
-    pub engine: Option<&'a Engine>,
+    /// The engines that integrate, each taking the next chunk left (none:
+    /// the chunks are only checked).
+    pub engines: &'a [Engine],
+    /// Which of several engines this is (`#k` in the chunks' markers).
+    pub device: Option<usize>,
     pub chunks: &'a Chunks,
     /// `DIR.partial`.
     pub dir: &'a Path,
@@ -153,9 +157,48 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
         if progress && left > 0 {
             scope.spawn(|| progress::follow(&followed));
         }
-        let result = todo.iter().try_for_each(|k| chunk::<R>(t, *k, &sink, done));
+        let result = match t.engines.len() {
+            0 | 1 => todo.iter().try_for_each(|k| chunk::<R>(t, *k, &sink, done)),
+            _ => share::<R>(t, &todo, &sink, done),
+        };
         finished.store(true, Ordering::Relaxed);
         result
+    })
+}
+
+/// The chunks `todo` shared among the engines: each, on a thread of its
+/// own, takes the next chunk left until none is (or one of them failed).
+fn share<R: Flows>(t: &Target, todo: &[usize], sink: &Sink, done: &AtomicU64) -> Result<()> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let failed = AtomicBool::new(false);
+    std::thread::scope(|scope| {
+        let workers: Vec<_> = t
+            .engines
+            .iter()
+            .enumerate()
+            .map(|(j, e)| {
+                let mine = Target {
+                    engines: std::slice::from_ref(e),
+                    device: Some(j),
+                    ..*t
+                };
+                let (next, failed) = (&next, &failed);
+                scope.spawn(move || -> Result<()> {
+                    while !failed.load(Ordering::Relaxed) {
+                        let Some(k) = todo.get(next.fetch_add(1, Ordering::Relaxed)) else {
+                            return Ok(());
+                        };
+                        chunk::<R>(&mine, *k, sink, done).inspect_err(|_| failed.store(true, Ordering::Relaxed))?;
+                    }
+                    Ok(())
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .map(|w| w.join().unwrap_or_else(|_| Err(anyhow::anyhow!("a GPU worker panicked"))))
+            .collect::<Result<Vec<()>>>()
+            .map(drop)
     })
 }
 
@@ -175,11 +218,16 @@ pub fn damaged<R: Flows>(t: &Target, range: Range<usize>) -> Result<Vec<usize>> 
 }
 
 fn engine<'a>(t: &Target<'a>) -> Result<&'a Engine> {
-    t.engine.context("chunks to integrate and no engine")
+    t.engines.first().context("chunks to integrate and no engine")
 }
 
-fn engine_name(t: &Target) -> &'static str {
-    t.engine.map_or("none", Engine::name)
+/// `cpu`, `gpu`, or `gpu ×2` for a run spread over two devices.
+fn engine_name(t: &Target) -> String {
+    match t.engines {
+        [] => "none".into(),
+        [e] => e.name().into(),
+        [e, ..] => format!("{} ×{}", e.name(), t.engines.len()),
+    }
 }
 
 /// Whether chunk `k` finished and its data is what its marker says was
@@ -238,7 +286,11 @@ fn chunk<R: Flows>(t: &Target, k: usize, sink: &Sink, done: &AtomicU64) -> Resul
             .iter()
             .map(|a| Written::of(&a.file, &a.bytes))
             .collect(),
-        cpu_isa: t.engine.and_then(Engine::cpu_isa),
+        cpu_isa: t.engines.first().and_then(Engine::cpu_isa),
+        device: t.engines.first().and_then(Engine::adapter).map(|a| match t.device {
+            Some(j) => format!("#{j} {a}"),
+            None => a,
+        }),
     };
     journal::mark_done(t.dir, k, &mark)?;
     journal::remove_state(t.dir, k)

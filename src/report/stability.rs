@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use crate::backend::gpu::GpuError;
 use crate::backend::BackendChoice;
+use crate::backend::BackendError;
 use crate::backend::Engine;
 use crate::num::precision::Precision;
 use crate::output::plot::{self, Figure};
@@ -279,7 +279,7 @@ struct Cells {
 
 /// Runs every plan (with `run`, in one precision) and classifies each of its cells.
 fn classify_cells(
-    run: impl Fn(&Plan) -> Result<(Observations<f64>, f64), GpuError>,
+    run: impl Fn(&Plan) -> Result<(Observations<f64>, f64), BackendError>,
     subs: &[SubRun],
     map: &Map,
     references: &mut CycleReferences,

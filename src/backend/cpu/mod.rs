@@ -20,7 +20,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::checkpoint::Checkpoints;
-use super::gpu::GpuError;
+use super::error::BackendError;
 
 use crate::models::lanes::{Lanes, LANES};
 use crate::models::Flows;
@@ -66,7 +66,7 @@ pub fn resumable<R: Flows>(
     progress: Option<&AtomicU64>,
     isa: Isa,
     cp: Option<&mut Checkpoints>,
-) -> Result<(Observations<R>, f64), GpuError> {
+) -> Result<(Observations<R>, f64), BackendError> {
     integrate(plan, progress, isa, true, cp)
 }
 
@@ -78,7 +78,7 @@ pub fn run_time_per_trajectory<R: Flows>(plan: &Plan, isa: Isa) -> Observations<
 }
 
 /// The observations of a run without checkpoints, which cannot fail.
-fn uninterrupted<R>(run: Result<(Observations<R>, f64), GpuError>) -> Observations<R> {
+fn uninterrupted<R>(run: Result<(Observations<R>, f64), BackendError>) -> Observations<R> {
     match run {
         Ok((out, _)) => out,
         Err(e) => unreachable!("a run without checkpoints failed: {e}"),
@@ -91,7 +91,7 @@ fn integrate<R: Flows>(
     isa: Isa,
     share_time: bool,
     mut cp: Option<&mut Checkpoints>,
-) -> Result<(Observations<R>, f64), GpuError> {
+) -> Result<(Observations<R>, f64), BackendError> {
     assert!(
         isa_rank(isa) <= isa_rank(self::isa()),
         "the CPU lacks {isa:?}"
@@ -103,8 +103,8 @@ fn integrate<R: Flows>(
         .collect();
     let mut header = Header::of::<R>(plan, fingerprint(isa));
     if let Some(c) = cp.as_deref_mut() {
-        if let Some((h, r)) = c.restore(&mut out).map_err(GpuError::checkpoint)? {
-            read_blocks(&program, r, &mut blocks).map_err(GpuError::checkpoint)?;
+        if let Some((h, r)) = c.restore(&mut out).map_err(BackendError::checkpoint)? {
+            read_blocks(&program, r, &mut blocks).map_err(BackendError::checkpoint)?;
             header.seconds = h.seconds;
             if let Some(pr) = progress {
                 pr.fetch_add(h.traj_steps, Ordering::Relaxed);
@@ -136,10 +136,10 @@ fn integrate<R: Flows>(
         if !stopped || c.every.is_some() {
             header.traj_steps = traj_steps_done(plan, &blocks);
             c.take(&header, &out, &|w| write_blocks(w, &blocks))
-                .map_err(GpuError::checkpoint)?;
+                .map_err(BackendError::checkpoint)?;
         }
         if stopped {
-            return Err(GpuError::Stopped);
+            return Err(BackendError::Stopped);
         }
     }
 }

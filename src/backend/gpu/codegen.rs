@@ -26,6 +26,7 @@ use crate::plan::slots;
 use crate::plan::tangent::TangentInput;
 use crate::plan::{ObsVar, Op, Plan, Source, StopPlan};
 
+use super::tuning::Launch;
 use super::time_table::TimeTable;
 
 const PRELUDE_F32: &str = include_str!("../../../shaders/prelude_f32.wgsl");
@@ -35,7 +36,11 @@ const DRIVER: &str = include_str!("../../../shaders/driver.wgsl");
 /// A generated kernel and what the host needs to drive it.
 #[derive(Debug, Clone)]
 pub struct Kernel {
+    /// The kernel with the default launch ([`Launch::default`]).
     pub source: String,
+    /// The kernel with `{{WORKGROUP}}` and `{{PER_THREAD}}` left to fill
+    /// ([`Kernel::source_for`]).
+    template: String,
     /// Values of the axis-dependent inputs, concatenated (uploaded as `table`).
     pub table: Vec<f64>,
     /// Whether the stroboscopic section samples exactly (no interpolation).
@@ -344,14 +349,29 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
         .replace("{{OBSERVE}}", observe.trim_end())
         .replace("{{STORE}}", g.store.trim_end())
         .replace("{{CUT}}", &slots::CUT.to_string());
-    let source = format!("{prelude}\n// ---- shared functions (generated from src/**/*.rs) ----\n{shared}\n// ---- driver ----\n{driver}");
+    let template = format!("{prelude}\n// ---- shared functions (generated from src/**/*.rs) ----\n{shared}\n// ---- driver ----\n{driver}");
     Ok(Kernel {
-        source,
+        source: launched(&template, &Launch::default()),
+        template,
         table,
         strobe_exact,
         time_table,
         max_window,
     })
+}
+
+impl Kernel {
+    /// The kernel's source for `launch` (its workgroup size, and the
+    /// trajectories each invocation integrates).
+    pub fn source_for(&self, launch: &Launch) -> String {
+        launched(&self.template, launch)
+    }
+}
+
+fn launched(template: &str, launch: &Launch) -> String {
+    template
+        .replace("{{WORKGROUP}}", &launch.workgroup.to_string())
+        .replace("{{PER_THREAD}}", &launch.per_thread.to_string())
 }
 
 /// Every name the plan's ops bind (their shared functions' arguments), plus

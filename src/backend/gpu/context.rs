@@ -4,6 +4,8 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
+use super::tuning::Tuned;
+
 /// Why the GPU backend cannot run.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
@@ -25,21 +27,6 @@ pub enum GpuError {
     Codegen(#[from] super::codegen::CodegenError),
     #[error("the GPU reported an error: {0}")]
     Runtime(String),
-    #[error("{0}")]
-    TooLarge(String),
-    #[error("checkpoint: {0}")]
-    Checkpoint(String),
-    #[error("{0}")]
-    Cut(String),
-    #[error("stopped before the end, as asked")]
-    Stopped,
-}
-
-impl GpuError {
-    /// A checkpoint that could not be written or read back.
-    pub fn checkpoint(e: std::io::Error) -> GpuError {
-        GpuError::Checkpoint(e.to_string())
-    }
 }
 
 /// What `reeb info` shows about an adapter.
@@ -57,6 +44,9 @@ pub struct AdapterSummary {
     pub max_storage_buffers_per_shader_stage: u32,
     /// Every feature the adapter offers, as wgpu names them.
     pub features: Vec<String>,
+    /// Its key in the tuning cache (`tuning::adapter_key`).
+    #[serde(skip)]
+    pub tuning_key: String,
 }
 
 fn summary(a: &wgpu::Adapter) -> AdapterSummary {
@@ -64,7 +54,7 @@ fn summary(a: &wgpu::Adapter) -> AdapterSummary {
     let f = a.features();
     let l = a.limits();
     AdapterSummary {
-        name: info.name,
+        name: info.name.clone(),
         backend: format!("{:?}", info.backend),
         device_type: format!("{:?}", info.device_type),
         driver: format!("{} {}", info.driver, info.driver_info)
@@ -77,6 +67,7 @@ fn summary(a: &wgpu::Adapter) -> AdapterSummary {
         max_compute_workgroups_per_dimension: l.max_compute_workgroups_per_dimension,
         max_storage_buffers_per_shader_stage: l.max_storage_buffers_per_shader_stage,
         features: f.iter_names().map(|(name, _)| name.to_string()).collect(),
+        tuning_key: super::tuning::adapter_key(&info),
     }
 }
 
@@ -99,11 +90,32 @@ pub fn list_adapters() -> Vec<AdapterSummary> {
         .collect()
 }
 
+/// The adapters `--adapters all` spreads a run over: every hardware GPU
+/// (not the GL twin of a Vulkan adapter), or, without one, the adapter
+/// `--backend gpu` takes.
+pub fn every_gpu() -> Result<Vec<usize>, GpuError> {
+    let inst = instance();
+    let adapters = pollster::block_on(inst.enumerate_adapters(wgpu::Backends::all()));
+    let hardware: Vec<usize> = adapters
+        .iter()
+        .enumerate()
+        .filter(|(_, a)| {
+            let i = a.get_info();
+            i.backend != wgpu::Backend::Gl && i.device_type != wgpu::DeviceType::Cpu
+        })
+        .map(|(k, _)| k)
+        .collect();
+    match hardware.is_empty() {
+        true => Ok(vec![choose_adapter(&inst, None)?.0]),
+        false => Ok(hardware),
+    }
+}
+
 /// Picks the adapter: the one whose name contains `WGPU_ADAPTER_NAME` (case
 /// insensitive) if that is set, else a discrete GPU, else an integrated or
 /// virtual one, else a software one (lavapipe).
 /// `index` (of `--adapter`, in the order `reeb info` lists) comes first.
-fn choose_adapter(inst: &wgpu::Instance, index: Option<usize>) -> Result<wgpu::Adapter, GpuError> {
+fn choose_adapter(inst: &wgpu::Instance, index: Option<usize>) -> Result<(usize, wgpu::Adapter), GpuError> {
     let adapters = pollster::block_on(inst.enumerate_adapters(wgpu::Backends::all()));
     let names = || {
         adapters
@@ -115,15 +127,16 @@ fn choose_adapter(inst: &wgpu::Instance, index: Option<usize>) -> Result<wgpu::A
     if let Some(k) = index {
         return adapters
             .get(k)
-            .cloned()
+            .map(|a| (k, a.clone()))
             .ok_or_else(|| GpuError::NoAdapterIndex(k, adapters.len(), names()));
     }
     if let Ok(want) = std::env::var("WGPU_ADAPTER_NAME") {
         let w = want.to_lowercase();
         return adapters
             .iter()
-            .find(|a| a.get_info().name.to_lowercase().contains(&w))
-            .cloned()
+            .enumerate()
+            .find(|(_, a)| a.get_info().name.to_lowercase().contains(&w))
+            .map(|(k, a)| (k, a.clone()))
             .ok_or_else(|| GpuError::NoMatchingAdapter(want, names()));
     }
     let rank = |a: &wgpu::Adapter| match a.get_info().device_type {
@@ -135,9 +148,10 @@ fn choose_adapter(inst: &wgpu::Instance, index: Option<usize>) -> Result<wgpu::A
     };
     adapters
         .iter()
-        .filter(|a| a.get_info().backend != wgpu::Backend::Gl || adapters.len() == 1)
-        .min_by_key(|a| rank(a))
-        .cloned()
+        .enumerate()
+        .filter(|(_, a)| a.get_info().backend != wgpu::Backend::Gl || adapters.len() == 1)
+        .min_by_key(|(_, a)| rank(a))
+        .map(|(k, a)| (k, a.clone()))
         .ok_or_else(|| {
             GpuError::NoAdapter(format!(
                 "{:?}",
@@ -153,6 +167,8 @@ pub fn is_software(info: &wgpu::AdapterInfo) -> bool {
 
 /// A device ready to run reeb kernels.
 pub struct GpuContext {
+    /// The adapter's index in `reeb info`'s list.
+    pub index: usize,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
@@ -162,6 +178,8 @@ pub struct GpuContext {
     layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
     pipelines: Mutex<HashMap<String, Arc<wgpu::ComputePipeline>>>,
+    /// Launches tuned in this process, by plan shape (`backend/tune.rs`).
+    tuned: Mutex<HashMap<String, Tuned>>,
     /// Errors the device reported outside an error scope.
     errors: Arc<Mutex<Vec<String>>>,
 }
@@ -176,7 +194,7 @@ impl GpuContext {
     /// [`GpuContext::new`] on adapter `index` of `reeb info`'s list, if given.
     pub fn on(index: Option<usize>) -> Result<GpuContext, GpuError> {
         let inst = instance();
-        let adapter = choose_adapter(&inst, index)?;
+        let (index, adapter) = choose_adapter(&inst, index)?;
         let info = adapter.get_info();
         let features =
             adapter.features() & (wgpu::Features::SHADER_F64 | wgpu::Features::TIMESTAMP_QUERY);
@@ -226,6 +244,7 @@ impl GpuContext {
             immediate_size: 0,
         });
         Ok(GpuContext {
+            index,
             device,
             queue,
             shader_f64: features.contains(wgpu::Features::SHADER_F64),
@@ -235,6 +254,7 @@ impl GpuContext {
             layout,
             pipeline_layout,
             pipelines: Mutex::default(),
+            tuned: Mutex::default(),
             errors,
         })
     }
@@ -249,6 +269,18 @@ impl GpuContext {
 
     pub fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
         &self.layout
+    }
+
+    /// The launch tuned for plan shape `shape` in this process, if any.
+    pub fn tuned(&self, shape: &str) -> Option<Tuned> {
+        self.tuned.lock().ok()?.get(shape).cloned()
+    }
+
+    /// Keeps `tuned` for `shape` for the rest of this process.
+    pub fn remember(&self, shape: &str, tuned: &Tuned) {
+        if let Ok(mut m) = self.tuned.lock() {
+            m.insert(shape.to_string(), tuned.clone());
+        }
     }
 
     /// The compute pipeline for `source`, compiled once per context.

@@ -1,8 +1,10 @@
 //! Runs a plan's kernel: ensembles larger than the adapter's storage-binding
 //! limit are split into chunks; a dispatch never exceeds the workgroup limit
 //! per dimension; long horizons are cut into windows of steps whose length
-//! adapts so each dispatch takes about [`TARGET_DISPATCH_SECONDS`] (no
-//! multi-second kernels, and progress to report).
+//! adapts so each dispatch takes about the launch's `dispatch_seconds` (no
+//! multi-second kernels, and progress to report). The launch (workgroup,
+//! trajectories per invocation) is `GpuOptions::launch`, tuned per adapter
+//! by `backend/tune.rs`.
 
 use std::io::Read;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -13,18 +15,17 @@ use wgpu::util::DeviceExt;
 use super::codegen::{frame_width, generate, LOOP_ITERATIONS};
 use super::context::{GpuContext, GpuError};
 use super::time_table::{self, TimeTable};
+use super::tuning::Launch;
 use crate::backend::checkpoint::Checkpoints;
+use crate::backend::error::BackendError;
 use crate::models::Flows;
 use crate::num::precision::Precision;
 use crate::plan::observations::Observations;
 use crate::plan::snapshot::{get_array, get_into, invalid, put, put_slice, Header};
 use crate::plan::{slots, ObsVar, Plan};
 
-/// Wall time one dispatch aims at.
-pub const TARGET_DISPATCH_SECONDS: f64 = 0.1;
 /// GPU memory a run may take (buffers of one chunk).
 pub const MEMORY_BUDGET: u64 = 1 << 30;
-const WORKGROUP: u64 = 64;
 /// Steps one dispatch may take: no window asks llvmpipe for more loop
 /// iterations than it runs (`codegen::LOOP_ITERATIONS`).
 pub const MAX_STEPS_PER_DISPATCH: u64 = LOOP_ITERATIONS;
@@ -36,6 +37,8 @@ pub struct GpuOptions {
     pub max_chunk: Option<u64>,
     /// Largest window of steps per dispatch.
     pub max_steps_per_dispatch: Option<u64>,
+    /// The launch (default: [`Launch::default`]; the bits never depend on it).
+    pub launch: Option<Launch>,
 }
 
 /// Observations of a GPU run, and how long the integration took.
@@ -98,7 +101,7 @@ fn read<T: bytemuck::Pod>(
     src: &wgpu::Buffer,
     staging: &wgpu::Buffer,
     bytes: u64,
-) -> Result<Vec<T>, GpuError> {
+) -> Result<Vec<T>, BackendError> {
     if bytes == 0 {
         return Ok(vec![]);
     }
@@ -108,12 +111,12 @@ fn read<T: bytemuck::Pod>(
     read_mapped(ctx, staging, bytes)
 }
 
-fn check(ctx: &GpuContext) -> Result<(), GpuError> {
+fn check(ctx: &GpuContext) -> Result<(), BackendError> {
     let errors = ctx.take_errors();
     if errors.is_empty() {
         Ok(())
     } else {
-        Err(GpuError::Runtime(errors.join("; ")))
+        Err(GpuError::Runtime(errors.join("; ")).into())
     }
 }
 
@@ -122,7 +125,7 @@ pub fn run<R: Flows>(
     ctx: &GpuContext,
     plan: &Plan,
     progress: Option<&AtomicU64>,
-) -> Result<GpuRun<R>, GpuError> {
+) -> Result<GpuRun<R>, BackendError> {
     run_with(ctx, plan, progress, &GpuOptions::default())
 }
 
@@ -133,7 +136,7 @@ pub fn run_with<R: Flows>(
     plan: &Plan,
     progress: Option<&AtomicU64>,
     opts: &GpuOptions,
-) -> Result<GpuRun<R>, GpuError> {
+) -> Result<GpuRun<R>, BackendError> {
     run_resumable(ctx, plan, progress, opts, None)
 }
 
@@ -143,7 +146,7 @@ pub fn fingerprint<R: Flows>(
     ctx: &GpuContext,
     plan: &Plan,
     opts: &GpuOptions,
-) -> Result<String, GpuError> {
+) -> Result<String, BackendError> {
     Ok(engine_name(ctx, Sizes::new::<R>(ctx, plan, opts)?.cap))
 }
 
@@ -164,14 +167,10 @@ pub fn run_resumable<R: Flows>(
     progress: Option<&AtomicU64>,
     opts: &GpuOptions,
     mut cp: Option<&mut Checkpoints>,
-) -> Result<GpuRun<R>, GpuError> {
-    let precision = if R::NAME == "f64" {
-        Precision::F64
-    } else {
-        Precision::F32
-    };
+) -> Result<GpuRun<R>, BackendError> {
+    let precision = Precision::of::<R>();
     check_fits(ctx, plan, precision)?;
-    let mut out = Observations::<R>::try_for_plan(plan).map_err(GpuError::TooLarge)?;
+    let mut out = Observations::<R>::try_for_plan(plan).map_err(BackendError::TooLarge)?;
     if plan.n == 0 {
         return Ok(GpuRun {
             observations: out,
@@ -181,10 +180,16 @@ pub fn run_resumable<R: Flows>(
             dispatches: 0,
         });
     }
+    let launch = opts.launch.unwrap_or_default();
+    launch.check(&ctx.limits).map_err(BackendError::Tuning)?;
     let kernel = generate(plan, precision)?;
-    let pipeline = ctx.pipeline(&kernel.source)?;
+    let pipeline = ctx.pipeline(&kernel.source_for(&launch))?;
     let mut sizes = Sizes::new::<R>(ctx, plan, opts)?;
-    sizes.max_window = sizes.max_window.min(kernel.max_window);
+    // llvmpipe's loop limit counts an invocation's trajectories together.
+    sizes.max_window = sizes.max_window.min(match launch.per_thread as u64 {
+        1 => kernel.max_window,
+        per => (kernel.max_window / per).saturating_sub(1).max(1),
+    });
     if let Some(tt) = &kernel.time_table {
         sizes.max_window = sizes.max_window.min(tt.max_steps(sizes.b));
     }
@@ -236,7 +241,7 @@ pub fn run_resumable<R: Flows>(
                 run.checkpoint(c, &h, out, base, step0)?;
             }
             match stopped {
-                true => Err(GpuError::Stopped),
+                true => Err(BackendError::Stopped),
                 false => Ok(()),
             }
         };
@@ -267,13 +272,13 @@ pub fn run_resumable<R: Flows>(
 
 /// Refuses what the adapter cannot run: f64 without f64 shaders, counts
 /// beyond the kernel's 32-bit indices.
-fn check_fits(ctx: &GpuContext, plan: &Plan, precision: Precision) -> Result<(), GpuError> {
+fn check_fits(ctx: &GpuContext, plan: &Plan, precision: Precision) -> Result<(), BackendError> {
     if precision == Precision::F64 && !ctx.shader_f64 {
-        return Err(GpuError::NoF64(ctx.describe()));
+        return Err(GpuError::NoF64(ctx.describe()).into());
     }
     let rows = plan.first.saturating_add(plan.n);
     if rows > u32::MAX as usize || plan.steps > u32::MAX as u64 - 1 {
-        return Err(GpuError::TooLarge(format!(
+        return Err(BackendError::TooLarge(format!(
             "the GPU backend counts trajectories and steps in 32 bits: {} trajectories, {} steps",
             rows, plan.steps
         )));
@@ -299,12 +304,15 @@ struct Sizes {
     every: u64,
     /// Real observer slots per trajectory (`slots::real`).
     real_slots: u64,
+    launch: Launch,
 }
 
 impl Sizes {
     /// The chunk capacity from the per-trajectory size of every buffer,
     /// within the adapter's binding limit and reeb's memory budget.
-    fn new<R>(ctx: &GpuContext, plan: &Plan, opts: &GpuOptions) -> Result<Sizes, GpuError> {
+    fn new<R>(ctx: &GpuContext, plan: &Plan, opts: &GpuOptions) -> Result<Sizes, BackendError> {
+        let launch = opts.launch.unwrap_or_default();
+        let wg = launch.workgroup as u64;
         let b = std::mem::size_of::<R>() as u64;
         let (nv, tv, pv) = (
             plan.vars.len() as u64,
@@ -322,7 +330,7 @@ impl Sizes {
             .checked_mul(pv)
             .and_then(|x| x.checked_mul(b))
             .ok_or_else(|| {
-                GpuError::TooLarge(format!(
+                BackendError::TooLarge(format!(
                     "{max_points} Poincaré points × {pv} variables per trajectory do not fit in 64 bits: lower output.poincare.max_points"
                 ))
             })?;
@@ -345,15 +353,15 @@ impl Sizes {
             cap = cap.min(limit / (2 * tv * b));
         }
         if cap == 0 {
-            return Err(GpuError::TooLarge(format!(
+            return Err(BackendError::TooLarge(format!(
                 "one trajectory's observations ({} bytes) exceed the adapter's storage binding limit ({limit} bytes): lower output.poincare.max_points or the number of recorded variables",
                 widest
             )));
         }
         cap = cap
-            .next_multiple_of(WORKGROUP)
-            .min(limit / widest / WORKGROUP * WORKGROUP)
-            .max(WORKGROUP.min(cap));
+            .next_multiple_of(wg)
+            .min(limit / widest / wg * wg)
+            .max(wg.min(cap));
         if let Some(m) = opts.max_chunk {
             cap = cap.min(m.max(1));
         }
@@ -374,10 +382,12 @@ impl Sizes {
             max_window: opts
                 .max_steps_per_dispatch
                 .unwrap_or(MAX_STEPS_PER_DISPATCH)
+                .min(launch.window.unwrap_or(MAX_STEPS_PER_DISPATCH))
                 .clamp(1, MAX_STEPS_PER_DISPATCH),
             max_frames,
             every: plan.observers.trajectory.as_ref().map_or(0, |t| t.every),
             real_slots,
+            launch,
         })
     }
 
@@ -535,7 +545,7 @@ struct Dispatcher<'a> {
 
 /// Called between two windows of a chunk with the observations, the next
 /// window's first step and the chunk's integration seconds so far.
-type Between<'b, R> = &'b mut dyn FnMut(&Observations<R>, u64, f64) -> Result<(), GpuError>;
+type Between<'b, R> = &'b mut dyn FnMut(&Observations<R>, u64, f64) -> Result<(), BackendError>;
 
 impl Dispatcher<'_> {
     /// Integrates trajectories `base..base+count` from step `from` (0, or
@@ -552,7 +562,7 @@ impl Dispatcher<'_> {
         budget: &mut f64,
         progress: Option<&AtomicU64>,
         between: Between<R>,
-    ) -> Result<(f64, u64), GpuError> {
+    ) -> Result<(f64, u64), BackendError> {
         let (ctx, plan, sizes, bufs) = (self.ctx, self.plan, self.sizes, self.bufs);
         if from == 0 {
             let mut enc = ctx.device.create_command_encoder(&Default::default());
@@ -592,7 +602,7 @@ impl Dispatcher<'_> {
             }
             // Aim at the target time per dispatch, changing by at most 4× at once.
             let rate = (count * nsteps) as f64 / wall.max(1e-6);
-            *budget = (rate * TARGET_DISPATCH_SECONDS)
+            *budget = (rate * sizes.launch.dispatch_seconds)
                 .clamp(*budget / 4.0, *budget * 4.0)
                 .max(count as f64);
             step0 += nsteps;
@@ -621,7 +631,7 @@ impl Dispatcher<'_> {
         out: &Observations<R>,
         base: u64,
         step0: u64,
-    ) -> Result<(), GpuError> {
+    ) -> Result<(), BackendError> {
         let carried = self
             .carried()
             .into_iter()
@@ -631,7 +641,7 @@ impl Dispatcher<'_> {
             put(w, &[base, step0])?;
             carried.iter().try_for_each(|c| put_slice(w, c))
         })
-        .map_err(GpuError::checkpoint)
+        .map_err(BackendError::checkpoint)
     }
 
     /// Continues from `cp`'s snapshot, if it has one: its observations into
@@ -642,11 +652,11 @@ impl Dispatcher<'_> {
         cp: &mut Checkpoints,
         out: &mut Observations<R>,
         progress: Option<&AtomicU64>,
-    ) -> Result<((u64, u64), f64), GpuError> {
-        let Some((h, r)) = cp.restore(out).map_err(GpuError::checkpoint)? else {
+    ) -> Result<((u64, u64), f64), BackendError> {
+        let Some((h, r)) = cp.restore(out).map_err(BackendError::checkpoint)? else {
             return Ok(((0, 0), 0.0));
         };
-        let start = self.restore(r).map_err(GpuError::checkpoint)?;
+        let start = self.restore(r).map_err(BackendError::checkpoint)?;
         if let Some(p) = progress {
             p.fetch_add(h.traj_steps, Ordering::Relaxed);
         }
@@ -675,11 +685,13 @@ impl Dispatcher<'_> {
 
     /// One dispatch with uniforms `u`; returns (wall seconds, integration
     /// seconds by timestamps where available).
-    fn dispatch(&self, u: &Uniforms, count: u64) -> Result<(f64, f64), GpuError> {
+    fn dispatch(&self, u: &Uniforms, count: u64) -> Result<(f64, f64), BackendError> {
         let (ctx, bufs) = (self.ctx, self.bufs);
         ctx.queue
             .write_buffer(&bufs.uniform, 0, bytemuck::bytes_of(u));
-        let groups = count.div_ceil(WORKGROUP);
+        let launch = &self.sizes.launch;
+        let threads = count.div_ceil(launch.per_thread as u64);
+        let groups = threads.div_ceil(launch.workgroup as u64);
         let max_dim = ctx.limits.max_compute_workgroups_per_dimension as u64;
         let gx = groups.min(max_dim);
         let gy = groups.div_ceil(gx);
@@ -739,7 +751,7 @@ fn read_frames<R: Flows>(
     count: u64,
     frame0: u64,
     nframes: u64,
-) -> Result<(), GpuError> {
+) -> Result<(), BackendError> {
     let (tv, cap) = (s.tv, s.cap);
     let frames_total = out.frames as u64;
     let frames: Vec<R> = read(ctx, &bufs.traj, &bufs.staging, nframes * tv * cap * s.b)?;
@@ -807,7 +819,7 @@ fn read_mapped<T: bytemuck::Pod>(
     ctx: &GpuContext,
     buf: &wgpu::Buffer,
     bytes: u64,
-) -> Result<Vec<T>, GpuError> {
+) -> Result<Vec<T>, BackendError> {
     let slice = buf.slice(..bytes);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -840,7 +852,7 @@ fn collect<R: Flows>(
     count: u64,
     cap: u64,
     b: u64,
-) -> Result<(), GpuError> {
+) -> Result<(), BackendError> {
     let nv = plan.vars.len() as u64;
     let state: Vec<R> = read(ctx, &bufs.state, &bufs.staging, nv * cap * b)?;
     let status: Vec<u32> = read(ctx, &bufs.status, &bufs.staging, 4 * cap)?;
@@ -849,7 +861,7 @@ fn collect<R: Flows>(
         .filter(|s| **s == slots::CUT)
         .count();
     if cut > 0 {
-        return Err(GpuError::Cut(format!(
+        return Err(BackendError::Cut(format!(
             "the adapter ended the kernel's step loop early in {cut} of {count} trajectories (a driver's limit on loop iterations, such as llvmpipe's {LOOP_ITERATIONS} per dispatch, which reeb's windows should respect: please report it); the CPU backend runs this scene"
         )));
     }
@@ -916,7 +928,7 @@ fn collect_observers<R: Flows>(
     cap: u64,
     b: u64,
     status: &[u32],
-) -> Result<(), GpuError> {
+) -> Result<(), BackendError> {
     let aux_r: Vec<R> = read(
         ctx,
         &bufs.aux_r,

@@ -1,0 +1,229 @@
+//! How a plan's kernel is launched on an adapter: the workgroup size, the
+//! trajectories each invocation integrates, and the wall time a dispatch (a
+//! window of steps) aims at. None of them changes a result's bits: every
+//! trajectory runs the same operations whatever the launch
+//! (`tests/gpu.rs::every_launch_gives_the_same_bits`); they change the speed.
+//! The probe that chooses them is `backend/tune.rs`; this file holds the
+//! choice, its limits, the environment's overrides and the cache file.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+
+/// Workgroup sizes the probe tries (each within the adapter's limits).
+pub const WORKGROUPS: [u32; 3] = [64, 128, 256];
+/// Trajectories per invocation the probe tries.
+pub const PER_THREAD: [u32; 3] = [1, 2, 4];
+
+/// A kernel launch.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Launch {
+    /// Invocations per workgroup (`@workgroup_size`).
+    pub workgroup: u32,
+    /// Trajectories one invocation integrates, one after the other
+    /// (strided by the dispatch's width, so neighbours stay coalesced).
+    pub per_thread: u32,
+    /// Wall seconds one dispatch aims at (the window adapts its steps).
+    pub dispatch_seconds: f64,
+    /// Most steps per dispatch (`REEB_GPU_WINDOW`), if fixed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window: Option<u64>,
+}
+
+impl Default for Launch {
+    fn default() -> Launch {
+        Launch {
+            workgroup: 64,
+            per_thread: 1,
+            dispatch_seconds: 0.1,
+            window: None,
+        }
+    }
+}
+
+impl Launch {
+    /// Refuses a launch the adapter's limits forbid (it is never tried).
+    pub fn check(&self, limits: &wgpu::Limits) -> Result<(), String> {
+        let most = limits
+            .max_compute_invocations_per_workgroup
+            .min(limits.max_compute_workgroup_size_x);
+        if self.workgroup == 0 || self.workgroup > most {
+            return Err(format!(
+                "a workgroup of {} invocations: this adapter allows 1 to {most}",
+                self.workgroup
+            ));
+        }
+        if !(1..=64).contains(&self.per_thread) {
+            return Err(format!(
+                "{} trajectories per invocation: 1 to 64",
+                self.per_thread
+            ));
+        }
+        if !(0.001..=10.0).contains(&self.dispatch_seconds) {
+            return Err(format!(
+                "{} s per dispatch: 0.001 to 10",
+                self.dispatch_seconds
+            ));
+        }
+        Ok(())
+    }
+
+    /// One line: `workgroup 128, 2 per invocation, 0.05 s per dispatch`.
+    pub fn describe(&self) -> String {
+        let window = self
+            .window
+            .map_or(String::new(), |w| format!(", at most {w} steps per dispatch"));
+        format!(
+            "workgroup {}, {} per invocation, {} s per dispatch{window}",
+            self.workgroup, self.per_thread, self.dispatch_seconds
+        )
+    }
+}
+
+/// What the environment fixes, each overriding the probe's choice.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Overrides {
+    pub workgroup: Option<u32>,
+    pub per_thread: Option<u32>,
+    pub dispatch_seconds: Option<f64>,
+    pub window: Option<u64>,
+}
+
+/// The environment variables of [`Overrides`], as the README names them.
+pub const ENV: [&str; 4] = [
+    "REEB_GPU_WORKGROUP",
+    "REEB_GPU_PER_THREAD",
+    "REEB_GPU_DISPATCH_SECONDS",
+    "REEB_GPU_WINDOW",
+];
+
+impl Overrides {
+    /// The overrides the environment sets; an error names the variable.
+    pub fn from_env() -> Result<Overrides, String> {
+        fn var<T: std::str::FromStr>(name: &str) -> Result<Option<T>, String> {
+            match std::env::var(name) {
+                Err(_) => Ok(None),
+                Ok(v) if v.trim().is_empty() => Ok(None),
+                Ok(v) => v
+                    .trim()
+                    .parse()
+                    .map(Some)
+                    .map_err(|_| format!("{name}={v:?} is not a number")),
+            }
+        }
+        let o = Overrides {
+            workgroup: var(ENV[0])?,
+            per_thread: var(ENV[1])?,
+            dispatch_seconds: var(ENV[2])?,
+            window: var(ENV[3])?,
+        };
+        if o.window == Some(0) {
+            return Err(format!("{}=0: at least 1 step per dispatch", ENV[3]));
+        }
+        Ok(o)
+    }
+
+    /// Does the environment fix every knob the probe would choose?
+    pub fn complete(&self) -> bool {
+        self.workgroup.is_some() && self.per_thread.is_some() && self.dispatch_seconds.is_some()
+    }
+
+    /// `launch` with the overrides applied, checked against the adapter's limits.
+    pub fn apply(&self, launch: Launch, limits: &wgpu::Limits) -> Result<Launch, String> {
+        let l = Launch {
+            workgroup: self.workgroup.unwrap_or(launch.workgroup),
+            per_thread: self.per_thread.unwrap_or(launch.per_thread),
+            dispatch_seconds: self.dispatch_seconds.unwrap_or(launch.dispatch_seconds),
+            window: self.window.or(launch.window),
+        };
+        l.check(limits)
+            .map_err(|e| format!("{} ({})", e, ENV.join(", ")))?;
+        Ok(l)
+    }
+}
+
+/// A probe's result for one adapter and plan shape.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Tuned {
+    pub launch: Launch,
+    /// Trajectory-steps per second of the probe's plan with `launch`.
+    pub gpu_rate: f64,
+    /// The CPU backend's, on the same plan (all threads).
+    pub cpu_rate: f64,
+    /// Trajectories of the probe (the smaller of the plan's and the probe's).
+    pub trajectories: u64,
+    /// Wall seconds the probe took.
+    pub probe_seconds: f64,
+}
+
+/// The cache: probes by adapter (name, backend, driver) and plan shape.
+#[derive(Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct Cache {
+    pub reeb_version: String,
+    pub tuned: BTreeMap<String, BTreeMap<String, Tuned>>,
+}
+
+/// The file name of the cache in reeb's cache directory.
+pub const CACHE_FILE: &str = "gpu-tuning.json";
+
+/// `$XDG_CACHE_HOME/reeb/`, or `~/.cache/reeb/`.
+pub fn cache_dir() -> Option<PathBuf> {
+    let base = std::env::var_os("XDG_CACHE_HOME")
+        .filter(|v| !v.is_empty())
+        .map(PathBuf::from)
+        .filter(|p| p.is_absolute())
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
+    Some(base.join("reeb"))
+}
+
+/// The key of an adapter: what decides its speed and its bits.
+pub fn adapter_key(i: &wgpu::AdapterInfo) -> String {
+    format!(
+        "{} ({:?}, {} {})",
+        i.name, i.backend, i.driver, i.driver_info
+    )
+}
+
+impl Cache {
+    /// The cache file's contents; a missing, unreadable, corrupt file or
+    /// one of another reeb version is an empty cache (re-measured).
+    pub fn load() -> Cache {
+        let empty = Cache {
+            reeb_version: env!("CARGO_PKG_VERSION").into(),
+            ..Default::default()
+        };
+        let Some(path) = cache_dir().map(|d| d.join(CACHE_FILE)) else {
+            return empty;
+        };
+        std::fs::read_to_string(path)
+            .ok()
+            .and_then(|s| serde_json::from_str::<Cache>(&s).ok())
+            .filter(|c| c.reeb_version == env!("CARGO_PKG_VERSION"))
+            .unwrap_or(empty)
+    }
+
+    pub fn get(&self, adapter: &str, shape: &str) -> Option<&Tuned> {
+        self.tuned.get(adapter)?.get(shape)
+    }
+
+    /// Adds `tuned` to the file (read again, so that other processes'
+    /// entries stay), written whole under another name and renamed.
+    pub fn store(adapter: &str, shape: &str, tuned: &Tuned) -> std::io::Result<PathBuf> {
+        let dir = cache_dir().ok_or_else(|| {
+            std::io::Error::other("no cache directory (set XDG_CACHE_HOME or HOME)")
+        })?;
+        std::fs::create_dir_all(&dir)?;
+        let mut cache = Cache::load();
+        cache
+            .tuned
+            .entry(adapter.to_string())
+            .or_default()
+            .insert(shape.to_string(), tuned.clone());
+        let path = dir.join(CACHE_FILE);
+        let tmp = dir.join(format!("{CACHE_FILE}.{}.partial", std::process::id()));
+        let text = serde_json::to_string_pretty(&cache).map_err(std::io::Error::other)?;
+        std::fs::write(&tmp, text + "\n")?;
+        std::fs::rename(&tmp, &path)?;
+        Ok(path)
+    }
+}

@@ -1,0 +1,200 @@
+//! The GPU launch for an adapter and a plan shape, chosen by a short probe
+//! (about a second, once: the result is cached, `gpu/tuning.rs`), which
+//! also measures the CPU backend on the same plan so that `--backend auto`
+//! can take the faster of the two (an f64 run on a GPU with 1/64-rate f64
+//! can be slower than the CPU).
+
+use std::time::Instant;
+
+use super::cpu;
+use super::error::BackendError;
+use super::gpu::tuning::{adapter_key, Cache, Launch, Overrides, Tuned, PER_THREAD, WORKGROUPS};
+use super::gpu::{self, GpuContext, GpuOptions};
+use crate::models::Flows;
+use crate::num::precision::Precision;
+use crate::plan::Plan;
+
+/// Wall seconds the probe aims to stay within.
+pub const PROBE_SECONDS: f64 = 1.0;
+/// Wall seconds of one measurement.
+const MEASURE_SECONDS: f64 = 0.04;
+
+/// The plan shape a tuning is kept for: precision, model (its state, its
+/// pieces' cost, its registers) and the probe's size class (2^0, 2^4, …
+/// trajectories: a GPU that 16 trajectories leave idle may win at 10⁶).
+pub fn shape(ctx: &GpuContext, plan: &Plan, precision: Precision) -> String {
+    let k = probe_size(ctx, plan).ilog2() / 4 * 4;
+    format!("{} {} 2^{k}", precision.name(), plan.model.name())
+}
+
+/// Trajectories the probe measures: the plan's, up to 2^20 (2^14 on a
+/// software adapter).
+fn probe_size(ctx: &GpuContext, plan: &Plan) -> usize {
+    let most = match gpu::is_software(&ctx.info) {
+        true => 1 << 14,
+        false => 1 << 20,
+    };
+    plan.n.clamp(1, most)
+}
+
+/// The environment's overrides, checked against `ctx`'s limits (before a
+/// run claims its directory).
+pub fn check_env(ctx: &GpuContext) -> Result<(), BackendError> {
+    let env = Overrides::from_env().map_err(BackendError::Tuning)?;
+    env.apply(Launch::default(), &ctx.limits)
+        .map(drop)
+        .map_err(BackendError::Tuning)
+}
+
+/// Where a launch came from, for `reeb info`, notices and summaries.
+#[derive(Debug, Clone)]
+pub struct Chosen {
+    pub launch: Launch,
+    /// The probe's measurements (none when the environment fixed every knob).
+    pub tuned: Option<Tuned>,
+    /// "cache", "probe" or "environment".
+    pub source: &'static str,
+}
+
+/// The launch of `plan` on `ctx`: the environment's overrides over the
+/// cached probe of this adapter and shape, probing (and caching) once
+/// when there is none.
+pub fn launch_for(ctx: &GpuContext, plan: &Plan, precision: Precision) -> Result<Chosen, BackendError> {
+    let env = Overrides::from_env().map_err(BackendError::Tuning)?;
+    let apply = |l: Launch| env.apply(l, &ctx.limits).map_err(BackendError::Tuning);
+    if env.complete() {
+        return Ok(Chosen { launch: apply(Launch::default())?, tuned: None, source: "environment" });
+    }
+    let (tuned, source) = tuned(ctx, plan, precision, false)?;
+    Ok(Chosen { launch: apply(tuned.launch)?, tuned: Some(tuned), source })
+}
+
+/// This adapter's probe of `plan`'s shape: from this process's memory, the
+/// cache file, or measured now (`again`: measured now in any case).
+pub fn tuned(
+    ctx: &GpuContext,
+    plan: &Plan,
+    precision: Precision,
+    again: bool,
+) -> Result<(Tuned, &'static str), BackendError> {
+    let (adapter, shape) = (adapter_key(&ctx.info), shape(ctx, plan, precision));
+    if !again {
+        if let Some(t) = ctx.tuned(&shape) {
+            return Ok((t, "cache"));
+        }
+        if let Some(t) = Cache::load().get(&adapter, &shape).filter(|t| t.launch.check(&ctx.limits).is_ok()) {
+            ctx.remember(&shape, t);
+            return Ok((t.clone(), "cache"));
+        }
+    }
+    let t = match precision {
+        Precision::F32 => probe::<f32>(ctx, plan)?,
+        Precision::F64 => probe::<f64>(ctx, plan)?,
+    };
+    if let Err(e) = Cache::store(&adapter, &shape, &t) {
+        eprintln!("note: the GPU tuning could not be cached ({e}); it is measured again next time");
+    }
+    ctx.remember(&shape, &t);
+    Ok((t, "probe"))
+}
+
+/// Measures the candidate launches on the first trajectories of `plan`
+/// (a workgroup size, then trajectories per invocation), and the CPU.
+fn probe<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<Tuned, BackendError> {
+    let started = Instant::now();
+    let m = probe_size(ctx, plan);
+    let steps = calibrate(m, |s| gpu_rate::<R>(ctx, plan, m, s, &Launch::default()))?;
+    let mut best = (Launch::default(), 0.0);
+    let consider = |l: Launch, best: &mut (Launch, f64)| -> Result<(), BackendError> {
+        if l.check(&ctx.limits).is_err() || started.elapsed().as_secs_f64() > PROBE_SECONDS {
+            return Ok(());
+        }
+        let rate = gpu_rate::<R>(ctx, plan, m, steps, &l)?;
+        if rate > best.1 {
+            *best = (l, rate);
+        }
+        Ok(())
+    };
+    for w in WORKGROUPS {
+        consider(Launch { workgroup: w, ..Launch::default() }, &mut best)?;
+    }
+    for p in PER_THREAD.into_iter().skip(1) {
+        consider(Launch { per_thread: p, ..best.0 }, &mut best)?;
+    }
+    best.0.dispatch_seconds = dispatch_seconds::<R>(ctx, plan, &best.0)?;
+    let cpu_m = m.min(1 << 16);
+    let cpu_steps = calibrate(cpu_m, |s| cpu_rate::<R>(plan, cpu_m, s))?;
+    Ok(Tuned {
+        launch: best.0,
+        gpu_rate: best.1,
+        cpu_rate: cpu_rate::<R>(plan, cpu_m, cpu_steps)?,
+        trajectories: m as u64,
+        probe_seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// Steps at which one measurement takes about [`MEASURE_SECONDS`], from
+/// a first one of 4 steps.
+fn calibrate(
+    m: usize,
+    rate: impl Fn(u64) -> Result<f64, BackendError>,
+) -> Result<u64, BackendError> {
+    let r = rate(4)?;
+    Ok(((r * MEASURE_SECONDS / m as f64) as u64).clamp(4, 4096))
+}
+
+/// `plan` narrowed to its first `m` trajectories and `steps` steps.
+fn sample(plan: &Plan, m: usize, steps: u64) -> Plan {
+    let mut p = plan.rows(0..m.min(plan.n));
+    p.steps = steps.min(plan.steps).max(1);
+    p
+}
+
+/// Trajectory-steps per second of `launch` (the integration alone).
+fn gpu_rate<R: Flows>(
+    ctx: &GpuContext,
+    plan: &Plan,
+    m: usize,
+    steps: u64,
+    launch: &Launch,
+) -> Result<f64, BackendError> {
+    let p = sample(plan, m, steps);
+    let opts = GpuOptions { launch: Some(*launch), ..Default::default() };
+    let r = gpu::run_with::<R>(ctx, &p, None, &opts)?;
+    Ok((p.n as u64 * p.steps) as f64 / r.seconds.max(1e-9))
+}
+
+fn cpu_rate<R: Flows>(plan: &Plan, m: usize, steps: u64) -> Result<f64, BackendError> {
+    let p = sample(plan, m, steps);
+    let (_, seconds) = cpu::resumable::<R>(&p, None, cpu::isa(), None)?;
+    Ok((p.n as u64 * p.steps) as f64 / seconds.max(1e-9))
+}
+
+/// The time a dispatch aims at: long enough that the fixed cost of one
+/// (submission, wait, read-back; measured on a one-step window of one
+/// workgroup) is below 1 % of it, and at most a quarter second (progress,
+/// checkpoints and a stop request are honoured between dispatches).
+fn dispatch_seconds<R: Flows>(ctx: &GpuContext, plan: &Plan, launch: &Launch) -> Result<f64, BackendError> {
+    let p = sample(plan, launch.workgroup as usize, 1);
+    let opts = GpuOptions { launch: Some(*launch), ..Default::default() };
+    let mut fixed = f64::INFINITY;
+    for _ in 0..3 {
+        let t = Instant::now();
+        gpu::run_with::<R>(ctx, &p, None, &opts)?;
+        fixed = fixed.min(t.elapsed().as_secs_f64());
+    }
+    Ok((100.0 * fixed).clamp(0.02, 0.25))
+}
+
+/// `auto`'s one line: which backend runs the plan, and the rates that
+/// decided it.
+pub fn auto_notice(adapter: &str, precision: Precision, t: &Tuned) -> String {
+    let (on, other) = match t.gpu_rate >= t.cpu_rate {
+        true => (format!("the GPU ({adapter})"), "the CPU"),
+        false => ("the CPU".to_string(), "the GPU"),
+    };
+    format!(
+        "note: --backend auto: running on {on}: for this plan's shape in {precision} the GPU measured {:.3e} and the CPU {:.3e} trajectory-steps/s (tuning probe of {} trajectories; --backend cpu or gpu to choose {other})",
+        t.gpu_rate, t.cpu_rate, t.trajectories
+    )
+}
