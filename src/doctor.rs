@@ -56,6 +56,9 @@ pub struct Report {
     pub verify: Vec<VerifyRun>,
     pub agreement: Vec<Agreement>,
     pub bench: Vec<Row>,
+    /// The launch `reeb tune` chooses for each scenario's model, with the
+    /// GPU's and the CPU's rates the probe measured (what `auto` weighs).
+    pub tuning: Vec<Tuned>,
     /// What could not be done, and why.
     pub problems: Vec<String>,
     pub seconds: f64,
@@ -66,6 +69,16 @@ pub struct Cpu {
     pub model: String,
     pub isa: &'static str,
     pub threads: usize,
+}
+
+/// One plan shape's tuning.
+#[derive(Debug, Serialize)]
+pub struct Tuned {
+    pub shape: String,
+    pub launch: String,
+    pub gpu_rate: f64,
+    pub cpu_rate: f64,
+    pub probe_seconds: f64,
 }
 
 /// `reeb verify --backend gpu` at one precision.
@@ -142,6 +155,7 @@ pub fn run(opts: &DoctorOptions, mut progress: impl FnMut(&str)) -> Report {
     } else {
         vec![1_000_000, 10_000_000]
     });
+    let tuning = tune(engine.as_ref(), &precisions, &mut progress, &mut problems);
     let bench = throughput(engine.as_ref(), &sizes, &mut progress, &mut problems);
     Report {
         reeb: env!("CARGO_PKG_VERSION"),
@@ -152,8 +166,39 @@ pub fn run(opts: &DoctorOptions, mut progress: impl FnMut(&str)) -> Report {
         verify,
         agreement,
         bench,
+        tuning,
         problems,
         seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+/// The GPU launch of each scenario's model, probed again (and cached).
+fn tune(
+    engine: Option<&Engine>,
+    precisions: &[Precision],
+    progress: &mut impl FnMut(&str),
+    problems: &mut Vec<String>,
+) -> Vec<Tuned> {
+    let Some(engine) = engine else {
+        return vec![];
+    };
+    progress("tuning the launch of each scenario's model (about 1 s each)");
+    let rows = crate::bench::tune(engine, None, precisions, |_| {});
+    match rows {
+        Ok(rows) => rows
+            .into_iter()
+            .map(|t| Tuned {
+                shape: t.shape,
+                launch: t.tuned.launch.describe(),
+                gpu_rate: t.tuned.gpu_rate,
+                cpu_rate: t.tuned.cpu_rate,
+                probe_seconds: t.tuned.probe_seconds,
+            })
+            .collect(),
+        Err(e) => {
+            problems.push(format!("tuning failed: {e}"));
+            vec![]
+        }
     }
 }
 
@@ -402,6 +447,15 @@ impl Report {
                 format!(
                     "{:<6} {:<24} {:>9} {:>10} {:>6} {:>14.3e}",
                     b.backend, b.scenario, b.precision, b.n, b.steps, b.traj_steps_per_s
+                ),
+            );
+        }
+        for r in &self.tuning {
+            line(
+                &mut t,
+                format!(
+                    "tuned {:<24} {:<58} GPU {:.3e}, CPU {:.3e} traj-steps/s",
+                    r.shape, r.launch, r.gpu_rate, r.cpu_rate
                 ),
             );
         }

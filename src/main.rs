@@ -685,11 +685,19 @@ fn info() -> Result<ExitCode> {
 }
 
 /// `reeb tune`: a row per plan shape probed again, and where they are kept.
-fn tune(scene: Option<PathBuf>, adapter: Option<usize>, precisions: Vec<Precision>) -> Result<ExitCode> {
+fn tune(
+    scene: Option<PathBuf>,
+    adapter: Option<usize>,
+    precisions: Vec<Precision>,
+) -> Result<ExitCode> {
     use reeb::backend::gpu::tuning;
     let engine = Engine::gpu(adapter).context("reeb tune measures a GPU adapter")?;
     let scene = scene.as_deref().map(Scene::load).transpose()?;
-    println!("reeb {} tune: {}", env!("CARGO_PKG_VERSION"), engine.describe());
+    println!(
+        "reeb {} tune: {}",
+        env!("CARGO_PKG_VERSION"),
+        engine.describe()
+    );
     println!(
         "{:<28} {:<60} {:>14} {:>14} {:>8}",
         "shape", "launch", "GPU steps/s", "CPU steps/s", "probe s"
@@ -722,7 +730,9 @@ fn tune(scene: Option<PathBuf>, adapter: Option<usize>, precisions: Vec<Precisio
 fn print_tuning(adapters: &[reeb::backend::gpu::AdapterSummary]) {
     use reeb::backend::gpu::tuning::{cache_dir, Cache, Overrides, CACHE_FILE, ENV};
     let cache = Cache::load();
-    let file = cache_dir().map_or("(no cache directory)".into(), |d| d.join(CACHE_FILE).display().to_string());
+    let file = cache_dir().map_or("(no cache directory)".into(), |d| {
+        d.join(CACHE_FILE).display().to_string()
+    });
     println!("GPU tuning (cache: {file}):");
     for (k, a) in adapters.iter().enumerate() {
         let tuned = cache.tuned.get(&a.tuning_key);

@@ -191,6 +191,7 @@ fn gpu_runs_continue_bitwise_from_any_snapshot() {
     let opts = gpu::GpuOptions {
         max_chunk: Some(64),
         max_steps_per_dispatch: Some(97),
+        ..Default::default()
     };
     for (label, text) in [("van der Pol", VAN_DER_POL), ("spin–orbit", SPIN_ORBIT)] {
         let plan = plan(text);

@@ -10,6 +10,7 @@ fn reeb(dir: &Path, args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_reeb"))
         .args(args)
         .current_dir(dir)
+        .env("XDG_CACHE_HOME", dir.join("tuning-cache"))
         .output()
         .expect("reeb runs")
 }
@@ -55,6 +56,10 @@ fn doctor_checks_and_measures_both_backends() {
             assert_eq!(r["n"], 2000);
         }
     }
+    // The launch of each scenario's model, probed on this adapter.
+    let tuning = report["tuning"].as_array().unwrap();
+    assert!(tuning.len() >= 4, "{tuning:?}");
+    assert!(tuning.iter().all(|t| t["gpu_rate"].as_f64().unwrap() > 0.0));
     assert!(
         text.contains("agreement f32") && text.contains("traj-steps/s"),
         "{text}"

@@ -271,6 +271,7 @@ fn formula_time_terms_come_from_a_table_on_the_gpu() {
                 let opts = gpu::GpuOptions {
                     max_chunk: None,
                     max_steps_per_dispatch: window,
+                    ..Default::default()
                 };
                 let g = gpu::run_with::<f32>(ctx, &f, None, &opts).unwrap();
                 let w = worst(&g.observations, &cpu::run::<f32>(&f, None));

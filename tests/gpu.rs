@@ -263,6 +263,7 @@ fn chunk_and_window_boundaries() {
             let opts = gpu::GpuOptions {
                 max_chunk: chunk,
                 max_steps_per_dispatch: window,
+                ..Default::default()
             };
             let g = gpu::run_with::<f32>(ctx, &plan, None, &opts).unwrap();
             compare(
@@ -297,6 +298,7 @@ fn diverging_trajectories_stop_on_the_gpu_too() {
         &gpu::GpuOptions {
             max_chunk: None,
             max_steps_per_dispatch: Some(13),
+            ..Default::default()
         },
     )
     .unwrap();
@@ -386,6 +388,7 @@ fn shared_time_terms_come_from_a_table_per_window() {
                 let opts = gpu::GpuOptions {
                     max_chunk: None,
                     max_steps_per_dispatch: window,
+                    ..Default::default()
                 };
                 let label = format!("{model} {scheme} window {window:?}");
                 agrees_with_cpu(ctx, &label, &plan, &opts, (2e-4, 1e-10));
@@ -477,6 +480,7 @@ fn long_windows_lose_no_step() {
                 let opts = gpu::GpuOptions {
                     max_chunk: None,
                     max_steps_per_dispatch: window,
+                    ..Default::default()
                 };
                 gpu::run_with::<f32>(ctx, &plan, None, &opts)
                     .unwrap_or_else(|e| panic!("period {period}, window {window:?}: {e}"))
@@ -501,4 +505,75 @@ fn long_windows_lose_no_step() {
             "period {period}: the window changed the results"
         );
     }
+}
+
+/// The launch changes the speed, never the bits (issue 35, point 2): every
+/// workgroup size, trajectories per invocation and window tried against
+/// the default launch, for a plan with every observer, one whose time
+/// terms come from a table (spin–orbit), and a formula model; and a launch
+/// beyond the adapter's limits is refused before it is tried.
+#[test]
+fn every_launch_gives_the_same_bits() {
+    use reeb::backend::gpu::tuning::Launch;
+    let Some(ctx) = gpu() else { return };
+    let plans = [
+        (
+            "van_der_pol s2",
+            Plan::new(&ensemble("van_der_pol", "s2").unwrap()).unwrap(),
+        ),
+        (
+            "spin_orbit yoshida6a",
+            Plan::new(&shared_ensemble("spin_orbit", "yoshida6a").unwrap()).unwrap(),
+        ),
+        (
+            "lienard formula",
+            reeb::bench::Scenario::LienardFormulaS2.plan(300, 40),
+        ),
+    ];
+    let bits = |o: &dyn std::fmt::Debug| format!("{o:?}");
+    let mut tried = 0;
+    for (label, plan) in &plans {
+        let base32 = bits(&gpu::run::<f32>(ctx, plan, None).unwrap().observations);
+        let base64 = ctx
+            .shader_f64
+            .then(|| bits(&gpu::run::<f64>(ctx, plan, None).unwrap().observations));
+        for workgroup in [32, 64, 128, 256] {
+            for per_thread in [1, 2, 3, 4] {
+                for window in [None, Some(5)] {
+                    let opts = gpu::GpuOptions {
+                        launch: Some(Launch {
+                            workgroup,
+                            per_thread,
+                            dispatch_seconds: 0.01,
+                            window,
+                        }),
+                        max_chunk: Some(256),
+                        ..Default::default()
+                    };
+                    let what = format!("{label}, workgroup {workgroup}, {per_thread} per invocation, window {window:?}");
+                    let g = gpu::run_with::<f32>(ctx, plan, None, &opts)
+                        .unwrap_or_else(|e| panic!("{what}: {e}"));
+                    assert!(bits(&g.observations) == base32, "{what}: f32 bits differ");
+                    if let (Some(b), true) = (&base64, per_thread % 2 == 1) {
+                        let g = gpu::run_with::<f64>(ctx, plan, None, &opts)
+                            .unwrap_or_else(|e| panic!("{what}: {e}"));
+                        assert!(bits(&g.observations) == *b, "{what}: f64 bits differ");
+                    }
+                    tried += 1;
+                }
+            }
+        }
+    }
+    assert_eq!(tried, 3 * 32);
+    let too_wide = gpu::GpuOptions {
+        launch: Some(Launch {
+            workgroup: ctx.limits.max_compute_invocations_per_workgroup * 2,
+            ..Launch::default()
+        }),
+        ..Default::default()
+    };
+    let e = gpu::run_with::<f32>(ctx, &plans[0].1, None, &too_wide)
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("this adapter allows"), "{e}");
 }

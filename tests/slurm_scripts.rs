@@ -240,9 +240,20 @@ fn every_task_option_reaches_each_task_unchanged() {
         chunk_trajectories: Some(4096),
         checkpoint_every: Some(std::time::Duration::from_secs_f64(2.5)),
         adapter: Some(1),
+        adapters: None,
     };
     let back = RunOptions::parse_args(&all.to_args()).unwrap();
     assert_eq!(back.task, all);
+    // `--adapters` excludes `--adapter`.
+    let spread = TaskOptions {
+        adapter: None,
+        adapters: Some(reeb::backend::Adapters::List(vec![0, 1, 1])),
+        ..all
+    };
+    assert_eq!(
+        RunOptions::parse_args(&spread.to_args()).unwrap().task,
+        spread
+    );
     assert_eq!(
         RunOptions::parse_args(&[]).unwrap().task,
         TaskOptions::default()
@@ -268,7 +279,9 @@ fn every_task_option_reaches_each_task_unchanged() {
     ]);
     let script = std::fs::read_to_string(format!("{}.slurm/shards.sbatch", s(&out))).unwrap();
     assert!(
-        script.contains("--resume --precision f32 --chunk-trajectories 7 --checkpoint-every 2.5\n"),
+        script.contains(
+            "--resume '--precision' 'f32' '--chunk-trajectories' '7' '--checkpoint-every' '2.5'\n"
+        ),
         "{script}"
     );
 }

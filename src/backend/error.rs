@@ -1,7 +1,7 @@
 //! What a backend run can fail with: the GPU's own errors, and what any
 //! backend may say (too large, a checkpoint, stopped as asked).
 
-use super::gpu::GpuError;
+use super::gpu::context::GpuError;
 
 #[derive(Debug, thiserror::Error)]
 pub enum BackendError {

@@ -6,8 +6,8 @@
 pub mod checkpoint;
 pub mod cpu;
 pub mod error;
-pub mod tune;
 pub mod gpu;
+pub mod tune;
 
 use std::sync::atomic::{AtomicBool, AtomicU64};
 
@@ -141,14 +141,28 @@ impl Engine {
                 }
                 return Ok((Engine::Gpu(Box::new(ctx)), None));
             }
-            (BackendChoice::Auto, Err(e)) if index.is_none() => return Ok((Engine::Cpu, Some(format!("note: no GPU adapter ({}); running on the CPU", first_line(&e.to_string()))))),
+            (BackendChoice::Auto, Err(e)) if index.is_none() => {
+                return Ok((
+                    Engine::Cpu,
+                    Some(format!(
+                        "note: no GPU adapter ({}); running on the CPU",
+                        first_line(&e.to_string())
+                    )),
+                ))
+            }
             (BackendChoice::Auto, ctx) => ctx?,
         };
         if index.is_none() && gpu::is_software(&ctx.info) {
             return Ok((Engine::Cpu, Some(format!("note: only a software GPU adapter ({}); running on the CPU (use --backend gpu to run it anyway)", ctx.info.name))));
         }
         if f64_missing(&ctx) {
-            return Ok((Engine::Cpu, Some(format!("note: {} has no f64 shaders; running on the CPU", ctx.info.name))));
+            return Ok((
+                Engine::Cpu,
+                Some(format!(
+                    "note: {} has no f64 shaders; running on the CPU",
+                    ctx.info.name
+                )),
+            ));
         }
         tune::check_env(&ctx)?;
         let Some(plan) = plan else {
@@ -164,7 +178,14 @@ impl Engine {
                 };
                 Ok((engine, Some(notice)))
             }
-            Err(e) => Ok((Engine::Cpu, Some(format!("note: measuring {} failed ({}); running on the CPU", ctx.info.name, first_line(&e.to_string()))))),
+            Err(e) => Ok((
+                Engine::Cpu,
+                Some(format!(
+                    "note: measuring {} failed ({}); running on the CPU",
+                    ctx.info.name,
+                    first_line(&e.to_string())
+                )),
+            )),
         }
     }
 
@@ -188,7 +209,11 @@ impl Engine {
             engines.push(Engine::Gpu(Box::new(ctx)));
         }
         let names: Vec<String> = engines.iter().filter_map(Engine::adapter).collect();
-        let notice = format!("note: {} GPU devices, the chunks shared among them: {}", names.len(), names.join("; "));
+        let notice = format!(
+            "note: {} GPU devices, the chunks shared among them: {}",
+            names.len(),
+            names.join("; ")
+        );
         Ok((engines, notice))
     }
 

@@ -59,14 +59,26 @@ pub struct Chosen {
 /// The launch of `plan` on `ctx`: the environment's overrides over the
 /// cached probe of this adapter and shape, probing (and caching) once
 /// when there is none.
-pub fn launch_for(ctx: &GpuContext, plan: &Plan, precision: Precision) -> Result<Chosen, BackendError> {
+pub fn launch_for(
+    ctx: &GpuContext,
+    plan: &Plan,
+    precision: Precision,
+) -> Result<Chosen, BackendError> {
     let env = Overrides::from_env().map_err(BackendError::Tuning)?;
     let apply = |l: Launch| env.apply(l, &ctx.limits).map_err(BackendError::Tuning);
     if env.complete() {
-        return Ok(Chosen { launch: apply(Launch::default())?, tuned: None, source: "environment" });
+        return Ok(Chosen {
+            launch: apply(Launch::default())?,
+            tuned: None,
+            source: "environment",
+        });
     }
     let (tuned, source) = tuned(ctx, plan, precision, false)?;
-    Ok(Chosen { launch: apply(tuned.launch)?, tuned: Some(tuned), source })
+    Ok(Chosen {
+        launch: apply(tuned.launch)?,
+        tuned: Some(tuned),
+        source,
+    })
 }
 
 /// This adapter's probe of `plan`'s shape: from this process's memory, the
@@ -82,7 +94,10 @@ pub fn tuned(
         if let Some(t) = ctx.tuned(&shape) {
             return Ok((t, "cache"));
         }
-        if let Some(t) = Cache::load().get(&adapter, &shape).filter(|t| t.launch.check(&ctx.limits).is_ok()) {
+        if let Some(t) = Cache::load()
+            .get(&adapter, &shape)
+            .filter(|t| t.launch.check(&ctx.limits).is_ok())
+        {
             ctx.remember(&shape, t);
             return Ok((t.clone(), "cache"));
         }
@@ -116,10 +131,22 @@ fn probe<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<Tuned, BackendError>
         Ok(())
     };
     for w in WORKGROUPS {
-        consider(Launch { workgroup: w, ..Launch::default() }, &mut best)?;
+        consider(
+            Launch {
+                workgroup: w,
+                ..Launch::default()
+            },
+            &mut best,
+        )?;
     }
     for p in PER_THREAD.into_iter().skip(1) {
-        consider(Launch { per_thread: p, ..best.0 }, &mut best)?;
+        consider(
+            Launch {
+                per_thread: p,
+                ..best.0
+            },
+            &mut best,
+        )?;
     }
     best.0.dispatch_seconds = dispatch_seconds::<R>(ctx, plan, &best.0)?;
     let cpu_m = m.min(1 << 16);
@@ -159,7 +186,10 @@ fn gpu_rate<R: Flows>(
     launch: &Launch,
 ) -> Result<f64, BackendError> {
     let p = sample(plan, m, steps);
-    let opts = GpuOptions { launch: Some(*launch), ..Default::default() };
+    let opts = GpuOptions {
+        launch: Some(*launch),
+        ..Default::default()
+    };
     let r = gpu::run_with::<R>(ctx, &p, None, &opts)?;
     Ok((p.n as u64 * p.steps) as f64 / r.seconds.max(1e-9))
 }
@@ -174,9 +204,16 @@ fn cpu_rate<R: Flows>(plan: &Plan, m: usize, steps: u64) -> Result<f64, BackendE
 /// (submission, wait, read-back; measured on a one-step window of one
 /// workgroup) is below 1 % of it, and at most a quarter second (progress,
 /// checkpoints and a stop request are honoured between dispatches).
-fn dispatch_seconds<R: Flows>(ctx: &GpuContext, plan: &Plan, launch: &Launch) -> Result<f64, BackendError> {
+fn dispatch_seconds<R: Flows>(
+    ctx: &GpuContext,
+    plan: &Plan,
+    launch: &Launch,
+) -> Result<f64, BackendError> {
     let p = sample(plan, launch.workgroup as usize, 1);
-    let opts = GpuOptions { launch: Some(*launch), ..Default::default() };
+    let opts = GpuOptions {
+        launch: Some(*launch),
+        ..Default::default()
+    };
     let mut fixed = f64::INFINITY;
     for _ in 0..3 {
         let t = Instant::now();

@@ -188,7 +188,8 @@ fn share<R: Flows>(t: &Target, todo: &[usize], sink: &Sink, done: &AtomicU64) ->
                         let Some(k) = todo.get(next.fetch_add(1, Ordering::Relaxed)) else {
                             return Ok(());
                         };
-                        chunk::<R>(&mine, *k, sink, done).inspect_err(|_| failed.store(true, Ordering::Relaxed))?;
+                        chunk::<R>(&mine, *k, sink, done)
+                            .inspect_err(|_| failed.store(true, Ordering::Relaxed))?;
                     }
                     Ok(())
                 })
@@ -196,7 +197,10 @@ fn share<R: Flows>(t: &Target, todo: &[usize], sink: &Sink, done: &AtomicU64) ->
             .collect();
         workers
             .into_iter()
-            .map(|w| w.join().unwrap_or_else(|_| Err(anyhow::anyhow!("a GPU worker panicked"))))
+            .map(|w| {
+                w.join()
+                    .unwrap_or_else(|_| Err(anyhow::anyhow!("a GPU worker panicked")))
+            })
             .collect::<Result<Vec<()>>>()
             .map(drop)
     })
@@ -218,7 +222,9 @@ pub fn damaged<R: Flows>(t: &Target, range: Range<usize>) -> Result<Vec<usize>> 
 }
 
 fn engine<'a>(t: &Target<'a>) -> Result<&'a Engine> {
-    t.engines.first().context("chunks to integrate and no engine")
+    t.engines
+        .first()
+        .context("chunks to integrate and no engine")
 }
 
 /// `cpu`, `gpu`, or `gpu ×2` for a run spread over two devices.
@@ -287,10 +293,14 @@ fn chunk<R: Flows>(t: &Target, k: usize, sink: &Sink, done: &AtomicU64) -> Resul
             .map(|a| Written::of(&a.file, &a.bytes))
             .collect(),
         cpu_isa: t.engines.first().and_then(Engine::cpu_isa),
-        device: t.engines.first().and_then(Engine::adapter).map(|a| match t.device {
-            Some(j) => format!("#{j} {a}"),
-            None => a,
-        }),
+        device: t
+            .engines
+            .first()
+            .and_then(Engine::adapter)
+            .map(|a| match t.device {
+                Some(j) => format!("#{j} {a}"),
+                None => a,
+            }),
     };
     journal::mark_done(t.dir, k, &mark)?;
     journal::remove_state(t.dir, k)

@@ -26,8 +26,8 @@ use crate::plan::slots;
 use crate::plan::tangent::TangentInput;
 use crate::plan::{ObsVar, Op, Plan, Source, StopPlan};
 
-use super::tuning::Launch;
 use super::time_table::TimeTable;
+use super::tuning::Launch;
 
 const PRELUDE_F32: &str = include_str!("../../../shaders/prelude_f32.wgsl");
 const PRELUDE_F64: &str = include_str!("../../../shaders/prelude_f64.wgsl");

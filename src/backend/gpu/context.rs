@@ -115,7 +115,10 @@ pub fn every_gpu() -> Result<Vec<usize>, GpuError> {
 /// insensitive) if that is set, else a discrete GPU, else an integrated or
 /// virtual one, else a software one (lavapipe).
 /// `index` (of `--adapter`, in the order `reeb info` lists) comes first.
-fn choose_adapter(inst: &wgpu::Instance, index: Option<usize>) -> Result<(usize, wgpu::Adapter), GpuError> {
+fn choose_adapter(
+    inst: &wgpu::Instance,
+    index: Option<usize>,
+) -> Result<(usize, wgpu::Adapter), GpuError> {
     let adapters = pollster::block_on(inst.enumerate_adapters(wgpu::Backends::all()));
     let names = || {
         adapters

@@ -8,5 +8,7 @@ pub mod run;
 pub mod time_table;
 pub mod tuning;
 
-pub use context::{every_gpu, is_software, list_adapters, validate, AdapterSummary, GpuContext, GpuError};
+pub use context::{
+    every_gpu, is_software, list_adapters, validate, AdapterSummary, GpuContext, GpuError,
+};
 pub use run::{fingerprint, run, run_resumable, run_with, GpuOptions, GpuRun};

@@ -9,7 +9,6 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-
 /// Workgroup sizes the probe tries (each within the adapter's limits).
 pub const WORKGROUPS: [u32; 3] = [64, 128, 256];
 /// Trajectories per invocation the probe tries.
@@ -70,9 +69,9 @@ impl Launch {
 
     /// One line: `workgroup 128, 2 per invocation, 0.05 s per dispatch`.
     pub fn describe(&self) -> String {
-        let window = self
-            .window
-            .map_or(String::new(), |w| format!(", at most {w} steps per dispatch"));
+        let window = self.window.map_or(String::new(), |w| {
+            format!(", at most {w} steps per dispatch")
+        });
         format!(
             "workgroup {}, {} per invocation, {} s per dispatch{window}",
             self.workgroup, self.per_thread, self.dispatch_seconds
