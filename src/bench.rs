@@ -332,7 +332,7 @@ pub fn tune(
             if out.iter().any(|t| t.shape == shape) {
                 continue;
             }
-            let (tuned, _) = tune::tuned(ctx, plan, p, true)?;
+            let tuned = tune::tuned(ctx, plan, p, true)?;
             let t = Tuning { shape, tuned };
             row(&t);
             out.push(t);

@@ -720,7 +720,10 @@ fn tune(
     }
     let env = tuning::Overrides::from_env().map_err(anyhow::Error::msg)?;
     if env != tuning::Overrides::default() {
-        println!("note: the environment overrides these choices ({env:?})");
+        println!(
+            "note: the environment overrides these choices: {}",
+            env.describe()
+        );
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -750,7 +753,7 @@ fn print_tuning(adapters: &[reeb::backend::gpu::AdapterSummary]) {
     }
     match Overrides::from_env() {
         Ok(o) if o == Overrides::default() => {}
-        Ok(o) => println!("  overridden by the environment: {o:?}"),
+        Ok(o) => println!("  overridden by the environment: {}", o.describe()),
         Err(e) => println!("  error in the environment: {e} ({})", ENV.join(", ")),
     }
 }

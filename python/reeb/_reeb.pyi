@@ -1,7 +1,7 @@
 """Type stubs of the extension module `reeb._reeb` (the Rust engine)."""
 
 from os import PathLike
-from typing import Callable, Optional, Union
+from typing import Any, Callable, List, Optional, Union
 
 __version__: str
 
@@ -11,19 +11,17 @@ def run(
     text: str,
     path: str,
     out: _Path,
-    backend: Optional[str] = None,
-    precision: Optional[str] = None,
-    force: bool = False,
     preview: bool = False,
-    checkpoint_every: Optional[float] = None,
     progress: Optional[Callable[[int, int], None]] = None,
-    shard: Optional[str] = None,
-    resume: bool = False,
-    format: Optional[str] = None,
-    chunk_trajectories: Optional[int] = None,
+    **options: Any,
 ) -> str:
     """Runs the scene `text` (read from `path`) into `out` as `reeb run`
-    does; returns summary.json's text."""
+    does; returns summary.json's text. `options` are `reeb run`'s options
+    (`run_option_names()`), each parsed as its flag: a value is the flag's
+    text, True a flag given, None and False none."""
+
+def run_option_names() -> List[str]:
+    """The long names of `reeb run`'s options, `_` for `-`."""
 
 def merge(out: _Path, force: bool = False) -> str:
     """`reeb merge`: finishes a run made in shards; returns its summary."""

@@ -169,7 +169,7 @@ impl Engine {
             return Ok((Engine::Gpu(Box::new(ctx)), None));
         };
         match tune::tuned(&ctx, plan, precision, false) {
-            Ok((t, _)) => {
+            Ok(t) => {
                 let gpu = t.gpu_rate >= t.cpu_rate;
                 let notice = tune::auto_notice(&ctx.info.name, precision, &t);
                 let engine = match gpu {
@@ -315,9 +315,8 @@ impl Engine {
 
     /// The GPU options of `plan`: its launch tuned for this adapter.
     fn launch<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<gpu::GpuOptions, BackendError> {
-        let chosen = tune::launch_for(ctx, plan, Precision::of::<R>())?;
         Ok(gpu::GpuOptions {
-            launch: Some(chosen.launch),
+            launch: Some(tune::launch_for(ctx, plan, Precision::of::<R>())?),
             ..Default::default()
         })
     }

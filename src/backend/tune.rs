@@ -46,16 +46,6 @@ pub fn check_env(ctx: &GpuContext) -> Result<(), BackendError> {
         .map_err(BackendError::Tuning)
 }
 
-/// Where a launch came from, for `reeb info`, notices and summaries.
-#[derive(Debug, Clone)]
-pub struct Chosen {
-    pub launch: Launch,
-    /// The probe's measurements (none when the environment fixed every knob).
-    pub tuned: Option<Tuned>,
-    /// "cache", "probe" or "environment".
-    pub source: &'static str,
-}
-
 /// The launch of `plan` on `ctx`: the environment's overrides over the
 /// cached probe of this adapter and shape, probing (and caching) once
 /// when there is none.
@@ -63,22 +53,13 @@ pub fn launch_for(
     ctx: &GpuContext,
     plan: &Plan,
     precision: Precision,
-) -> Result<Chosen, BackendError> {
+) -> Result<Launch, BackendError> {
     let env = Overrides::from_env().map_err(BackendError::Tuning)?;
-    let apply = |l: Launch| env.apply(l, &ctx.limits).map_err(BackendError::Tuning);
-    if env.complete() {
-        return Ok(Chosen {
-            launch: apply(Launch::default())?,
-            tuned: None,
-            source: "environment",
-        });
-    }
-    let (tuned, source) = tuned(ctx, plan, precision, false)?;
-    Ok(Chosen {
-        launch: apply(tuned.launch)?,
-        tuned: Some(tuned),
-        source,
-    })
+    let launch = match env.complete() {
+        true => Launch::default(),
+        false => tuned(ctx, plan, precision, false)?.launch,
+    };
+    env.apply(launch, &ctx.limits).map_err(BackendError::Tuning)
 }
 
 /// This adapter's probe of `plan`'s shape: from this process's memory, the
@@ -88,18 +69,18 @@ pub fn tuned(
     plan: &Plan,
     precision: Precision,
     again: bool,
-) -> Result<(Tuned, &'static str), BackendError> {
+) -> Result<Tuned, BackendError> {
     let (adapter, shape) = (adapter_key(&ctx.info), shape(ctx, plan, precision));
     if !again {
         if let Some(t) = ctx.tuned(&shape) {
-            return Ok((t, "cache"));
+            return Ok(t);
         }
         if let Some(t) = Cache::load()
             .get(&adapter, &shape)
             .filter(|t| t.launch.check(&ctx.limits).is_ok())
         {
             ctx.remember(&shape, t);
-            return Ok((t.clone(), "cache"));
+            return Ok(t.clone());
         }
     }
     let t = match precision {
@@ -110,7 +91,7 @@ pub fn tuned(
         eprintln!("note: the GPU tuning could not be cached ({e}); it is measured again next time");
     }
     ctx.remember(&shape, &t);
-    Ok((t, "probe"))
+    Ok(t)
 }
 
 /// Measures the candidate launches on the first trajectories of `plan`

@@ -122,6 +122,22 @@ impl Overrides {
         Ok(o)
     }
 
+    /// The variables set, as `REEB_GPU_WORKGROUP=128, …`.
+    pub fn describe(&self) -> String {
+        let values = [
+            self.workgroup.map(|v| v.to_string()),
+            self.per_thread.map(|v| v.to_string()),
+            self.dispatch_seconds.map(|v| v.to_string()),
+            self.window.map(|v| v.to_string()),
+        ];
+        let set: Vec<String> = ENV
+            .iter()
+            .zip(values)
+            .filter_map(|(name, v)| v.map(|v| format!("{name}={v}")))
+            .collect();
+        set.join(", ")
+    }
+
     /// Does the environment fix every knob the probe would choose?
     pub fn complete(&self) -> bool {
         self.workgroup.is_some() && self.per_thread.is_some() && self.dispatch_seconds.is_some()
