@@ -135,22 +135,27 @@ fn probe<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<Tuned, BackendError>
     Ok(Tuned {
         launch: best.0,
         gpu_rate: best.1,
-        cpu_rate: cpu_rate::<R>(plan, cpu_m, cpu_steps)?,
+        // The better of two: a shared machine only ever slows a run down.
+        cpu_rate: cpu_rate::<R>(plan, cpu_m, cpu_steps)?
+            .max(cpu_rate::<R>(plan, cpu_m, cpu_steps)?),
         trajectories: m as u64,
         probe_seconds: started.elapsed().as_secs_f64(),
     })
 }
 
-/// Steps at which one measurement takes about [`MEASURE_SECONDS`], from
-/// a first one of 4 steps.
+/// Steps at which one measurement takes about [`MEASURE_SECONDS`]: from
+/// a first run of 4 steps (its one-time costs make it slow), then from one
+/// at the steps that suggests.
 fn calibrate(
     m: usize,
     rate: impl Fn(u64) -> Result<f64, BackendError>,
 ) -> Result<u64, BackendError> {
-    let r = rate(4)?;
-    Ok(((r * MEASURE_SECONDS / m as f64) as u64).clamp(4, 4096))
+    let mut steps = 4;
+    for _ in 0..2 {
+        steps = ((rate(steps)? * MEASURE_SECONDS / m as f64) as u64).clamp(4, 4096);
+    }
+    Ok(steps)
 }
-
 /// `plan` narrowed to its first `m` trajectories and `steps` steps.
 fn sample(plan: &Plan, m: usize, steps: u64) -> Plan {
     let mut p = plan.rows(0..m.min(plan.n));
