@@ -38,6 +38,11 @@ fn fails(o: Output) -> String {
     text(&o)
 }
 
+/// The JSON file at `p`.
+fn json(p: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+}
+
 fn cache_file(cache: &Path) -> PathBuf {
     cache.join("reeb").join("gpu-tuning.json")
 }
@@ -57,8 +62,7 @@ fn tune_caches_each_shape_and_info_shows_it() {
         out.contains("f32 van_der_pol") && out.contains("workgroup"),
         "{out}"
     );
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(cache_file(&cache)).unwrap()).unwrap();
+    let json: serde_json::Value = json(&cache_file(&cache));
     assert_eq!(json["reeb_version"], env!("CARGO_PKG_VERSION"));
     let (_, shapes) = json["tuned"].as_object().unwrap().iter().next().unwrap();
     let shapes = shapes.as_object().unwrap();
@@ -94,8 +98,7 @@ fn a_corrupt_or_foreign_cache_is_measured_again() {
             &[],
             &["run", s(&scene), "--out", s(&d.join("run")), "--force"],
         ));
-        let json: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(cache_file(&cache)).unwrap()).unwrap();
+        let json: serde_json::Value = json(&cache_file(&cache));
         assert_eq!(json["reeb_version"], env!("CARGO_PKG_VERSION"), "{bad}");
     }
 }
@@ -168,8 +171,7 @@ fn adapters_share_the_chunks_with_the_bits_of_one() {
         line.contains("chunks by device: #0 adapter 0") && line.contains("#1 adapter 0"),
         "{line}"
     );
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(two.join("summary.json")).unwrap()).unwrap();
+    let summary: serde_json::Value = json(&two.join("summary.json"));
     let devices = summary["devices"].as_array().unwrap();
     assert_eq!(devices.len(), 2, "{devices:?}");
     let chunks: u64 = devices.iter().map(|d| d["chunks"].as_u64().unwrap()).sum();
@@ -232,8 +234,7 @@ fn auto_takes_the_faster_backend_and_says_why() {
         line.contains("trajectory-steps/s (tuning probe of 42 trajectories"),
         "{line}"
     );
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let summary: serde_json::Value = json(&out.join("summary.json"));
     let why = summary["backend_choice"].as_str().unwrap();
     let backend = summary["backend"].as_str().unwrap();
     assert!(
@@ -241,8 +242,7 @@ fn auto_takes_the_faster_backend_and_says_why() {
         "{backend}: {why}"
     );
     // The numbers that decided it are the cache's, and decide the same way.
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(cache_file(&cache)).unwrap()).unwrap();
+    let json: serde_json::Value = json(&cache_file(&cache));
     let (_, shapes) = json["tuned"].as_object().unwrap().iter().next().unwrap();
     let t = &shapes["f64 van_der_pol 2^4"];
     let gpu_faster = t["gpu_rate"].as_f64().unwrap() >= t["cpu_rate"].as_f64().unwrap();

@@ -180,13 +180,11 @@ pub fn run_resumable<R: Flows>(
             dispatches: 0,
         });
     }
-    let launch = opts.launch.unwrap_or_default();
-    launch.check(&ctx.limits).map_err(BackendError::Tuning)?;
-    let kernel = generate(plan, precision)?;
-    let pipeline = ctx.pipeline(&kernel.source_for(&launch))?;
     let mut sizes = Sizes::new::<R>(ctx, plan, opts)?;
+    let kernel = generate(plan, precision)?;
+    let pipeline = ctx.pipeline(&kernel.source_for(&sizes.launch))?;
     // llvmpipe's loop limit counts an invocation's trajectories together.
-    sizes.max_window = sizes.max_window.min(match launch.per_thread as u64 {
+    sizes.max_window = sizes.max_window.min(match sizes.launch.per_thread as u64 {
         1 => kernel.max_window,
         per => (kernel.max_window / per).saturating_sub(1).max(1),
     });
@@ -309,9 +307,11 @@ struct Sizes {
 
 impl Sizes {
     /// The chunk capacity from the per-trajectory size of every buffer,
-    /// within the adapter's binding limit and reeb's memory budget.
+    /// within the adapter's binding limit and reeb's memory budget, for a
+    /// launch the adapter allows (refused before it is tried).
     fn new<R>(ctx: &GpuContext, plan: &Plan, opts: &GpuOptions) -> Result<Sizes, BackendError> {
         let launch = opts.launch.unwrap_or_default();
+        launch.check(&ctx.limits).map_err(BackendError::Tuning)?;
         let wg = launch.workgroup as u64;
         let b = std::mem::size_of::<R>() as u64;
         let (nv, tv, pv) = (
