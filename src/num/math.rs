@@ -201,6 +201,15 @@ crate::shared_fns! {
         let dn1: bool = m < 1.0;
         m = f32::select(m, m * 2.0, dn1);
         e = f32::select(e, e - 1.0, dn1);
+        return log_kernel_f32(x, m, e);
+    }
+
+    /// ln x from x = 2^e·m, m in [1, 2) (m = x, e = 0 where x is not
+    /// positive and finite): fdlibm's logf kernel on f = m − 1 after m is
+    /// brought into [√½, √2).
+    fn log_kernel_f32(x: f32, m0: f32, e0: f32) -> f32 {
+        let mut m: f32 = m0;
+        let mut e: f32 = e0;
         let hi: bool = m > 1.41421356;
         m = f32::select(m, m * 0.5, hi);
         e = f32::select(e, e + 1.0, hi);
@@ -316,6 +325,14 @@ crate::shared_fns! {
         let dn1: bool = m < 1.0;
         m = f64::select(m, m * 2.0, dn1);
         e = f64::select(e, e - 1.0, dn1);
+        return log_kernel_f64(x, m, e);
+    }
+
+    /// ln x from x = 2^e·m, as `log_kernel_f32`, with fdlibm's log
+    /// kernel (degree 14 in s).
+    fn log_kernel_f64(x: f64, m0: f64, e0: f64) -> f64 {
+        let mut m: f64 = m0;
+        let mut e: f64 = e0;
         let hi: bool = m > 1.4142135623730951;
         m = f64::select(m, m * 0.5, hi);
         e = f64::select(e, e + 1.0, hi);
@@ -444,6 +461,41 @@ pub trait Math: Sized {
     }
 }
 
+/// ln x on the CPU: `log_f32`'s kernel with x = 2^e·m read from the bits
+/// rather than found by its ladder of scalings (a fifth of the work). Both
+/// are exact, so m, e and the result are the same bits (tested for every
+/// f32); WGSL keeps the ladder, having no bit access in f64.
+#[inline(always)]
+pub fn log_f32_bits(x: f32) -> f32 {
+    // Subnormals are scaled into the normal range first, exactly.
+    let tiny = x < f32::MIN_POSITIVE;
+    let bits = f32::select(x, x * 4294967296.0, tiny).to_bits();
+    let e = ((bits >> 23) & 0xff) as i32 - 127 - 32 * i32::from(tiny);
+    let m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
+    // Elsewhere (0, negative, ∞, NaN) the kernel's selects decide, and a
+    // NaN's payload flows from m = x as in the ladder.
+    let normal = x > 0.0 && x <= f32::MAX;
+    log_kernel_f32(
+        x,
+        f32::select(x, m, normal),
+        f32::select(0.0, e as f32, normal),
+    )
+}
+
+/// ln x on the CPU in f64, as [`log_f32_bits`] (the same bits as `log_f64`).
+#[inline(always)]
+pub fn log_f64_bits(x: f64) -> f64 {
+    let tiny = x < f64::MIN_POSITIVE;
+    let bits = f64::select(x, x * 1.8446744073709552e19, tiny).to_bits();
+    // The biased exponent as a float by the 2^52 trick (AVX2 has no packed
+    // 64-bit integer conversion), exact.
+    let biased = f64::from_bits((bits >> 52 & 0x7ff) | 0x4330_0000_0000_0000) - 4503599627370496.0;
+    let e = biased - f64::select(1023.0, 1087.0, tiny);
+    let m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
+    let normal = x > 0.0 && x <= f64::MAX;
+    log_kernel_f64(x, f64::select(x, m, normal), f64::select(0.0, e, normal))
+}
+
 impl Math for f32 {
     #[inline(always)]
     fn exp_r(x: f32) -> f32 {
@@ -451,7 +503,7 @@ impl Math for f32 {
     }
     #[inline(always)]
     fn log_r(x: f32) -> f32 {
-        log_f32(x)
+        log_f32_bits(x)
     }
     #[inline(always)]
     fn atan_r(x: f32) -> f32 {
@@ -470,7 +522,7 @@ impl Math for f64 {
     }
     #[inline(always)]
     fn log_r(x: f64) -> f64 {
-        log_f64(x)
+        log_f64_bits(x)
     }
     #[inline(always)]
     fn atan_r(x: f64) -> f64 {
@@ -498,5 +550,69 @@ mod tests {
         let (mut s, mut c) = (0.0, 0.0);
         sincos_f64(1.0, &mut s, &mut c);
         assert!((s - 1f64.sin()).abs() < 1e-16 && (c - 1f64.cos()).abs() < 1e-16);
+    }
+
+    /// The CPU's logarithm reads x = 2^e·m from the bits, the shared text's
+    /// (WGSL's) finds it by a ladder of exact scalings: the same bits over
+    /// every 7th f32 (all of them took a minute) and every f32 of the
+    /// exponents where the two could part: zeros and subnormals, the
+    /// smallest normals, the largest and ∞/NaN, both signs.
+    #[test]
+    fn log_from_the_bits_is_the_ladder_over_the_f32() {
+        use rayon::prelude::*;
+        let bad = (0u32..1 << 16).into_par_iter().find_map_any(|hi| {
+            let strided = (0..1u32 << 16)
+                .map(|lo| hi << 16 | lo)
+                .filter(|b| b % 7 == 0);
+            // The biased exponent: bits 30…23 of the f32, 14…7 of `hi`.
+            let edge = [0, 1, 254, 255].contains(&(hi >> 7 & 0xff));
+            let all = (0..1u32 << 16).map(|lo| hi << 16 | lo).filter(|_| edge);
+            let xs: Vec<f32> = strided.chain(all).map(f32::from_bits).collect();
+            let mut fast = vec![0f32; xs.len()];
+            let mut ladder = vec![0f32; xs.len()];
+            for i in 0..xs.len() {
+                fast[i] = log_f32_bits(xs[i]);
+                ladder[i] = log_f32(xs[i]);
+            }
+            (0..xs.len())
+                .find(|&i| fast[i].to_bits() != ladder[i].to_bits())
+                .map(|i| (xs[i], fast[i], ladder[i]))
+        });
+        assert_eq!(bad, None, "x, from the bits, by the ladder");
+    }
+
+    /// As above in f64: every power of two and its neighbours, subnormals,
+    /// special values and ten million random bit patterns.
+    #[test]
+    fn log_from_the_bits_is_the_ladder_in_f64() {
+        let mut xs: Vec<f64> = vec![
+            0.0,
+            -0.0,
+            f64::INFINITY,
+            -f64::INFINITY,
+            f64::NAN,
+            -f64::NAN,
+        ];
+        xs.extend([f64::MIN_POSITIVE, f64::MAX, f64::EPSILON, 5e-324, 1.0, -1.0]);
+        for k in -1074..=1023 {
+            let p = 2f64.powi(k);
+            xs.extend([p, p.next_up(), p.next_down(), p * std::f64::consts::SQRT_2]);
+        }
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..10_000_000 {
+            // xorshift64*: every bit pattern reachable.
+            state ^= state >> 12;
+            state ^= state << 25;
+            state ^= state >> 27;
+            xs.push(f64::from_bits(state.wrapping_mul(0x2545_f491_4f6c_dd1d)));
+        }
+        for x in xs {
+            let (fast, ladder) = (log_f64_bits(x), log_f64(x));
+            assert_eq!(
+                fast.to_bits(),
+                ladder.to_bits(),
+                "ln {x:e}: {fast:e} vs {ladder:e}"
+            );
+        }
     }
 }

@@ -6,7 +6,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::models::lanes::{index_of, Lanes, LANES};
-use crate::num::formula::tape::Tape;
+use crate::num::formula::tape::{Inputs, Tape};
 use crate::num::isa::Isa;
 use crate::num::precision::Real;
 use crate::plan::indicators::{Indicators, SampleInput, Sampler};
@@ -85,10 +85,11 @@ impl<R: Real> IndicatorTapes<R> {
         }
     }
 
-    /// Registers the programs need.
+    /// Registers the programs need, and [`FILLS`] more for the inputs
+    /// that are one value per call.
     pub fn registers(&self) -> usize {
         let all = std::iter::once(&self.tangent).chain(&self.samples);
-        all.map(|p| p.tape.registers).max().unwrap_or(0)
+        all.map(|p| p.tape.registers).max().unwrap_or(0) + FILLS
     }
 
     /// After step `n1` (1 for the first): the deviation vectors of the
@@ -125,6 +126,17 @@ impl<R: Real> IndicatorTapes<R> {
                 ..scalars
             };
             run(s, l, prev, real, regs, scalars, at);
+        }
+        // One vectorised pass finds whether any lane is non-finite (rare);
+        // only then are the lanes told apart.
+        let mut any = false;
+        for &k in &self.tangent.outputs {
+            for i in 0..LANES {
+                any |= !real[k][i].finite();
+            }
+        }
+        if !any {
+            return 0;
         }
         let mut bad = 0u64;
         for &k in &self.tangent.outputs {
@@ -174,6 +186,37 @@ struct Scalars<R> {
     counted: R,
 }
 
+/// Arrays for Step, Count, Counted and Elapsed, after the registers.
+const FILLS: usize = 4;
+
+/// A program's inputs on a block, resolved per read (no list built per call).
+struct View<'a, R> {
+    p: &'a Program<R>,
+    l: &'a Lanes<R>,
+    prev: &'a [[R; LANES]],
+    real: &'a [[R; LANES]],
+    /// Step, Count, Counted and Elapsed, as arrays (filled where read).
+    fills: &'a [[R; LANES]],
+}
+
+impl<R: Real> Inputs<R, LANES> for View<'_, R> {
+    #[inline(always)]
+    fn array(&self, k: u32) -> &[R; LANES] {
+        match self.p.inputs[k as usize] {
+            Src::Lane(j) => self.l.at(j),
+            Src::Prev(j) => &self.prev[j],
+            Src::Slot(j) => &self.real[j],
+            Src::Step => &self.fills[0],
+            Src::Count => &self.fills[1],
+            Src::Counted => &self.fills[2],
+            Src::Elapsed => &self.fills[3],
+        }
+    }
+    fn scalar(&self, k: u32) -> R {
+        self.array(k)[0]
+    }
+}
+
 /// Runs `p` on the block and writes its outputs into the slots.
 #[allow(clippy::too_many_arguments)]
 fn run<R: Real>(
@@ -185,29 +228,29 @@ fn run<R: Real>(
     s: Scalars<R>,
     at: Call,
 ) {
-    let fill = |v: R| [v; LANES];
-    let (step, count, counted) = (fill(s.step), fill(s.count), fill(s.counted));
-    let n1r = R::from_f64(at.n1 as f64);
-    let dt = l.at(at.dt_lane);
-    let elapsed: [R; LANES] = std::array::from_fn(|i| n1r * dt[i]);
-    {
-        let arrays: Vec<&[R; LANES]> = p
-            .inputs
-            .iter()
-            .map(|src| match *src {
-                Src::Lane(k) => l.at(k),
-                Src::Prev(k) => &prev[k],
-                Src::Slot(k) => &real[k],
-                Src::Step => &step,
-                Src::Count => &count,
-                Src::Counted => &counted,
-                Src::Elapsed => &elapsed,
-            })
-            .collect();
-        p.tape.run(regs, &arrays[..], at.isa);
+    let (regs, fills) = regs.split_at_mut(regs.len() - FILLS);
+    for src in &p.inputs {
+        match *src {
+            Src::Step => fills[0] = [s.step; LANES],
+            Src::Count => fills[1] = [s.count; LANES],
+            Src::Counted => fills[2] = [s.counted; LANES],
+            Src::Elapsed => {
+                let n1r = R::from_f64(at.n1 as f64);
+                let dt = l.at(at.dt_lane);
+                fills[3] = std::array::from_fn(|i| n1r * dt[i]);
+            }
+            _ => {}
+        }
     }
+    let view = View {
+        p,
+        l,
+        prev,
+        real,
+        fills,
+    };
+    p.tape.run(regs, &view, at.isa);
     // A lane that stopped or became non-finite keeps its indicators.
-    let running: [bool; LANES] = std::array::from_fn(|i| at.running >> i & 1 == 1);
     for (k, &slot) in p.outputs.iter().enumerate() {
         let out = p.tape.output(regs, k);
         if at.running == u64::MAX {
@@ -215,7 +258,9 @@ fn run<R: Real>(
             continue;
         }
         for i in 0..LANES {
-            real[slot][i] = if running[i] { out[i] } else { real[slot][i] };
+            if at.running >> i & 1 == 1 {
+                real[slot][i] = out[i];
+            }
         }
     }
 }

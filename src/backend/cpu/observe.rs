@@ -228,10 +228,21 @@ impl<R: Flows> BlockObservers<R> {
         let Some(ind) = &s.p.indicators else {
             return 0;
         };
-        let running = s.running().fold(0u64, |b, i| b | 1 << i);
         // The padding lanes past `count` run too (nothing reads them), so
         // that a block whose trajectories all run is written whole.
         let padding = u64::MAX.checked_shl(s.count as u32).unwrap_or(0);
+        // This runs after every step: one vectorised pass when every lane
+        // runs, lane by lane only when some stopped.
+        let status = &s.status[..s.count];
+        let running = if status.iter().fold(0, |a, &x| a | x) == 0 {
+            !padding
+        } else {
+            let mut bits = 0u64;
+            for (i, &x) in status.iter().enumerate() {
+                bits |= u64::from(x == 0) << i;
+            }
+            bits
+        };
         let lanes = running | padding;
         running & ind.after_step(s.l, s.prev, &mut self.real, regs, s.n1, lanes, s.p.isa)
     }

@@ -29,6 +29,83 @@ struct Step<R> {
     dst: u32,
     a: Src<R>,
     b: Src<R>,
+    /// The operation and its operands' kinds in one code, so that the
+    /// common instructions cost one dispatch (see [`Code`]); `ia`/`ib` are
+    /// their register or input indices and `c` their constant.
+    code: Code,
+    ia: u32,
+    ib: u32,
+    c: R,
+}
+
+/// The common instructions with their operands' kinds folded in: `R` a
+/// register, `I` an input array, `C` a constant. One `match` on it replaces
+/// the matches on the operation and on each operand of [`Code::General`],
+/// which cost more than the lane loop itself for a block of 64 lanes.
+#[rustfmt::skip]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Code {
+    AddRR, AddRI, AddIR, AddII, AddRC, AddCR, AddIC, AddCI,
+    SubRR, SubRI, SubIR, SubII, SubRC, SubCR, SubIC, SubCI,
+    MulRR, MulRI, MulIR, MulII, MulRC, MulCR, MulIC, MulCI,
+    DivRR, DivRI, DivIR, DivII, DivRC, DivCR, DivIC, DivCI,
+    NegR, NegI, ExpR, ExpI, LogR, LogI, SqrtR, SqrtI, SinR, SinI, CosR, CosI,
+    /// Anything else (scalar inputs, the rarer functions): operation and
+    /// operands matched one by one.
+    General,
+}
+
+/// The [`Code`] of `op(a, b)`, with the operand indices and the constant.
+fn code<R: Real>(op: Prim, a: Src<R>, b: Src<R>) -> (Code, u32, u32, R) {
+    use Code::*;
+    // An operand's kind (0 register, 1 input, 2 constant), index and value.
+    let kind = |o: Src<R>| match o {
+        Src::Reg(k) => Some((0, k, R::from_f64(0.0))),
+        Src::Input(k) => Some((1, k, R::from_f64(0.0))),
+        Src::Const(v) => Some((2, 0, v)),
+        Src::Scalar(_) => None,
+    };
+    let general = (General, 0, 0, R::from_f64(0.0));
+    let Some((ka, ia, ca)) = kind(a) else {
+        return general;
+    };
+    if op.unary() {
+        let table: [Code; 2] = match op {
+            Prim::Neg => [NegR, NegI],
+            Prim::Call(Func::Exp) => [ExpR, ExpI],
+            Prim::Call(Func::Log) => [LogR, LogI],
+            Prim::Call(Func::Sqrt) => [SqrtR, SqrtI],
+            Prim::Call(Func::Sin) => [SinR, SinI],
+            Prim::Call(Func::Cos) => [CosR, CosI],
+            _ => return general,
+        };
+        return match ka {
+            2 => general,
+            k => (table[k], ia, 0, ca),
+        };
+    }
+    let Some((kb, ib, cb)) = kind(b) else {
+        return general;
+    };
+    // RR RI IR II RC CR IC CI, by (ka, kb).
+    let table: [Code; 8] = match op {
+        Prim::Add => [AddRR, AddRI, AddIR, AddII, AddRC, AddCR, AddIC, AddCI],
+        Prim::Sub => [SubRR, SubRI, SubIR, SubII, SubRC, SubCR, SubIC, SubCI],
+        Prim::Mul => [MulRR, MulRI, MulIR, MulII, MulRC, MulCR, MulIC, MulCI],
+        Prim::Div => [DivRR, DivRI, DivIR, DivII, DivRC, DivCR, DivIC, DivCI],
+        _ => return general,
+    };
+    match (ka, kb) {
+        (0, 0) => (table[0], ia, ib, ca),
+        (0, 1) => (table[1], ia, ib, ca),
+        (1, 0) => (table[2], ia, ib, ca),
+        (1, 1) => (table[3], ia, ib, ca),
+        (0, 2) => (table[4], ia, 0, cb),
+        (2, 0) => (table[5], ib, 0, ca),
+        (1, 2) => (table[6], ia, 0, cb),
+        (2, 1) => (table[7], ib, 0, ca),
+        _ => general,
+    }
 }
 
 /// A program with registers allocated, in precision `R`.
@@ -113,11 +190,16 @@ impl<R: Real> Tape<R> {
                 (registers - 1) as u32
             });
             reg[k] = dst;
+            let (code, ia, ib, c) = code(i.op, a, b);
             steps.push(Step {
                 op: i.op,
                 dst,
                 a,
                 b,
+                code,
+                ia,
+                ib,
+                c,
             });
             let mut operands = [i.a, i.b];
             operands.sort_by_key(|o| {
@@ -272,32 +354,147 @@ fn fetch<'a, R: Real, const N: usize>(
     }
 }
 
+/// `d[i] = f(a[i])` (or `f(a[i], b[i])`) for every lane, `f` called by
+/// name. A function passed as `impl Fn` is called through a shim that
+/// LLVM does not inline when the body is large (the transcendental
+/// functions), and the shim is compiled without the caller's target
+/// features: one lane at a time, `fma` and `floor` through libm. Spelled
+/// out, the body is inlined into the lane loop of `run_v3`/`run_v4` and
+/// vectorised, with the same operations, hence the same bits.
+macro_rules! lanes {
+    ($d:ident, $f:path, $a:expr) => {{
+        let a = $a;
+        for i in 0..$d.len() {
+            $d[i] = $f(a.at(i));
+        }
+    }};
+    ($d:ident, $f:path, $a:expr, $b:expr) => {{
+        let (a, b) = ($a, $b);
+        for i in 0..$d.len() {
+            $d[i] = $f(a.at(i), b.at(i));
+        }
+    }};
+}
+
 #[inline(always)]
 fn run_body<R: Real, const N: usize>(
     t: &Tape<R>,
     regs: &mut [[R; N]],
     input: &(impl Inputs<R, N> + ?Sized),
 ) {
+    use Code::*;
     let base = regs.as_mut_ptr();
     for s in &t.steps {
-        let a = fetch(base, input, s.a);
-        // SAFETY: `dst` differs from the operand registers (`Tape::new`),
-        // so this borrow is disjoint from the operands'.
+        // SAFETY: below `registers` (asserted by `run`); `dst` differs from
+        // the operand registers (`Tape::new`), so the borrows are disjoint.
         let d = unsafe { &mut *base.add(s.dst as usize) };
-        if s.op.unary() {
-            match a {
-                Val::Arr(a) => unary(s.op, d, a),
-                Val::One(a) => unary(s.op, d, One(a)),
-            }
-        } else {
-            match (a, fetch(base, input, s.b)) {
-                (Val::Arr(a), Val::Arr(b)) => binary(s.op, d, a, b),
-                (Val::Arr(a), Val::One(b)) => binary(s.op, d, a, One(b)),
-                (Val::One(a), Val::Arr(b)) => binary(s.op, d, One(a), b),
-                (Val::One(a), Val::One(b)) => binary(s.op, d, One(a), One(b)),
-            }
+        macro_rules! r {
+            ($k:expr) => {
+                unsafe { &*base.add($k as usize) }
+            };
+        }
+        macro_rules! i {
+            ($k:expr) => {
+                input.array($k)
+            };
+        }
+        let c = One(s.c);
+        let (ra, rb, ia, ib) = (s.ia, s.ib, s.ia, s.ib);
+        match s.code {
+            AddRR => lanes!(d, add, r!(ra), r!(rb)),
+            AddRI => lanes!(d, add, r!(ra), i!(ib)),
+            AddIR => lanes!(d, add, i!(ia), r!(rb)),
+            AddII => lanes!(d, add, i!(ia), i!(ib)),
+            AddRC => lanes!(d, add, r!(ra), c),
+            AddCR => lanes!(d, add, c, r!(ra)),
+            AddIC => lanes!(d, add, i!(ia), c),
+            AddCI => lanes!(d, add, c, i!(ia)),
+            SubRR => lanes!(d, sub, r!(ra), r!(rb)),
+            SubRI => lanes!(d, sub, r!(ra), i!(ib)),
+            SubIR => lanes!(d, sub, i!(ia), r!(rb)),
+            SubII => lanes!(d, sub, i!(ia), i!(ib)),
+            SubRC => lanes!(d, sub, r!(ra), c),
+            SubCR => lanes!(d, sub, c, r!(ra)),
+            SubIC => lanes!(d, sub, i!(ia), c),
+            SubCI => lanes!(d, sub, c, i!(ia)),
+            MulRR => lanes!(d, mul, r!(ra), r!(rb)),
+            MulRI => lanes!(d, mul, r!(ra), i!(ib)),
+            MulIR => lanes!(d, mul, i!(ia), r!(rb)),
+            MulII => lanes!(d, mul, i!(ia), i!(ib)),
+            MulRC => lanes!(d, mul, r!(ra), c),
+            MulCR => lanes!(d, mul, c, r!(ra)),
+            MulIC => lanes!(d, mul, i!(ia), c),
+            MulCI => lanes!(d, mul, c, i!(ia)),
+            DivRR => lanes!(d, div, r!(ra), r!(rb)),
+            DivRI => lanes!(d, div, r!(ra), i!(ib)),
+            DivIR => lanes!(d, div, i!(ia), r!(rb)),
+            DivII => lanes!(d, div, i!(ia), i!(ib)),
+            DivRC => lanes!(d, div, r!(ra), c),
+            DivCR => lanes!(d, div, c, r!(ra)),
+            DivIC => lanes!(d, div, i!(ia), c),
+            DivCI => lanes!(d, div, c, i!(ia)),
+            NegR => lanes!(d, neg, r!(ra)),
+            NegI => lanes!(d, neg, i!(ia)),
+            ExpR => lanes!(d, R::exp_r, r!(ra)),
+            ExpI => lanes!(d, R::exp_r, i!(ia)),
+            LogR => lanes!(d, R::log_r, r!(ra)),
+            LogI => lanes!(d, R::log_r, i!(ia)),
+            SqrtR => lanes!(d, R::sqrt, r!(ra)),
+            SqrtI => lanes!(d, R::sqrt, i!(ia)),
+            SinR => lanes!(d, R::sin_r, r!(ra)),
+            SinI => lanes!(d, R::sin_r, i!(ia)),
+            CosR => lanes!(d, R::cos_r, r!(ra)),
+            CosI => lanes!(d, R::cos_r, i!(ia)),
+            General => general(s, base, input, d),
         }
     }
+}
+
+/// One instruction of [`Code::General`]: the operation and each operand
+/// matched in turn.
+#[inline(always)]
+fn general<R: Real, const N: usize>(
+    s: &Step<R>,
+    base: *mut [R; N],
+    input: &(impl Inputs<R, N> + ?Sized),
+    d: &mut [R; N],
+) {
+    let a = fetch(base, input, s.a);
+    if s.op.unary() {
+        match a {
+            Val::Arr(a) => unary(s.op, d, a),
+            Val::One(a) => unary(s.op, d, One(a)),
+        }
+    } else {
+        match (a, fetch(base, input, s.b)) {
+            (Val::Arr(a), Val::Arr(b)) => binary(s.op, d, a, b),
+            (Val::Arr(a), Val::One(b)) => binary(s.op, d, a, One(b)),
+            (Val::One(a), Val::Arr(b)) => binary(s.op, d, One(a), b),
+            (Val::One(a), Val::One(b)) => binary(s.op, d, One(a), One(b)),
+        }
+    }
+}
+
+// The four operations by name, for `lanes!`.
+#[inline(always)]
+fn add<R: Real>(x: R, y: R) -> R {
+    x + y
+}
+#[inline(always)]
+fn sub<R: Real>(x: R, y: R) -> R {
+    x - y
+}
+#[inline(always)]
+fn mul<R: Real>(x: R, y: R) -> R {
+    x * y
+}
+#[inline(always)]
+fn div<R: Real>(x: R, y: R) -> R {
+    x / y
+}
+#[inline(always)]
+fn neg<R: Real>(x: R) -> R {
+    -x
 }
 
 #[inline(always)]
@@ -317,26 +514,6 @@ fn map2<R: Real, const N: usize>(
     for i in 0..N {
         d[i] = f(a.at(i), b.at(i));
     }
-}
-
-/// `d[i] = f(a[i])` (or `f(a[i], b[i])`) for every lane, `f` called by
-/// name. A function passed as `impl Fn` is called through a shim that
-/// LLVM does not inline when the body is large (the transcendental
-/// functions), and the shim is compiled without the caller's target
-/// features: one lane at a time, `fma` and `floor` through libm. Spelled
-/// out, the body is inlined into the lane loop of `run_v3`/`run_v4` and
-/// vectorised, with the same operations, hence the same bits.
-macro_rules! lanes {
-    ($d:ident, $f:path, $a:ident) => {
-        for i in 0..$d.len() {
-            $d[i] = $f($a.at(i));
-        }
-    };
-    ($d:ident, $f:path, $a:ident, $b:ident) => {
-        for i in 0..$d.len() {
-            $d[i] = $f($a.at(i), $b.at(i));
-        }
-    };
 }
 
 #[inline(always)]
@@ -379,6 +556,7 @@ fn binary<R: Real, const N: usize>(op: Prim, d: &mut [R; N], a: impl At<R>, b: i
 mod tests {
     use super::super::{compile, lower::lower, Dag};
     use super::*;
+    use crate::num::math::Math;
 
     #[test]
     fn a_block_matches_the_reference_evaluation() {
@@ -419,6 +597,77 @@ mod tests {
             }
         }
         assert!(tape.registers < roots.len() + 8, "registers are reused");
+    }
+
+    /// Every operation the codes fold, with every kind of operand
+    /// (register, input, constant), gives the bits of the operation itself.
+    #[test]
+    fn every_code_gives_the_operations_bits() {
+        const N: usize = 8;
+        let mut l = Lowered::default();
+        // v0 = input 0 as a register (x·1 = x).
+        l.instrs.push(Instr {
+            op: Prim::Mul,
+            a: Operand::Input(0),
+            b: Operand::Const(1.0),
+        });
+        let operands = [Operand::Val(0), Operand::Input(1), Operand::Const(0.375)];
+        let binary = [Prim::Add, Prim::Sub, Prim::Mul, Prim::Div];
+        let unary = [Func::Exp, Func::Log, Func::Sqrt, Func::Sin, Func::Cos].map(Prim::Call);
+        let mut cases = vec![];
+        for op in binary {
+            for a in operands {
+                for b in operands {
+                    if !matches!((a, b), (Operand::Const(_), Operand::Const(_))) {
+                        cases.push((op, a, b));
+                    }
+                }
+            }
+        }
+        for op in unary.into_iter().chain([Prim::Neg]) {
+            for a in &operands[..2] {
+                cases.push((op, *a, Operand::Const(0.0)));
+            }
+        }
+        for &(op, a, b) in &cases {
+            l.instrs.push(Instr { op, a, b });
+            l.outputs.push(Operand::Val(l.instrs.len() as u32 - 1));
+        }
+        let tape = Tape::<f64>::new(&l, |_| false);
+        assert!(tape.steps.iter().all(|s| s.code != Code::General));
+        let x: [f64; N] = std::array::from_fn(|i| 0.3 + 0.7 * i as f64);
+        let y: [f64; N] = std::array::from_fn(|i| 1.9 - 0.45 * i as f64);
+        let mut regs = vec![[0.0; N]; tape.registers];
+        tape.run(&mut regs, &[x, y][..], Isa::V4);
+        let value = |o: Operand, i: usize| match o {
+            Operand::Val(_) => x[i],
+            Operand::Input(_) => y[i],
+            Operand::Const(c) => c,
+        };
+        for (k, &(op, a, b)) in cases.iter().enumerate() {
+            for i in 0..N {
+                let (u, v) = (value(a, i), value(b, i));
+                let want = match op {
+                    Prim::Add => u + v,
+                    Prim::Sub => u - v,
+                    Prim::Mul => u * v,
+                    Prim::Div => u / v,
+                    Prim::Neg => -u,
+                    Prim::Call(Func::Exp) => f64::exp_r(u),
+                    Prim::Call(Func::Log) => f64::log_r(u),
+                    Prim::Call(Func::Sqrt) => u.sqrt(),
+                    Prim::Call(Func::Sin) => f64::sin_r(u),
+                    Prim::Call(Func::Cos) => f64::cos_r(u),
+                    _ => unreachable!(),
+                };
+                let got = tape.output(&regs, k)[i];
+                assert_eq!(
+                    got.to_bits(),
+                    want.to_bits(),
+                    "{op:?}({a:?}, {b:?}) lane {i}"
+                );
+            }
+        }
     }
 
     /// A long formula's program reads more than 2¹⁶ inputs (a model's
