@@ -47,8 +47,8 @@ macro_rules! define_lanes {
     ($( $(#[$m:meta])* $f:ident ),* $(,)?) => {
         /// One block of [`LANES`] trajectories; see the module documentation.
         /// `repr(C)` with one field type: the layout of `[[R; LANES]; COUNT]`,
-        /// which [`Lanes::at`] relies on.
-        #[repr(C)]
+        /// which [`Lanes::at`] relies on; on cache lines as [`LaneArrays`].
+        #[repr(C, align(64))]
         pub struct Lanes<R> {
             $( $(#[$m])* pub $f: [R; LANES], )*
         }
@@ -190,6 +190,56 @@ define_lanes! {
 const _: () = assert!(std::mem::size_of::<Lanes<f64>>() == COUNT * LANES * 8);
 const _: () = assert!(std::mem::size_of::<Lanes<f32>>() == COUNT * LANES * 4);
 
+/// A lane array on cache lines of its own.
+#[repr(C, align(64))]
+#[derive(Clone, Copy)]
+struct Line<R>([R; LANES]);
+
+/// Lane arrays aligned to cache lines, used as `[[R; LANES]]`: the block
+/// interpreter and the observers read and write lane arrays whole with
+/// vector instructions, which take half as long again when each straddles
+/// two lines, as in a `Vec<[R; LANES]>` (aligned to `R` only).
+#[derive(Clone)]
+pub struct LaneArrays<R> {
+    lines: Vec<Line<R>>,
+}
+
+impl<R: Copy> LaneArrays<R> {
+    /// `n` arrays of `value`.
+    pub fn filled(n: usize, value: R) -> Self {
+        LaneArrays {
+            lines: vec![Line([value; LANES]); n],
+        }
+    }
+}
+
+impl<R: Copy> FromIterator<[R; LANES]> for LaneArrays<R> {
+    fn from_iter<I: IntoIterator<Item = [R; LANES]>>(arrays: I) -> Self {
+        LaneArrays {
+            lines: arrays.into_iter().map(Line).collect(),
+        }
+    }
+}
+
+impl<R> std::ops::Deref for LaneArrays<R> {
+    type Target = [[R; LANES]];
+    fn deref(&self) -> &[[R; LANES]] {
+        const { assert!(std::mem::size_of::<Line<R>>() == std::mem::size_of::<[R; LANES]>()) };
+        // SAFETY: `Line<R>` is `repr(C)` around one `[R; LANES]`, of the same
+        // size (asserted: a multiple of the alignment), so a slice of lines
+        // is a slice of arrays.
+        unsafe { std::slice::from_raw_parts(self.lines.as_ptr().cast(), self.lines.len()) }
+    }
+}
+
+impl<R> std::ops::DerefMut for LaneArrays<R> {
+    fn deref_mut(&mut self) -> &mut [[R; LANES]] {
+        const { assert!(std::mem::size_of::<Line<R>>() == std::mem::size_of::<[R; LANES]>()) };
+        // SAFETY: as in `deref`.
+        unsafe { std::slice::from_raw_parts_mut(self.lines.as_mut_ptr().cast(), self.lines.len()) }
+    }
+}
+
 /// Declares a model's ops: shared functions (see [`crate::num::dsl`]) whose
 /// arguments are lane names, plus, for the CPU, a lane loop per op (`lanes`
 /// module) and its one-trajectory twin (`lanes::scalar`), found by name.
@@ -307,4 +357,26 @@ macro_rules! model_lanes {
             None$(.or_else(|| $($lm)::+::scalar::lookup::<R>(name)))*
         }
     };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lane_arrays_are_arrays_on_cache_lines() {
+        let mut a = LaneArrays::filled(3, 1.5f32);
+        a[1][5] = 2.0;
+        assert_eq!(
+            (a.len(), a[1][5], a[1][4], a[2][LANES - 1]),
+            (3, 2.0, 1.5, 1.5)
+        );
+        let b: LaneArrays<f64> = (0..5).map(|k| [k as f64; LANES]).collect();
+        assert_eq!(b[4], [4.0; LANES]);
+        let addresses = a.iter().map(|x| x.as_ptr() as usize);
+        assert!(addresses
+            .chain(b.iter().map(|x| x.as_ptr() as usize))
+            .all(|p| p % 64 == 0));
+        assert_eq!(std::ptr::addr_of!(*Lanes::<f32>::boxed()) as usize % 64, 0);
+    }
 }

@@ -8,7 +8,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::models::formula::{Cost, FormulaModel, STEP_INDEX};
-use crate::models::lanes::{index_of, Lanes, LANES};
+use crate::models::lanes::{index_of, LaneArrays, Lanes, LANES};
 use crate::num::formula::stage::split;
 use crate::num::formula::tape::{Inputs, Tape};
 use crate::num::precision::Real;
@@ -161,10 +161,10 @@ pub struct FormulaStep<R> {
 /// of `uniform` the shared values of a window of [`LANES`] steps (lane `j`:
 /// step `window + j`), computed in one pass of the interpreter.
 pub struct StepMemory<R> {
-    fixed: Vec<[R; LANES]>,
-    uniform: Vec<[R; LANES]>,
+    fixed: LaneArrays<R>,
+    uniform: LaneArrays<R>,
     window: Option<u64>,
-    lane: Vec<[R; LANES]>,
+    lane: LaneArrays<R>,
 }
 
 impl<R: Real> FormulaStep<R> {
@@ -195,10 +195,10 @@ impl<R: Real> FormulaStep<R> {
 
     pub fn memory(&self) -> StepMemory<R> {
         StepMemory {
-            fixed: vec![[R::default(); LANES]; self.fixed.registers],
-            uniform: vec![[R::default(); LANES]; self.uniform.registers],
+            fixed: LaneArrays::filled(self.fixed.registers, R::default()),
+            uniform: LaneArrays::filled(self.uniform.registers, R::default()),
             window: None,
-            lane: vec![[R::default(); LANES]; self.lane.registers],
+            lane: LaneArrays::filled(self.lane.registers, R::default()),
         }
     }
 

@@ -22,7 +22,7 @@ use rayon::prelude::*;
 use super::checkpoint::Checkpoints;
 use super::error::BackendError;
 
-use crate::models::lanes::{Lanes, LANES};
+use crate::models::lanes::{LaneArrays, Lanes, LANES};
 use crate::models::Flows;
 use crate::plan::observations::{Observations, Sink};
 use crate::plan::snapshot::{get, get_array, get_one, get_vec, invalid, put, put_slice, Header};
@@ -349,15 +349,15 @@ fn run_block<R: Flows>(
     let nv = p.var.len();
     let mut alive = count - status[..count].iter().filter(|s| **s != 0).count();
     // Registers of the formula interpreter, one set per block.
-    let mut regs = vec![[R::default(); LANES]; p.registers];
+    let mut regs = LaneArrays::filled(p.registers, R::default());
     let mut memory = p.formula_step.as_ref().map(|f| {
         let mut m = f.memory();
         f.begin(l, &mut m);
         m
     });
     // State (and slopes) at the start of the current step, for interpolation.
-    let mut prev = vec![[R::default(); LANES]; nv];
-    let mut dprev = vec![[R::default(); LANES]; nv];
+    let mut prev = LaneArrays::filled(nv, R::default());
+    let mut dprev = LaneArrays::filled(nv, R::default());
     // The observers' view of the block after step n1.
     macro_rules! after {
         ($n1:expr) => {

@@ -9,7 +9,7 @@
 
 use std::io::{self, Read, Write};
 
-use crate::models::lanes::{Lanes, LANES};
+use crate::models::lanes::{LaneArrays, Lanes, LANES};
 use crate::models::Flows;
 use crate::plan::observations::{Rows, Sink};
 use crate::plan::section::{Recorded, SectionKind, SectionStep};
@@ -50,7 +50,7 @@ pub struct BlockObservers<R> {
     /// Stroboscopic section sampled exactly: `(every, first)` steps per lane.
     strobe_exact: Option<([i32; LANES], [i32; LANES])>,
     /// The real slots of [`slots::real`], per lane.
-    real: Vec<[R; LANES]>,
+    real: LaneArrays<R>,
     count: [[i32; LANES]; slots::COUNT.len()],
     /// Where the cycle statistics and time averages start, as
     /// `Plan::cycle_start` and `Plan::average_start` say.
@@ -89,7 +89,7 @@ impl<R: Flows> BlockObservers<R> {
     /// Writes the slots (the rest follows from the block's inputs, as
     /// [`Self::new`] computes it).
     pub fn write(&self, w: &mut dyn Write) -> io::Result<()> {
-        for v in &self.real {
+        for v in self.real.iter() {
             put(w, v)?;
         }
         for v in &self.count {
@@ -100,7 +100,7 @@ impl<R: Flows> BlockObservers<R> {
 
     /// Reads what [`Self::write`] wrote into observers made by [`Self::new`].
     pub fn read(&mut self, r: &mut dyn Read) -> io::Result<()> {
-        for v in &mut self.real {
+        for v in self.real.iter_mut() {
             get(r, v)?;
         }
         for v in &mut self.count {
