@@ -55,9 +55,10 @@ pub fn launch_for(
     precision: Precision,
 ) -> Result<Launch, BackendError> {
     let env = Overrides::from_env().map_err(BackendError::Tuning)?;
-    let launch = match env.complete() {
-        true => Launch::default(),
-        false => tuned(ctx, plan, precision, false)?.launch,
+    let launch = if env.complete() {
+        Launch::default()
+    } else {
+        tuned(ctx, plan, precision, false)?.launch
     };
     env.apply(launch, &ctx.limits).map_err(BackendError::Tuning)
 }
@@ -156,6 +157,7 @@ fn calibrate(
     }
     Ok(steps)
 }
+
 /// `plan` narrowed to its first `m` trajectories and `steps` steps.
 fn sample(plan: &Plan, m: usize, steps: u64) -> Plan {
     let mut p = plan.rows(0..m.min(plan.n));

@@ -15,7 +15,7 @@ use crate::plan::tangent::TangentInput;
 use crate::plan::Plan;
 
 /// Where a program input comes from on the CPU.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 enum Src {
     Lane(usize),
     /// State variable `k` of the plan at the step's start.
@@ -34,6 +34,9 @@ enum Src {
 pub struct Program<R> {
     tape: Tape<R>,
     inputs: Vec<Src>,
+    /// The inputs among Step, Count, Counted and Elapsed it reads: the
+    /// arrays to fill before each call.
+    fills: Vec<Src>,
     /// The real slots the outputs are written to.
     outputs: Vec<usize>,
     every: u64,
@@ -56,7 +59,7 @@ impl<R: Real> IndicatorTapes<R> {
             Some(k) => Src::Prev(k),
             None => Src::Lane(index_of(name).unwrap_or_else(|| panic!("{name} is not a lane"))),
         };
-        let inputs = ind
+        let inputs: Vec<Src> = ind
             .tangent
             .inputs
             .iter()
@@ -68,6 +71,7 @@ impl<R: Real> IndicatorTapes<R> {
             .collect();
         let tangent = Program {
             tape: Tape::new(&ind.tangent.program, |_| false),
+            fills: fills(&inputs),
             inputs,
             outputs: ind.deviation_slots.iter().map(|k| first + k).collect(),
             every: 1,
@@ -150,7 +154,7 @@ impl<R: Real> IndicatorTapes<R> {
 
 /// A sampler's program, its slots `first` on among the real slots.
 fn sampler<R: Real>(s: &Sampler, first: usize) -> Program<R> {
-    let inputs = s
+    let inputs: Vec<Src> = s
         .inputs
         .iter()
         .map(|i| match *i {
@@ -162,10 +166,23 @@ fn sampler<R: Real>(s: &Sampler, first: usize) -> Program<R> {
         .collect();
     Program {
         tape: Tape::new(&s.program, |_| false),
+        fills: fills(&inputs),
         inputs,
         outputs: s.outputs.iter().map(|k| first + k).collect(),
         every: s.every,
     }
+}
+
+/// The one-value inputs among `inputs`, each once.
+fn fills(inputs: &[Src]) -> Vec<Src> {
+    let mut f: Vec<Src> = vec![];
+    for src in inputs {
+        let one = matches!(src, Src::Step | Src::Count | Src::Counted | Src::Elapsed);
+        if one && !f.contains(src) {
+            f.push(*src);
+        }
+    }
+    f
 }
 
 /// The step a call follows, the lanes still running (as bits: only their
@@ -229,7 +246,7 @@ fn run<R: Real>(
     at: Call,
 ) {
     let (regs, fills) = regs.split_at_mut(regs.len() - FILLS);
-    for src in &p.inputs {
+    for src in &p.fills {
         match *src {
             Src::Step => fills[0] = [s.step; LANES],
             Src::Count => fills[1] = [s.count; LANES],

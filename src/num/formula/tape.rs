@@ -30,11 +30,12 @@ struct Step<R> {
     a: Src<R>,
     b: Src<R>,
     /// The operation and its operands' kinds in one code, so that the
-    /// common instructions cost one dispatch (see [`Code`]); `ia`/`ib` are
-    /// their register or input indices and `c` their constant.
+    /// common instructions cost one dispatch (see [`Code`]); `x` and `y`
+    /// are the register or input indices of its first and second operand
+    /// that is no constant, `c` its constant.
     code: Code,
-    ia: u32,
-    ib: u32,
+    x: u32,
+    y: u32,
     c: R,
 }
 
@@ -55,7 +56,8 @@ enum Code {
     General,
 }
 
-/// The [`Code`] of `op(a, b)`, with the operand indices and the constant.
+/// The [`Code`] of `op(a, b)`, with the indices `x`, `y` and the constant
+/// of [`Step`].
 fn code<R: Real>(op: Prim, a: Src<R>, b: Src<R>) -> (Code, u32, u32, R) {
     use Code::*;
     // An operand's kind (0 register, 1 input, 2 constant), index and value.
@@ -190,15 +192,15 @@ impl<R: Real> Tape<R> {
                 (registers - 1) as u32
             });
             reg[k] = dst;
-            let (code, ia, ib, c) = code(i.op, a, b);
+            let (code, x, y, c) = code(i.op, a, b);
             steps.push(Step {
                 op: i.op,
                 dst,
                 a,
                 b,
                 code,
-                ia,
-                ib,
+                x,
+                y,
                 c,
             });
             let mut operands = [i.a, i.b];
@@ -376,6 +378,35 @@ macro_rules! lanes {
     }};
 }
 
+/// The `match` on a [`Code`]: for each binary function its eight codes
+/// (operands RR RI IR II RC CR IC CI), for each unary one its two (R I),
+/// then what [`Code::General`] runs. `$r!`/`$i!` give a register's or an
+/// input's lanes by index; `$x`, `$y` and `$c` are the [`Step`]'s operands.
+macro_rules! dispatch {
+    ($code:expr, $d:ident, $x:expr, $y:expr, $c:ident, $r:ident, $i:ident;
+     $( $f:path => $rr:ident $ri:ident $ir:ident $ii:ident $rc:ident $cr:ident $ic:ident $ci:ident ),*;
+     $( $g:path => $ur:ident $ui:ident ),*;
+     $general:expr) => {
+        match $code {
+            $(
+                $rr => lanes!($d, $f, $r!($x), $r!($y)),
+                $ri => lanes!($d, $f, $r!($x), $i!($y)),
+                $ir => lanes!($d, $f, $i!($x), $r!($y)),
+                $ii => lanes!($d, $f, $i!($x), $i!($y)),
+                $rc => lanes!($d, $f, $r!($x), $c),
+                $cr => lanes!($d, $f, $c, $r!($x)),
+                $ic => lanes!($d, $f, $i!($x), $c),
+                $ci => lanes!($d, $f, $c, $i!($x)),
+            )*
+            $(
+                $ur => lanes!($d, $g, $r!($x)),
+                $ui => lanes!($d, $g, $i!($x)),
+            )*
+            General => $general,
+        }
+    };
+}
+
 #[inline(always)]
 fn run_body<R: Real, const N: usize>(
     t: &Tape<R>,
@@ -399,54 +430,18 @@ fn run_body<R: Real, const N: usize>(
             };
         }
         let c = One(s.c);
-        let (ra, rb, ia, ib) = (s.ia, s.ib, s.ia, s.ib);
-        match s.code {
-            AddRR => lanes!(d, add, r!(ra), r!(rb)),
-            AddRI => lanes!(d, add, r!(ra), i!(ib)),
-            AddIR => lanes!(d, add, i!(ia), r!(rb)),
-            AddII => lanes!(d, add, i!(ia), i!(ib)),
-            AddRC => lanes!(d, add, r!(ra), c),
-            AddCR => lanes!(d, add, c, r!(ra)),
-            AddIC => lanes!(d, add, i!(ia), c),
-            AddCI => lanes!(d, add, c, i!(ia)),
-            SubRR => lanes!(d, sub, r!(ra), r!(rb)),
-            SubRI => lanes!(d, sub, r!(ra), i!(ib)),
-            SubIR => lanes!(d, sub, i!(ia), r!(rb)),
-            SubII => lanes!(d, sub, i!(ia), i!(ib)),
-            SubRC => lanes!(d, sub, r!(ra), c),
-            SubCR => lanes!(d, sub, c, r!(ra)),
-            SubIC => lanes!(d, sub, i!(ia), c),
-            SubCI => lanes!(d, sub, c, i!(ia)),
-            MulRR => lanes!(d, mul, r!(ra), r!(rb)),
-            MulRI => lanes!(d, mul, r!(ra), i!(ib)),
-            MulIR => lanes!(d, mul, i!(ia), r!(rb)),
-            MulII => lanes!(d, mul, i!(ia), i!(ib)),
-            MulRC => lanes!(d, mul, r!(ra), c),
-            MulCR => lanes!(d, mul, c, r!(ra)),
-            MulIC => lanes!(d, mul, i!(ia), c),
-            MulCI => lanes!(d, mul, c, i!(ia)),
-            DivRR => lanes!(d, div, r!(ra), r!(rb)),
-            DivRI => lanes!(d, div, r!(ra), i!(ib)),
-            DivIR => lanes!(d, div, i!(ia), r!(rb)),
-            DivII => lanes!(d, div, i!(ia), i!(ib)),
-            DivRC => lanes!(d, div, r!(ra), c),
-            DivCR => lanes!(d, div, c, r!(ra)),
-            DivIC => lanes!(d, div, i!(ia), c),
-            DivCI => lanes!(d, div, c, i!(ia)),
-            NegR => lanes!(d, neg, r!(ra)),
-            NegI => lanes!(d, neg, i!(ia)),
-            ExpR => lanes!(d, R::exp_r, r!(ra)),
-            ExpI => lanes!(d, R::exp_r, i!(ia)),
-            LogR => lanes!(d, R::log_r, r!(ra)),
-            LogI => lanes!(d, R::log_r, i!(ia)),
-            SqrtR => lanes!(d, R::sqrt, r!(ra)),
-            SqrtI => lanes!(d, R::sqrt, i!(ia)),
-            SinR => lanes!(d, R::sin_r, r!(ra)),
-            SinI => lanes!(d, R::sin_r, i!(ia)),
-            CosR => lanes!(d, R::cos_r, r!(ra)),
-            CosI => lanes!(d, R::cos_r, i!(ia)),
-            General => general(s, base, input, d),
-        }
+        dispatch!(s.code, d, s.x, s.y, c, r, i;
+            add => AddRR AddRI AddIR AddII AddRC AddCR AddIC AddCI,
+            sub => SubRR SubRI SubIR SubII SubRC SubCR SubIC SubCI,
+            mul => MulRR MulRI MulIR MulII MulRC MulCR MulIC MulCI,
+            div => DivRR DivRI DivIR DivII DivRC DivCR DivIC DivCI;
+            neg => NegR NegI,
+            R::exp_r => ExpR ExpI,
+            R::log_r => LogR LogI,
+            R::sqrt => SqrtR SqrtI,
+            R::sin_r => SinR SinI,
+            R::cos_r => CosR CosI;
+            general(s, base, input, d))
     }
 }
 
