@@ -9,8 +9,8 @@ use reeb::plan::scheme::SCHEME_NAMES;
 use reeb::plan::tangent::TangentStep;
 use reeb::plan::Plan;
 use reeb::verify::indicators::{
-    difference_columns, formula_plans, full_problem, lane_at, start, tangent_columns,
-    with_indicators,
+    compiled_columns, difference_columns, formula_plans, full_problem, lane_at, start,
+    tangent_columns, with_indicators,
 };
 
 const C: fn(f64) -> Source = Source::Const;
@@ -59,6 +59,45 @@ fn tangents_are_finite_differences_of_the_step() {
     assert!(checked >= 130, "{checked} model × scheme pairs");
     assert!(refused.len() <= 4, "refused: {refused:?}");
     eprintln!("{checked} pairs checked; refused: {refused:?}");
+}
+
+/// The CPU's compiled tangent step (`backend/cpu/tangent.rs`, the ops'
+/// generated tangents) is the tangent program's map to round-off, for
+/// every built-in model whose ops all have one × every splitting scheme
+/// (in the default piece order), at the best level this CPU runs;
+/// Lane–Emden (a power by a per-trajectory index) keeps the tape.
+#[test]
+fn compiled_tangents_are_the_tangent_programs() {
+    let mut checked = 0;
+    for scheme in SCHEME_NAMES {
+        for m in MODEL_NAMES {
+            let Ok(plan) = Plan::new(&problem(m, scheme)) else {
+                continue;
+            };
+            let x: Vec<(&str, f64)> = plan.vars.iter().map(|v| (*v, start(v))).collect();
+            let Ok((space, cols)) = tangent_columns(&plan, &x, 3) else {
+                continue;
+            };
+            let Some(compiled) = compiled_columns(&plan, &x, &space, 3) else {
+                let splitting = plan.stages.is_some();
+                let avx2 = reeb::backend::cpu::kernels::isa() != reeb::num::isa::Isa::Baseline;
+                assert!(
+                    *m == "lane_emden" || !splitting || !avx2,
+                    "{m} {scheme}: no compiled tangent"
+                );
+                continue;
+            };
+            for (a, b) in cols.iter().flatten().zip(compiled.iter().flatten()) {
+                assert!(
+                    (a - b).abs() <= 1e-12 * a.abs().max(1.0),
+                    "{m} {scheme}: tape {a}, compiled {b}"
+                );
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked >= 60, "{checked} model × scheme pairs");
+    eprintln!("{checked} pairs: compiled = tape");
 }
 
 /// The tangent spaces of the README: (q, p) for mechanical models, (q, s)

@@ -91,6 +91,17 @@ macro_rules! define_lanes {
                 l.p3[i] = self.p3;
                 l.p4[i] = self.p4;
             }
+            /// Writes the time and the time terms back into lane `i` of a
+            /// block (a stage's time pass, for the pieces that follow).
+            #[inline(always)]
+            pub fn scatter_time(&self, l: &mut Lanes<R>, i: usize) {
+                l.t[i] = self.t;
+                l.forcing[i] = self.forcing;
+                l.damping[i] = self.damping;
+                l.pref[i] = self.pref;
+                l.cw[i] = self.cw;
+                l.sw[i] = self.sw;
+            }
             /// The scalar named `name`.
             pub fn get(&self, name: &str) -> Option<R> {
                 match name {

@@ -24,6 +24,13 @@ pub trait Pieces<R: Real> {
     fn share_time(x: &mut Lane<R>, from: &Lane<R>);
     /// Piece `piece` over `x.tau`; `OPT`: also on the optional variable.
     fn piece<const OPT: bool>(piece: char, x: &mut Lane<R>);
+    /// Piece `piece` over `x.tau` carrying the deviations `d` along: each
+    /// op's tangent (`tangent_ops.rs`, generated from the op's text) moves
+    /// `d` at the lanes before the op, then the op moves `x`. The optional
+    /// variable is left out: it never feeds back.
+    fn piece_tangent<const K: usize>(piece: char, x: &mut Lane<R>, d: &mut [Lane<R>; K]);
+    /// Writes the model's state variables of `x` into lane `i` of `l`.
+    fn scatter(x: &Lane<R>, l: &mut Lanes<R>, i: usize);
     /// Are the model's state variables finite?
     fn finite(x: &Lane<R>) -> bool;
     /// Copies the block's state variables into `to`.
@@ -95,6 +102,32 @@ macro_rules! pieces {
                     } )*
                     _ => {}
                 }
+            }
+            #[inline(always)]
+            fn piece_tangent<const K: usize>(
+                piece: char,
+                x: &mut $crate::models::lanes::Lane<R>,
+                d: &mut [$crate::models::lanes::Lane<R>; K],
+            ) {
+                $( #[allow(unused_imports)] use $($opmod)::+::scalar::*; )*
+                match piece {
+                    $( $letter => {
+                        $(
+                            let optional = false $(|| { let _ = stringify!($opt); true })?;
+                            if !optional {
+                                for dk in d.iter_mut() {
+                                    $crate::models::tangent_ops::$op(x, dk);
+                                }
+                                $op(x);
+                            }
+                        )*
+                    } )*
+                    _ => {}
+                }
+            }
+            #[inline(always)]
+            fn scatter(x: &$crate::models::lanes::Lane<R>, l: &mut $crate::models::lanes::Lanes<R>, i: usize) {
+                $( l.$var[i] = x.$var; )*
             }
             #[inline(always)]
             fn finite(x: &$crate::models::lanes::Lane<R>) -> bool {

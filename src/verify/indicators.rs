@@ -9,8 +9,10 @@
 //! against the CPU's.
 
 use super::check::{bound, check, failed, Check, Target};
+use crate::backend::cpu::kernels;
+use crate::backend::cpu::tangent::{CompiledTangent, TangentScratch};
 use crate::backend::Engine;
-use crate::models::lanes::Lane;
+use crate::models::lanes::{Lane, Lanes, LANES, NAMES};
 use crate::models::spec::Op;
 use crate::models::{scalar_fn, Model, MODEL_NAMES};
 use crate::num::formula::tape::Tape;
@@ -170,6 +172,39 @@ pub fn tangent_columns(
     Ok((t.space, cols))
 }
 
+/// The tangent map of step `n` at `x` on `space` as the CPU's compiled
+/// tangent step computes it (its columns), where the plan has one
+/// (`backend/cpu/tangent.rs`; at the best level this CPU runs).
+pub fn compiled_columns(
+    plan: &Plan,
+    x: &[(&str, f64)],
+    space: &[&str],
+    n: u64,
+) -> Option<Vec<Vec<f64>>> {
+    let c = CompiledTangent::<f64>::new(plan, space, 1, kernels::isa(), false)?;
+    let l = lane_at(plan, x);
+    let mut lanes = Lanes::<f64>::boxed();
+    for name in NAMES {
+        if let (Some(v), Some(a)) = (l.get(name), lanes.field_mut(name)) {
+            *a = [v; LANES];
+        }
+    }
+    let column = |k: usize| {
+        let mut scratch = TangentScratch::new(&lanes, 1);
+        for (j, var) in space.iter().enumerate() {
+            let v = if j == k { 1.0 } else { 0.0 };
+            *scratch.d[0].field_mut(var).expect("a lane") = [v; LANES];
+        }
+        c.run(&mut scratch.x, &mut scratch.d, n);
+        let d = &scratch.d[0];
+        space
+            .iter()
+            .map(|v| d.field(v).expect("a lane")[0])
+            .collect()
+    };
+    Some((0..space.len()).map(column).collect())
+}
+
 /// Central finite differences (step `h`) of step `n` of the compiled
 /// step at `x` on `space`: the Jacobian's columns.
 pub fn difference_columns(
@@ -201,12 +236,17 @@ pub fn difference_columns(
         .collect()
 }
 
-/// The largest |tangent − finite differences| / max(|finite differences|,
-/// 1) over the Jacobian of step 3 at the [`start`] state.
+/// The largest |tangent − finite differences| / max(|finite differences|, 1)
+/// over the Jacobian of step 3 at the [`start`] state: the tangent
+/// program's and, where the plan has one, the CPU's compiled tangent's.
 pub fn tangent_error(plan: &Plan) -> Result<f64, PlanError> {
     let x: Vec<(&str, f64)> = plan.vars.iter().map(|v| (*v, start(v))).collect();
-    let (space, cols) = tangent_columns(plan, &x, 3)?;
-    let fd = difference_columns(plan, &x, &space, 3, 1e-6);
+    let (space, mut cols) = tangent_columns(plan, &x, 3)?;
+    let mut fd = difference_columns(plan, &x, &space, 3, 1e-6);
+    if let Some(compiled) = compiled_columns(plan, &x, &space, 3) {
+        cols.extend(compiled);
+        fd.extend(fd.clone());
+    }
     let mut worst: f64 = 0.0;
     for (a, b) in cols.iter().flatten().zip(fd.iter().flatten()) {
         let e = (a - b).abs() / b.abs().max(1.0);

@@ -5,6 +5,7 @@
 // Lane loops index several arrays by lane; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
+use super::tangent::{CompiledTangent, TangentScratch};
 use crate::models::lanes::{index_of, Lanes, LANES};
 use crate::num::formula::tape::{Inputs, Tape};
 use crate::num::isa::Isa;
@@ -45,6 +46,11 @@ pub struct Program<R> {
 /// The indicators' programs for a plan.
 pub struct IndicatorTapes<R> {
     tangent: Program<R>,
+    /// The tangent step compiled (built-in models), run instead of
+    /// `tangent`'s tape.
+    compiled: Option<CompiledTangent<R>>,
+    /// The lane index of each of the plan's state variables.
+    var_lanes: Vec<usize>,
     samples: Vec<Program<R>>,
     skip_step: u64,
     /// Lane index of `dt` (the samples' elapsed time).
@@ -52,7 +58,11 @@ pub struct IndicatorTapes<R> {
 }
 
 impl<R: Real> IndicatorTapes<R> {
-    pub fn new(plan: &Plan, ind: &Indicators) -> IndicatorTapes<R> {
+    pub fn new(
+        plan: &Plan,
+        ind: &Indicators,
+        compiled: Option<CompiledTangent<R>>,
+    ) -> IndicatorTapes<R> {
         // The indicators' slots among the block's real slots.
         let first = slots::indicator_first(plan);
         let lane = |name: &str| match plan.vars.iter().position(|v| *v == name) {
@@ -83,6 +93,12 @@ impl<R: Real> IndicatorTapes<R> {
             .collect();
         IndicatorTapes {
             tangent,
+            compiled,
+            var_lanes: plan
+                .vars
+                .iter()
+                .map(|v| index_of(v).expect("a lane"))
+                .collect(),
             samples,
             skip_step: ind.skip_step,
             dt_lane: index_of("dt").expect("dt is a lane"),
@@ -96,10 +112,53 @@ impl<R: Real> IndicatorTapes<R> {
         all.map(|p| p.tape.registers).max().unwrap_or(0) + FILLS
     }
 
+    /// The scratch lanes the compiled tangent runs on, for block `l`;
+    /// `None` where the tape runs.
+    pub fn scratch(&self, l: &Lanes<R>) -> Option<TangentScratch<R>> {
+        let c = self.compiled.as_ref()?;
+        Some(TangentScratch::new(l, c.vectors()))
+    }
+
+    /// Whether [`IndicatorTapes::step`] takes the plan's steps: the
+    /// compiled tangent runs the whole step, so the state and the vectors
+    /// move in one pass.
+    pub fn takes_step(&self) -> bool {
+        self.compiled.as_ref().is_some_and(|c| c.takes_step)
+    }
+
+    /// Step `n` (0 for the first) of block `l` and of the deviation vectors
+    /// of its `running` lanes (bits) at once, on `scratch`, where
+    /// [`IndicatorTapes::takes_step`]: the same operations as the fused
+    /// stages, so the same state. Returns whether some state became
+    /// non-finite.
+    pub fn step(
+        &self,
+        l: &mut Lanes<R>,
+        scratch: &mut TangentScratch<R>,
+        real: &mut [[R; LANES]],
+        n: u64,
+        running: u64,
+    ) -> bool {
+        let c = self.compiled.as_ref().expect("a compiled tangent");
+        for &lane in &self.var_lanes {
+            *scratch.x.at_mut(lane) = *l.at(lane);
+        }
+        self.move_vectors(c, scratch, real, n, running);
+        let mut any = false;
+        for &lane in &self.var_lanes {
+            let x = scratch.x.at(lane);
+            *l.at_mut(lane) = *x;
+            for i in 0..LANES {
+                any |= !x[i].finite();
+            }
+        }
+        any
+    }
+
     /// After step `n1` (1 for the first): the deviation vectors of the
-    /// `running` lanes (bits) through the step's tangent map, then the
-    /// samples due. Returns the running lanes whose vectors became
-    /// non-finite, as bits.
+    /// `running` lanes (bits) through the step's tangent map (compiled,
+    /// on `scratch`, where there is one), then the samples due. Returns
+    /// the running lanes whose vectors became non-finite, as bits.
     #[allow(clippy::too_many_arguments)]
     pub fn after_step(
         &self,
@@ -107,6 +166,7 @@ impl<R: Real> IndicatorTapes<R> {
         prev: &[[R; LANES]],
         real: &mut [[R; LANES]],
         regs: &mut [[R; LANES]],
+        scratch: Option<&mut TangentScratch<R>>,
         n1: u64,
         running: u64,
         isa: Isa,
@@ -122,7 +182,17 @@ impl<R: Real> IndicatorTapes<R> {
             count: R::from_f64(0.0),
             counted: R::from_f64(0.0),
         };
-        run(&self.tangent, l, prev, real, regs, scalars, at);
+        match (&self.compiled, scratch) {
+            // The step moved the vectors already.
+            (Some(c), _) if c.takes_step => {}
+            (Some(c), Some(scratch)) => {
+                for (k, &lane) in self.var_lanes.iter().enumerate() {
+                    *scratch.x.at_mut(lane) = prev[k];
+                }
+                self.move_vectors(c, scratch, real, n1 - 1, running);
+            }
+            _ => run(&self.tangent, l, prev, real, regs, scalars, at),
+        }
         for s in self.samples.iter().filter(|s| n1.is_multiple_of(s.every)) {
             let scalars = Scalars {
                 count: R::from_f64((n1 / s.every) as f64),
@@ -149,6 +219,49 @@ impl<R: Real> IndicatorTapes<R> {
             }
         }
         bad & running
+    }
+}
+
+impl<R: Real> IndicatorTapes<R> {
+    /// The compiled tangent step `n` from the state in `s.x`: the
+    /// deviation vectors into the scratch lanes, the step on both, the
+    /// vectors of the `running` lanes back into their slots.
+    fn move_vectors(
+        &self,
+        c: &CompiledTangent<R>,
+        s: &mut TangentScratch<R>,
+        real: &mut [[R; LANES]],
+        n: u64,
+        running: u64,
+    ) {
+        // The tape's outputs are the vectors' slots, vector k's component j
+        // at k·d + j.
+        let slots = &self.tangent.outputs;
+        let d = c.space.len();
+        for (k, v) in s.d.iter_mut().enumerate() {
+            for (j, &lane) in c.space.iter().enumerate() {
+                *v.at_mut(lane) = real[slots[k * d + j]];
+            }
+        }
+        c.run(&mut s.x, &mut s.d, n);
+        for (k, v) in s.d.iter().enumerate() {
+            for (j, &lane) in c.space.iter().enumerate() {
+                put(&mut real[slots[k * d + j]], v.at(lane), running);
+            }
+        }
+    }
+}
+
+/// `out` into `slot` where `running` (bits) has the lane.
+fn put<R: Real>(slot: &mut [R; LANES], out: &[R; LANES], running: u64) {
+    if running == u64::MAX {
+        *slot = *out;
+        return;
+    }
+    for i in 0..LANES {
+        if running >> i & 1 == 1 {
+            slot[i] = out[i];
+        }
     }
 }
 
@@ -269,15 +382,6 @@ fn run<R: Real>(
     p.tape.run(regs, &view, at.isa);
     // A lane that stopped or became non-finite keeps its indicators.
     for (k, &slot) in p.outputs.iter().enumerate() {
-        let out = p.tape.output(regs, k);
-        if at.running == u64::MAX {
-            real[slot] = *out;
-            continue;
-        }
-        for i in 0..LANES {
-            if at.running >> i & 1 == 1 {
-                real[slot][i] = out[i];
-            }
-        }
+        put(&mut real[slot], p.tape.output(regs, k), at.running);
     }
 }

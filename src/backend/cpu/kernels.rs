@@ -10,6 +10,7 @@ use crate::models::pieces::{Pieces, PiecesVisitor, Saved, MAX_VARS};
 use crate::models::Model;
 pub use crate::num::isa::Isa;
 use crate::num::precision::Real;
+use crate::plan::Plan;
 
 /// A stage's weights: `(w/2, w, time offset c)`.
 pub type Weights<R> = (R, R, R);
@@ -442,6 +443,23 @@ pub fn steps_fn<R: Real, P: Pieces<R>>(
         }};
     }
     pick!('A' 'B' 'C', 'A' 'C' 'B', 'B' 'A' 'C', 'B' 'C' 'A', 'C' 'A' 'B', 'C' 'B' 'A')
+}
+
+/// How a plan's fused stages get their time terms ([`time`]); `shared`:
+/// the ensemble shares them.
+pub fn time_mode(plan: &Plan, shared: bool) -> u8 {
+    match (plan.time, shared) {
+        (_, true) => time::SHARED,
+        (false, false) => time::NONE,
+        (true, false) => time::PER_LANE,
+    }
+}
+
+/// Each S2 stage's weights `(w/2, w, c)`, for a splitting plan.
+pub fn weights<R: Real>(plan: &Plan) -> Option<Vec<Weights<R>>> {
+    let st = plan.stages.as_ref()?;
+    let w = |(w, c): &(f64, f64)| (R::from_f64(0.5 * w), R::from_f64(*w), R::from_f64(*c));
+    Some(st.stages.iter().map(w).collect())
 }
 
 /// Builds the fused steps of whichever model's pieces it visits.

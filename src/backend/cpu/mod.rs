@@ -12,6 +12,7 @@ pub mod indicators;
 pub mod kernels;
 pub mod observe;
 pub mod program;
+pub mod tangent;
 
 use std::io::{self, Read, Write};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -355,6 +356,8 @@ fn run_block<R: Flows>(
         f.begin(l, &mut m);
         m
     });
+    // The compiled tangent step's lanes, where it runs.
+    let mut tangent = p.indicators.as_ref().and_then(|i| i.scratch(l));
     // State (and slopes) at the start of the current step, for interpolation.
     let mut prev = LaneArrays::filled(nv, R::default());
     let mut dprev = LaneArrays::filled(nv, R::default());
@@ -409,14 +412,22 @@ fn run_block<R: Flows>(
                 dprev[k] = *l.at(p.dvar[k]);
             }
         }
-        let (done, any) = advance(
-            p,
-            l,
-            &mut regs,
-            memory.as_mut(),
-            n,
-            quiet_run(p, &obs, n, count),
-        );
+        let (done, any) = match (&p.indicators, tangent.as_mut()) {
+            // The compiled tangent step moves state and vectors at once.
+            (Some(ind), Some(scratch)) if ind.takes_step() => {
+                let (running, padding) = observe::running_lanes(&status[..count]);
+                let real = obs.slots_mut();
+                (1, ind.step(l, scratch, real, n, running | padding))
+            }
+            _ => advance(
+                p,
+                l,
+                &mut regs,
+                memory.as_mut(),
+                n,
+                quiet_run(p, &obs, n, count),
+            ),
+        };
         if any {
             let bad = nonfinite_lanes(p, l);
             alive -= mark_nonfinite(&bad, &mut status, count, n + done - 1);
@@ -432,7 +443,7 @@ fn run_block<R: Flows>(
         obs.observe(&view);
         obs.cycle(&view);
         obs.average(&view);
-        let bad = obs.indicators(&view, &mut regs);
+        let bad = obs.indicators(&view, &mut regs, tangent.as_mut());
         if bad != 0 {
             let bad: [bool; LANES] = std::array::from_fn(|i| bad >> i & 1 == 1);
             alive -= mark_nonfinite(&bad, &mut status, count, n - 1);

@@ -18,6 +18,7 @@ use crate::plan::snapshot::{get, put};
 use crate::plan::{ObsVar, Plan};
 
 use super::program::Program;
+use super::tangent::TangentScratch;
 
 /// A block right after step `n1` (0: the initial state), as the observers
 /// see it: the program, the lanes, where its rows go, the state at the
@@ -224,27 +225,34 @@ impl<R: Flows> BlockObservers<R> {
 
     /// The chaos indicators after the step: the lanes whose deviation
     /// vectors became non-finite, as bits.
-    pub fn indicators(&mut self, s: &BlockStep<R>, regs: &mut [[R; LANES]]) -> u64 {
+    pub fn indicators(
+        &mut self,
+        s: &BlockStep<R>,
+        regs: &mut [[R; LANES]],
+        scratch: Option<&mut TangentScratch<R>>,
+    ) -> u64 {
         let Some(ind) = &s.p.indicators else {
             return 0;
         };
-        // The padding lanes past `count` run too (nothing reads them), so
-        // that a block whose trajectories all run is written whole.
-        let padding = u64::MAX.checked_shl(s.count as u32).unwrap_or(0);
-        // This runs after every step: one vectorised pass when every lane
-        // runs, lane by lane only when some stopped.
-        let status = &s.status[..s.count];
-        let running = if status.iter().fold(0, |a, &x| a | x) == 0 {
-            !padding
-        } else {
-            let mut bits = 0u64;
-            for (i, &x) in status.iter().enumerate() {
-                bits |= u64::from(x == 0) << i;
-            }
-            bits
-        };
-        let lanes = running | padding;
-        running & ind.after_step(s.l, s.prev, &mut self.real, regs, s.n1, lanes, s.p.isa)
+        let (running, padding) = running_lanes(&s.status[..s.count]);
+        let (l, prev, real) = (s.l, s.prev, &mut self.real);
+        running
+            & ind.after_step(
+                l,
+                prev,
+                real,
+                regs,
+                scratch,
+                s.n1,
+                running | padding,
+                s.p.isa,
+            )
+    }
+
+    /// The observers' real slots, mutable (the compiled tangent step moves
+    /// the deviation vectors in them).
+    pub fn slots_mut(&mut self) -> &mut [[R; LANES]] {
+        &mut self.real
     }
 
     /// Cycle statistics over step `n → n+1`, inside the measuring window.
@@ -434,6 +442,23 @@ fn frame_at<R: Flows>(s: &BlockStep<R>) -> Option<(usize, usize)> {
             (plan.steps / tr.every) as usize + 1,
         )
     })
+}
+
+/// The lanes of a block whose trajectories run (`status` 0), and the
+/// padding lanes past them, as bits. The padding lanes run too (nothing
+/// reads them), so that a block whose trajectories all run is written
+/// whole. This runs after every step: one vectorised pass when every lane
+/// runs, lane by lane only when some stopped.
+pub fn running_lanes(status: &[u64]) -> (u64, u64) {
+    let padding = u64::MAX.checked_shl(status.len() as u32).unwrap_or(0);
+    if status.iter().fold(0, |a, &x| a | x) == 0 {
+        return (!padding, padding);
+    }
+    let mut bits = 0u64;
+    for (i, &x) in status.iter().enumerate() {
+        bits |= u64::from(x == 0) << i;
+    }
+    (bits, padding)
 }
 
 /// The indicators' values `(exponents, FLI, MEGNO)` as row `row` of their

@@ -9,7 +9,8 @@ use crate::plan::{Op, Plan, Source};
 
 use super::formula::{Condition, FormulaCall, FormulaStep};
 use super::indicators::IndicatorTapes;
-use super::kernels::{time, Isa, StageBuilder, StepsFn, Weights};
+use super::kernels::{time_mode, weights, Isa, StageBuilder, StepsFn, Weights};
+use super::tangent::CompiledTangent;
 
 /// The plan's step, field and inputs for the CPU.
 pub struct Program<'p, R> {
@@ -118,15 +119,15 @@ impl<'p, R: Flows> Program<'p, R> {
             ind.slot_of(name).map(|k| first + k)
         };
         let stop = plan.stop.as_ref().map(|s| Condition::new(s, isa, slot));
+        let shared_time = share_time && plan.stages.is_some() && plan.shares_time();
         let indicators = plan
             .indicators
             .as_ref()
-            .map(|i| IndicatorTapes::new(plan, i));
+            .map(|i| IndicatorTapes::new(plan, i, compiled_tangent(plan, isa, shared_time)));
         let registers = registers
             .max(stop.as_ref().map_or(0, |s| s.registers()))
             .max(indicators.as_ref().map_or(0, |i| i.registers()));
         let idx = lane;
-        let shared_time = share_time && plan.stages.is_some() && plan.shares_time();
         Program {
             plan,
             ops,
@@ -160,21 +161,20 @@ fn fused_stages<R: Flows>(plan: &Plan, isa: Isa, shared: bool) -> Option<FusedSt
     let kernel = StageBuilder {
         order: st.order,
         opt: st.with_optional,
-        time: match (plan.time, shared) {
-            (_, true) => time::SHARED,
-            (false, false) => time::NONE,
-            (true, false) => time::PER_LANE,
-        },
+        time: time_mode(plan, shared),
         isa,
     }
     .build::<R>(&plan.model)?;
     Some(FusedSteps {
         kernel,
-        weights: st
-            .stages
-            .iter()
-            .map(|(w, c)| (R::from_f64(0.5 * w), R::from_f64(*w), R::from_f64(*c)))
-            .collect(),
+        weights: weights(plan)?,
         time_terms: plan.time,
     })
+}
+
+/// The plan's tangent step compiled, where its model and indicators have
+/// one (else the indicators run the tape).
+fn compiled_tangent<R: Flows>(plan: &Plan, isa: Isa, shared: bool) -> Option<CompiledTangent<R>> {
+    let ind = plan.indicators.as_ref()?;
+    CompiledTangent::new(plan, &ind.tangent.space, ind.tangent.vectors, isa, shared)
 }

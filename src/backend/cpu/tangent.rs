@@ -1,0 +1,313 @@
+//! The tangent step of a built-in model, compiled: the step's S2 stages
+//! run again from the state at the step's start over a block, each op's
+//! generated tangent (`models/tangent_ops.rs`) carrying the deviation
+//! vectors along, one lane loop per stage as in the fused stages. The
+//! stages' weights are values, so a model has one kernel per precision,
+//! level (AVX2, AVX-512) and number of vectors (1, 2), whatever its
+//! scheme; only the piece order every model takes by default (`CBABC`) is
+//! compiled (each order more would be as many kernels again, and the
+//! build is bounded). Formula models, other orders, more vectors and
+//! CPUs without AVX2 keep the tape (`indicators.rs`).
+
+// Lane loops index several arrays by lane; iterators would hide that.
+#![allow(clippy::needless_range_loop)]
+
+use std::any::{Any, TypeId};
+
+use super::kernels::{time, time_mode, weights, Weights};
+use crate::models::lanes::{index_of, Lane, Lanes, LANES};
+use crate::models::pieces::{Pieces, PiecesVisitor};
+use crate::models::{tangent_ops, Model};
+use crate::num::isa::Isa;
+use crate::num::precision::Real;
+use crate::plan::Plan;
+
+/// The most deviation vectors the compiled tangent carries.
+pub const MAX_VECTORS: usize = 2;
+
+/// One step's tangent over a block: `(x, d, stages, n, time, time_terms)`.
+/// `x` holds the state at the step's start and the lanes' inputs, `d[k]`
+/// vector k's components at the tangent space's lanes; the step `n` runs
+/// on both (`x` ends at the step's end, a scratch copy). Unsafe to call:
+/// the AVX2/FMA and AVX-512 variants need those features.
+pub type TangentFn<R> =
+    unsafe fn(&mut Lanes<R>, &mut [Box<Lanes<R>>], &[Weights<R>], u64, u8, bool);
+
+/// The step on `x` and `d` (see [`TangentFn`]), its stages in the piece
+/// order every model takes by default, `CBABC`.
+#[inline(always)]
+fn tangent_step<R: Real, P: Pieces<R>, const K: usize>(
+    x: &mut Lanes<R>,
+    d: &mut [Box<Lanes<R>>],
+    stages: &[Weights<R>],
+    n: u64,
+    time_mode: u8,
+    time_terms: bool,
+) {
+    let d: &mut [Box<Lanes<R>>; K] = d.try_into().expect("K deviation vectors");
+    let nf = R::from_f64(n as f64);
+    for &(half, full, c) in stages {
+        let shared = time_pass::<R, P>(x, c, nf, time_mode, time_terms);
+        stage_pass::<R, P, 'C', 'B', 'A', K>(x, d, half, full, shared.as_ref());
+    }
+}
+
+/// A stage's time terms at `t0 + (n + c) dt`, as the fused stage evaluates
+/// them: once for the block (returned, for every lane to take), or per
+/// lane into `x`.
+#[inline(always)]
+fn time_pass<R: Real, P: Pieces<R>>(
+    x: &mut Lanes<R>,
+    c: R,
+    nf: R,
+    time_mode: u8,
+    time_terms: bool,
+) -> Option<Lane<R>> {
+    if time_mode == time::SHARED {
+        let mut shared = Lane::gather(x, 0);
+        shared.t = shared.t0 + nf * shared.dt + c * shared.dt;
+        if time_terms {
+            P::time(&mut shared);
+        }
+        return Some(shared);
+    }
+    if time_mode == time::PER_LANE {
+        for i in 0..LANES {
+            let mut xi = Lane::gather(x, i);
+            xi.t = xi.t0 + nf * xi.dt + c * xi.dt;
+            P::time(&mut xi);
+            xi.scatter_time(x, i);
+        }
+    }
+    None
+}
+
+/// One stage `P1½ P2½ P3 P2½ P1½` (weights `half`, `full` times dt) on
+/// every lane, with its tangent, as the fused stage applies it.
+#[inline(always)]
+fn stage_pass<
+    R: Real,
+    P: Pieces<R>,
+    const P1: char,
+    const P2: char,
+    const P3: char,
+    const K: usize,
+>(
+    x: &mut Lanes<R>,
+    d: &mut [Box<Lanes<R>>; K],
+    half: R,
+    full: R,
+    shared: Option<&Lane<R>>,
+) {
+    for i in 0..LANES {
+        let mut xi = Lane::gather(x, i);
+        if let Some(s) = shared {
+            P::share_time(&mut xi, s);
+        }
+        let mut di = [Lane::gather(&d[0], i); K];
+        for k in 1..K {
+            di[k] = Lane::gather(&d[k], i);
+        }
+        xi.tau = half * xi.dt;
+        P::piece_tangent::<K>(P1, &mut xi, &mut di);
+        P::piece_tangent::<K>(P2, &mut xi, &mut di);
+        xi.tau = full * xi.dt;
+        P::piece_tangent::<K>(P3, &mut xi, &mut di);
+        xi.tau = half * xi.dt;
+        P::piece_tangent::<K>(P2, &mut xi, &mut di);
+        P::piece_tangent::<K>(P1, &mut xi, &mut di);
+        P::scatter(&xi, x, i);
+        for k in 0..K {
+            P::scatter(&di[k], &mut d[k], i);
+        }
+    }
+}
+
+/// Declares a [`TangentFn`] variant of [`tangent_step`] for one level.
+macro_rules! tangent_variant {
+    ($(#[$m:meta])* $name:ident) => {
+        $(#[$m])*
+        unsafe fn $name<R: Real, P: Pieces<R>, const K: usize>(
+            x: &mut Lanes<R>,
+            d: &mut [Box<Lanes<R>>],
+            stages: &[Weights<R>],
+            n: u64,
+            time_mode: u8,
+            time_terms: bool,
+        ) {
+            tangent_step::<R, P, K>(x, d, stages, n, time_mode, time_terms)
+        }
+    };
+}
+
+tangent_variant! {
+    /// [`tangent_step`] compiled for AVX2 and FMA.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    tangent_v3
+}
+
+tangent_variant! {
+    /// [`tangent_step`] compiled for AVX-512.
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
+    tangent_v4
+}
+
+/// Picks the variant of whichever model's pieces it visits: the level and
+/// the number of vectors. `None` below AVX2 (the tape runs there).
+struct Builder {
+    isa: Isa,
+    vectors: usize,
+}
+
+impl<R: Real> PiecesVisitor<R> for Builder {
+    type Out = Option<TangentFn<R>>;
+    #[allow(unreachable_code)]
+    fn visit<P: Pieces<R>>(self) -> Option<TangentFn<R>> {
+        #[cfg(target_arch = "x86_64")]
+        {
+            return match (self.isa, self.vectors) {
+                (Isa::V4, 1) => Some(tangent_v4::<R, P, 1> as TangentFn<R>),
+                (Isa::V4, 2) => Some(tangent_v4::<R, P, 2> as TangentFn<R>),
+                (Isa::V3, 1) => Some(tangent_v3::<R, P, 1> as TangentFn<R>),
+                (Isa::V3, 2) => Some(tangent_v3::<R, P, 2> as TangentFn<R>),
+                _ => None,
+            };
+        }
+        let _ = self;
+        None
+    }
+}
+
+/// The lanes the compiled tangent step runs on for one block: a copy of
+/// the block's lanes (its parameters; the state is set before each step)
+/// and each deviation vector's lanes.
+pub struct TangentScratch<R> {
+    pub x: Box<Lanes<R>>,
+    pub d: Vec<Box<Lanes<R>>>,
+}
+
+impl<R: Real> TangentScratch<R> {
+    pub fn new(l: &Lanes<R>, vectors: usize) -> TangentScratch<R> {
+        let mut x = Lanes::boxed();
+        x.as_mut_slice().copy_from_slice(l.as_slice());
+        TangentScratch {
+            x,
+            d: (0..vectors).map(|_| Lanes::boxed()).collect(),
+        }
+    }
+}
+
+/// A plan's compiled tangent step: the kernel and what it reads.
+pub struct CompiledTangent<R> {
+    kernel: TangentFn<R>,
+    pub stages: Vec<Weights<R>>,
+    pub time_mode: u8,
+    pub time_terms: bool,
+    pub isa: Isa,
+    /// The lane index of each tangent-space variable, in order.
+    pub space: Vec<usize>,
+    vectors: usize,
+    /// Whether its stages are the whole step: the plan integrates no
+    /// optional variable (which the tangent leaves out).
+    pub takes_step: bool,
+}
+
+impl<R: Real> CompiledTangent<R> {
+    /// The compiled tangent of `plan`'s step for `vectors` deviation
+    /// vectors over `space` (its tangent space), or `None` where the tape
+    /// must do: a plan that is no splitting or has another piece order
+    /// than `CBABC`, a formula model, more vectors than [`MAX_VECTORS`],
+    /// an op without a generated tangent, a tangent space other than the
+    /// model's variables less the optional one, a CPU without AVX2, a
+    /// precision other than f32 and f64. `shared`: the ensemble shares the
+    /// time terms (as for the fused stages).
+    pub fn new(
+        plan: &Plan,
+        space: &[&str],
+        vectors: usize,
+        isa: Isa,
+        shared: bool,
+    ) -> Option<CompiledTangent<R>> {
+        let model = &plan.model;
+        let spec = model.spec();
+        let ops = spec.piece_ops.iter().flat_map(|p| p.ops.iter());
+        let generated = ops
+            .filter(|(_, optional)| !optional)
+            .all(|(op, _)| !tangent_ops::UNSUPPORTED.contains(op));
+        let expected: Vec<&str> = spec
+            .vars
+            .iter()
+            .copied()
+            .filter(|v| Some(*v) != spec.optional_var)
+            .collect();
+        let default_order = plan.stages.as_ref()?.order == ['C', 'B', 'A'];
+        if model.formula().is_some()
+            || !default_order
+            || !(1..=MAX_VECTORS).contains(&vectors)
+            || !generated
+            || expected != space
+        {
+            return None;
+        }
+        Some(CompiledTangent {
+            kernel: kernel::<R>(model, isa, vectors)?,
+            stages: weights(plan)?,
+            time_mode: time_mode(plan, shared),
+            time_terms: plan.time,
+            isa,
+            space: space.iter().map(|v| index_of(v).expect("a lane")).collect(),
+            vectors,
+            takes_step: !plan.stages.as_ref()?.with_optional,
+        })
+    }
+
+    /// How many deviation vectors it carries.
+    pub fn vectors(&self) -> usize {
+        self.vectors
+    }
+
+    /// Step `n` on the scratch lanes `x` and the vectors `d` (see
+    /// [`TangentFn`]).
+    pub fn run(&self, x: &mut Lanes<R>, d: &mut [Box<Lanes<R>>], n: u64) {
+        // SAFETY: `kernel` was picked for `isa`, which `kernels::isa` only
+        // names where the CPU has its features.
+        unsafe { (self.kernel)(x, d, &self.stages, n, self.time_mode, self.time_terms) }
+    }
+}
+
+/// The kernel of `model` in precision `R` at level `isa`, compiled in this
+/// crate alone (as `StageBuilder::build` does for the fused steps).
+fn kernel<R: Real>(model: &Model, isa: Isa, vectors: usize) -> Option<TangentFn<R>> {
+    let b = Builder { isa, vectors };
+    let (f32s, f64s);
+    let out: &dyn Any = if TypeId::of::<R>() == TypeId::of::<f32>() {
+        f32s = kernel_f32(model, b);
+        &f32s
+    } else if TypeId::of::<R>() == TypeId::of::<f64>() {
+        f64s = kernel_f64(model, b);
+        &f64s
+    } else {
+        return None;
+    };
+    out.downcast_ref::<Option<TangentFn<R>>>()
+        .copied()
+        .flatten()
+}
+
+#[inline(never)]
+fn kernel_f32(model: &Model, b: Builder) -> Option<TangentFn<f32>> {
+    model.with_pieces::<f32, _>(b).flatten()
+}
+
+#[inline(never)]
+fn kernel_f64(model: &Model, b: Builder) -> Option<TangentFn<f64>> {
+    model.with_pieces::<f64, _>(b).flatten()
+}
