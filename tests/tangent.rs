@@ -418,3 +418,44 @@ fn a_stop_condition_reads_the_fli() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Where the plan integrates no optional variable, the compiled tangent
+/// step takes the step itself (`backend/cpu/tangent.rs`): the state is
+/// bitwise the plain run's. With the optional variable (van der Pol's p),
+/// the fused stages take it, and in another piece order the tape carries
+/// the vectors: the state is the plain run's there too.
+#[test]
+fn indicators_leave_the_state_bitwise_unchanged() {
+    let cases = [
+        ("damped_oscillator", false, None),
+        ("van_der_pol", false, None),
+        ("van_der_pol", true, None),
+        ("van_der_pol", false, Some("ABCBA")),
+        ("kepler", false, None),
+        ("spin_orbit", false, None),
+        ("quadratic_s", false, None),
+    ];
+    for (name, optional, order) in cases {
+        let mut p = common::problem(name, "triple_jump4").unwrap();
+        p.order = order.map(String::from);
+        let spec = p.model.spec();
+        let vars: Vec<String> = spec
+            .vars
+            .iter()
+            .filter(|v| optional || Some(**v) != spec.optional_var)
+            .map(|v| v.to_string())
+            .collect();
+        p.observers.final_vars = vars.clone();
+        let mut plain = p.clone();
+        (plain.dt, plain.steps) = (C(0.01), 300);
+        let a = cpu::run::<f64>(&Plan::new(&plain).unwrap(), None);
+        let b = cpu::run::<f64>(&indicators(p, 1, 1, 300, 0.01), None);
+        for v in &vars {
+            let bits = |o: &Observations<f64>| -> Vec<u64> {
+                o.final_of(v).unwrap().iter().map(|x| x.to_bits()).collect()
+            };
+            assert_eq!(bits(&a), bits(&b), "{name} {order:?} {v}");
+        }
+        assert!(b.fli.iter().all(|x| x.is_finite()), "{name} {order:?}");
+    }
+}

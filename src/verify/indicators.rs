@@ -173,15 +173,17 @@ pub fn tangent_columns(
 }
 
 /// The tangent map of step `n` at `x` on `space` as the CPU's compiled
-/// tangent step computes it (its columns), where the plan has one
-/// (`backend/cpu/tangent.rs`; at the best level this CPU runs).
+/// tangent step computes it (its columns, the unit vectors carried at
+/// once), where the plan has one (`backend/cpu/tangent.rs`; at the best
+/// level this CPU runs).
 pub fn compiled_columns(
     plan: &Plan,
     x: &[(&str, f64)],
     space: &[&str],
     n: u64,
 ) -> Option<Vec<Vec<f64>>> {
-    let c = CompiledTangent::<f64>::new(plan, space, 1, kernels::isa(), false)?;
+    let d = space.len();
+    let c = CompiledTangent::<f64>::new(plan, space, d, kernels::isa(), false)?;
     let l = lane_at(plan, x);
     let mut lanes = Lanes::<f64>::boxed();
     for name in NAMES {
@@ -189,20 +191,21 @@ pub fn compiled_columns(
             *a = [v; LANES];
         }
     }
-    let column = |k: usize| {
-        let mut scratch = TangentScratch::new(&lanes, 1);
+    let mut scratch = TangentScratch::new(&lanes, d);
+    for (k, v) in scratch.d.iter_mut().enumerate() {
         for (j, var) in space.iter().enumerate() {
-            let v = if j == k { 1.0 } else { 0.0 };
-            *scratch.d[0].field_mut(var).expect("a lane") = [v; LANES];
+            let unit = if j == k { 1.0 } else { 0.0 };
+            *v.field_mut(var).expect("a lane") = [unit; LANES];
         }
-        c.run(&mut scratch.x, &mut scratch.d, n);
-        let d = &scratch.d[0];
+    }
+    c.run(&mut scratch.x, &mut scratch.d, n);
+    let column = |v: &Lanes<f64>| {
         space
             .iter()
-            .map(|v| d.field(v).expect("a lane")[0])
+            .map(|s| v.field(s).expect("a lane")[0])
             .collect()
     };
-    Some((0..space.len()).map(column).collect())
+    Some(scratch.d.iter().map(|v| column(v)).collect())
 }
 
 /// Central finite differences (step `h`) of step `n` of the compiled

@@ -3,11 +3,11 @@
 //! generated tangent (`models/tangent_ops.rs`) carrying the deviation
 //! vectors along, one lane loop per stage as in the fused stages. The
 //! stages' weights are values, so a model has one kernel per precision,
-//! level (AVX2, AVX-512) and number of vectors (1, 2), whatever its
-//! scheme; only the piece order every model takes by default (`CBABC`) is
-//! compiled (each order more would be as many kernels again, and the
-//! build is bounded). Formula models, other orders, more vectors and
-//! CPUs without AVX2 keep the tape (`indicators.rs`).
+//! level (AVX2, AVX-512) and number of vectors per pass (1, 2), whatever
+//! its scheme; only the piece order every model takes by default (`CBABC`)
+//! is compiled (each order more would be as many kernels again, and the
+//! build is bounded). Formula models, other orders and CPUs without AVX2
+//! keep the tape (`indicators.rs`).
 
 // Lane loops index several arrays by lane; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
@@ -22,7 +22,8 @@ use crate::num::isa::Isa;
 use crate::num::precision::Real;
 use crate::plan::Plan;
 
-/// The most deviation vectors the compiled tangent carries.
+/// The most deviation vectors one pass of a kernel carries; more run in
+/// passes of at most this many, each from the step's start.
 pub const MAX_VECTORS: usize = 2;
 
 /// One step's tangent over a block: `(x, d, stages, n, time, time_terms)`.
@@ -205,9 +206,12 @@ impl<R: Real> TangentScratch<R> {
     }
 }
 
-/// A plan's compiled tangent step: the kernel and what it reads.
+/// A plan's compiled tangent step: the kernels and what they read.
 pub struct CompiledTangent<R> {
-    kernel: TangentFn<R>,
+    /// The kernels for one and for two vectors.
+    kernels: [TangentFn<R>; MAX_VECTORS],
+    /// The lane index of each of the model's state variables.
+    vars: Vec<usize>,
     pub stages: Vec<Weights<R>>,
     pub time_mode: u8,
     pub time_terms: bool,
@@ -224,7 +228,7 @@ impl<R: Real> CompiledTangent<R> {
     /// The compiled tangent of `plan`'s step for `vectors` deviation
     /// vectors over `space` (its tangent space), or `None` where the tape
     /// must do: a plan that is no splitting or has another piece order
-    /// than `CBABC`, a formula model, more vectors than [`MAX_VECTORS`],
+    /// than `CBABC`, a formula model, no vector,
     /// an op without a generated tangent, a tangent space other than the
     /// model's variables less the optional one, a CPU without AVX2, a
     /// precision other than f32 and f64. `shared`: the ensemble shares the
@@ -251,14 +255,19 @@ impl<R: Real> CompiledTangent<R> {
         let default_order = plan.stages.as_ref()?.order == ['C', 'B', 'A'];
         if model.formula().is_some()
             || !default_order
-            || !(1..=MAX_VECTORS).contains(&vectors)
+            || vectors == 0
             || !generated
             || expected != space
         {
             return None;
         }
         Some(CompiledTangent {
-            kernel: kernel::<R>(model, isa, vectors)?,
+            kernels: [kernel::<R>(model, isa, 1)?, kernel::<R>(model, isa, 2)?],
+            vars: spec
+                .vars
+                .iter()
+                .map(|v| index_of(v).expect("a lane"))
+                .collect(),
             stages: weights(plan)?,
             time_mode: time_mode(plan, shared),
             time_terms: plan.time,
@@ -275,11 +284,25 @@ impl<R: Real> CompiledTangent<R> {
     }
 
     /// Step `n` on the scratch lanes `x` and the vectors `d` (see
-    /// [`TangentFn`]).
+    /// [`TangentFn`]), in passes of at most [`MAX_VECTORS`] vectors, each
+    /// from the step's start.
     pub fn run(&self, x: &mut Lanes<R>, d: &mut [Box<Lanes<R>>], n: u64) {
-        // SAFETY: `kernel` was picked for `isa`, which `kernels::isa` only
-        // names where the CPU has its features.
-        unsafe { (self.kernel)(x, d, &self.stages, n, self.time_mode, self.time_terms) }
+        let start: Vec<[R; LANES]> = if d.len() > MAX_VECTORS {
+            self.vars.iter().map(|&v| *x.at(v)).collect()
+        } else {
+            vec![]
+        };
+        for (k, pass) in d.chunks_mut(MAX_VECTORS).enumerate() {
+            if k > 0 {
+                for (&v, a) in self.vars.iter().zip(&start) {
+                    *x.at_mut(v) = *a;
+                }
+            }
+            let kernel = self.kernels[pass.len() - 1];
+            // SAFETY: the kernels were picked for `isa`, which
+            // `kernels::isa` only names where the CPU has its features.
+            unsafe { kernel(x, pass, &self.stages, n, self.time_mode, self.time_terms) }
+        }
     }
 }
 
