@@ -406,7 +406,9 @@ fn run_block<R: Flows>(
             pause.progressed();
             return;
         }
-        if p.needs_field || plan.cycle_var.is_some() || p.indicators.is_some() {
+        // The tape reads the step's start; the compiled step does not.
+        let tape = p.indicators.as_ref().is_some_and(|i| !i.takes_step());
+        if p.needs_field || plan.cycle_var.is_some() || tape {
             for k in 0..nv {
                 prev[k] = *l.at(p.var[k]);
                 dprev[k] = *l.at(p.dvar[k]);

@@ -50,6 +50,8 @@ enum Code {
     SubRR, SubRI, SubIR, SubII, SubRC, SubCR, SubIC, SubCI,
     MulRR, MulRI, MulIR, MulII, MulRC, MulCR, MulIC, MulCI,
     DivRR, DivRI, DivIR, DivII, DivRC, DivCR, DivIC, DivCI,
+    MaxRR, MaxRI, MaxIR, MaxII, MaxRC, MaxCR, MaxIC, MaxCI,
+    MinRR, MinRI, MinIR, MinII, MinRC, MinCR, MinIC, MinCI,
     NegR, NegI, ExpR, ExpI, LogR, LogI, SqrtR, SqrtI, SinR, SinI, CosR, CosI,
     /// Anything else (scalar inputs, the rarer functions): operation and
     /// operands matched one by one.
@@ -95,6 +97,8 @@ fn code<R: Real>(op: Prim, a: Src<R>, b: Src<R>) -> (Code, u32, u32, R) {
         Prim::Sub => [SubRR, SubRI, SubIR, SubII, SubRC, SubCR, SubIC, SubCI],
         Prim::Mul => [MulRR, MulRI, MulIR, MulII, MulRC, MulCR, MulIC, MulCI],
         Prim::Div => [DivRR, DivRI, DivIR, DivII, DivRC, DivCR, DivIC, DivCI],
+        Prim::Call2(Func2::Max) => [MaxRR, MaxRI, MaxIR, MaxII, MaxRC, MaxCR, MaxIC, MaxCI],
+        Prim::Call2(Func2::Min) => [MinRR, MinRI, MinIR, MinII, MinRC, MinCR, MinIC, MinCI],
         _ => return general,
     };
     match (ka, kb) {
@@ -434,7 +438,9 @@ fn run_body<R: Real, const N: usize>(
             add => AddRR AddRI AddIR AddII AddRC AddCR AddIC AddCI,
             sub => SubRR SubRI SubIR SubII SubRC SubCR SubIC SubCI,
             mul => MulRR MulRI MulIR MulII MulRC MulCR MulIC MulCI,
-            div => DivRR DivRI DivIR DivII DivRC DivCR DivIC DivCI;
+            div => DivRR DivRI DivIR DivII DivRC DivCR DivIC DivCI,
+            R::max_r => MaxRR MaxRI MaxIR MaxII MaxRC MaxCR MaxIC MaxCI,
+            R::min_r => MinRR MinRI MinIR MinII MinRC MinCR MinIC MinCI;
             neg => NegR NegI,
             R::exp_r => ExpR ExpI,
             R::log_r => LogR LogI,
@@ -607,7 +613,14 @@ mod tests {
             b: Operand::Const(1.0),
         });
         let operands = [Operand::Val(0), Operand::Input(1), Operand::Const(0.375)];
-        let binary = [Prim::Add, Prim::Sub, Prim::Mul, Prim::Div];
+        let binary = [
+            Prim::Add,
+            Prim::Sub,
+            Prim::Mul,
+            Prim::Div,
+            Prim::Call2(Func2::Max),
+            Prim::Call2(Func2::Min),
+        ];
         let unary = [Func::Exp, Func::Log, Func::Sqrt, Func::Sin, Func::Cos].map(Prim::Call);
         let mut cases = vec![];
         for op in binary {
@@ -653,6 +666,8 @@ mod tests {
                     Prim::Call(Func::Sqrt) => u.sqrt(),
                     Prim::Call(Func::Sin) => f64::sin_r(u),
                     Prim::Call(Func::Cos) => f64::cos_r(u),
+                    Prim::Call2(Func2::Max) => f64::max_r(u, v),
+                    Prim::Call2(Func2::Min) => f64::min_r(u, v),
                     _ => unreachable!(),
                 };
                 let got = tape.output(&regs, k)[i];
