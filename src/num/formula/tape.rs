@@ -557,7 +557,7 @@ fn binary<R: Real, const N: usize>(op: Prim, d: &mut [R; N], a: impl At<R>, b: i
 mod tests {
     use super::super::{compile, lower::lower, Dag};
     use super::*;
-    use crate::num::math::Math;
+    use crate::num::math::{Elementary, Math};
 
     #[test]
     fn a_block_matches_the_reference_evaluation() {
