@@ -23,7 +23,8 @@ pub mod quadratic_s;
 pub mod spec;
 pub mod spin_orbit;
 pub mod symbolic;
-pub mod tangent_gen;
+#[cfg(test)]
+mod tangent_gen;
 // Generated (`tangent_gen.rs`), checked against its generator by a test.
 #[rustfmt::skip]
 pub mod tangent_ops;

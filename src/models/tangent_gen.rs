@@ -8,7 +8,6 @@
 
 use std::fmt::Write;
 
-use crate::num::formula::dag::{Func, Func2};
 use crate::num::formula::lower::{lower, Lowered, Operand, Prim};
 use crate::num::formula::Id;
 
@@ -86,8 +85,8 @@ fn body(name: &str, l: &Lowered, input: &dyn Fn(u32) -> String, written: &[&str]
             Prim::Sub => format!("{a} - {b}"),
             Prim::Mul => format!("{a} * {b}"),
             Prim::Div => format!("{a} / {b}"),
-            Prim::Call(f) => format!("R::{}({a})", function(f)),
-            Prim::Call2(f) => format!("R::{}({a}, {b})", function2(f)),
+            Prim::Call(_) => format!("R::{}({a})", i.op.function()),
+            Prim::Call2(_) => format!("R::{}({a}, {b})", i.op.function()),
         };
         writeln!(s, "    let v{k}: R = {e};").unwrap();
     }
@@ -100,32 +99,6 @@ fn body(name: &str, l: &Lowered, input: &dyn Fn(u32) -> String, written: &[&str]
     }
     s.push_str("}\n");
     s
-}
-
-/// reeb's own function for `f` (as the tape calls it).
-fn function(f: Func) -> &'static str {
-    match f {
-        Func::Sqrt => "sqrt",
-        Func::Exp => "exp_r",
-        Func::Log => "log_r",
-        Func::Sin => "sin_r",
-        Func::Cos => "cos_r",
-        Func::Tan => "tan_r",
-        Func::Atan => "atan_r",
-        Func::Sinh => "sinh_r",
-        Func::Cosh => "cosh_r",
-        Func::Tanh => "tanh_r",
-        Func::Abs => "abs",
-        Func::Sign => "sign_r",
-    }
-}
-
-fn function2(f: Func2) -> &'static str {
-    match f {
-        Func2::Pow => "pow_r",
-        Func2::Min => "min_r",
-        Func2::Max => "max_r",
-    }
 }
 
 /// The text of `tangent_ops.rs`.

@@ -129,8 +129,7 @@ impl<R: Real> IndicatorTapes<R> {
     /// Step `n` (0 for the first) of block `l` and of the deviation vectors
     /// of its `running` lanes (bits) at once, on `scratch`, where
     /// [`IndicatorTapes::takes_step`]: the same operations as the fused
-    /// stages, so the same state. Returns whether some state became
-    /// non-finite.
+    /// stages, so the same state.
     pub fn step(
         &self,
         l: &mut Lanes<R>,
@@ -138,21 +137,15 @@ impl<R: Real> IndicatorTapes<R> {
         real: &mut [[R; LANES]],
         n: u64,
         running: u64,
-    ) -> bool {
+    ) {
         let c = self.compiled.as_ref().expect("a compiled tangent");
         for &lane in &self.var_lanes {
             *scratch.x.at_mut(lane) = *l.at(lane);
         }
         self.move_vectors(c, scratch, real, n, running);
-        let mut any = false;
         for &lane in &self.var_lanes {
-            let x = scratch.x.at(lane);
-            *l.at_mut(lane) = *x;
-            for i in 0..LANES {
-                any |= !x[i].finite();
-            }
+            *l.at_mut(lane) = *scratch.x.at(lane);
         }
-        any
     }
 
     /// After step `n1` (1 for the first): the deviation vectors of the

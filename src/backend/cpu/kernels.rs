@@ -463,6 +463,7 @@ pub fn weights<R: Real>(plan: &Plan) -> Option<Vec<Weights<R>>> {
 }
 
 /// Builds the fused steps of whichever model's pieces it visits.
+#[derive(Clone, Copy)]
 pub struct StageBuilder {
     pub order: [char; 3],
     pub opt: bool,
@@ -483,24 +484,38 @@ impl StageBuilder {
     /// model, an order that is not a permutation of A, B, C, or a precision
     /// other than f32 and f64.
     ///
-    /// The kernels are compiled in this crate alone, through the
-    /// non-generic [`kernels_f32`] and [`kernels_f64`]: built from a generic
-    /// caller, every crate that runs a plan (each test crate) would
-    /// monomorphise all ~1300 of them again (one test crate's rustc reached
-    /// 13.7 GB). `Any` hands the pointer back as a `StepsFn<R>`.
+    /// Compiled through the non-generic [`kernels_f32`] and
+    /// [`kernels_f64`] (see [`in_precision`]).
     pub fn build<R: Real>(self, model: &Model) -> Option<StepsFn<R>> {
-        let (f32s, f64s);
-        let out: &dyn Any = if TypeId::of::<R>() == TypeId::of::<f32>() {
-            f32s = kernels_f32(self, model);
-            &f32s
-        } else if TypeId::of::<R>() == TypeId::of::<f64>() {
-            f64s = kernels_f64(self, model);
-            &f64s
-        } else {
-            return None;
-        };
-        out.downcast_ref::<Option<StepsFn<R>>>().copied().flatten()
+        in_precision::<R, Option<StepsFn<R>>, _, _>(
+            || kernels_f32(self, model),
+            || kernels_f64(self, model),
+        )
+        .flatten()
     }
+}
+
+/// What `f32s` or `f64s` makes, whichever is `R`, as `Out` (their result
+/// in `R`); `None` in another precision. Kernels are compiled in this crate
+/// alone, through non-generic builders for f32 and f64: built from a
+/// generic caller, every crate that runs a plan (each test crate) would
+/// monomorphise all ~1300 of them again (one test crate's rustc reached
+/// 13.7 GB). `Any` hands the result back in `R`.
+pub fn in_precision<R: Real, Out: Any + Copy, A: Any, B: Any>(
+    f32s: impl FnOnce() -> A,
+    f64s: impl FnOnce() -> B,
+) -> Option<Out> {
+    let (a, b);
+    let out: &dyn Any = if TypeId::of::<R>() == TypeId::of::<f32>() {
+        a = f32s();
+        &a
+    } else if TypeId::of::<R>() == TypeId::of::<f64>() {
+        b = f64s();
+        &b
+    } else {
+        return None;
+    };
+    out.downcast_ref::<Out>().copied()
 }
 
 /// [`StageBuilder::build`] in f32, compiled here only.

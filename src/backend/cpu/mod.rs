@@ -356,8 +356,11 @@ fn run_block<R: Flows>(
         f.begin(l, &mut m);
         m
     });
-    // The compiled tangent step's lanes, where it runs.
+    // The compiled tangent step's lanes, where it runs; whether it takes
+    // the steps (else the tape or the compiled tangent reads `prev`).
     let mut tangent = p.indicators.as_ref().and_then(|i| i.scratch(l));
+    let tangent_steps = p.indicators.as_ref().is_some_and(|i| i.takes_step());
+    let reads_prev = p.indicators.is_some() && !tangent_steps;
     // State (and slopes) at the start of the current step, for interpolation.
     let mut prev = LaneArrays::filled(nv, R::default());
     let mut dprev = LaneArrays::filled(nv, R::default());
@@ -406,9 +409,7 @@ fn run_block<R: Flows>(
             pause.progressed();
             return;
         }
-        // The tape reads the step's start; the compiled step does not.
-        let tape = p.indicators.as_ref().is_some_and(|i| !i.takes_step());
-        if p.needs_field || plan.cycle_var.is_some() || tape {
+        if p.needs_field || plan.cycle_var.is_some() || reads_prev {
             for k in 0..nv {
                 prev[k] = *l.at(p.var[k]);
                 dprev[k] = *l.at(p.dvar[k]);
@@ -416,10 +417,10 @@ fn run_block<R: Flows>(
         }
         let (done, any) = match (&p.indicators, tangent.as_mut()) {
             // The compiled tangent step moves state and vectors at once.
-            (Some(ind), Some(scratch)) if ind.takes_step() => {
+            (Some(ind), Some(scratch)) if tangent_steps => {
                 let (running, padding) = observe::running_lanes(&status[..count]);
-                let real = obs.slots_mut();
-                (1, ind.step(l, scratch, real, n, running | padding))
+                ind.step(l, scratch, obs.slots_mut(), n, running | padding);
+                (1, any_nonfinite(p, l))
             }
             _ => advance(
                 p,

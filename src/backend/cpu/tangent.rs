@@ -12,9 +12,7 @@
 // Lane loops index several arrays by lane; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
-use std::any::{Any, TypeId};
-
-use super::kernels::{time, time_mode, weights, Weights};
+use super::kernels::{in_precision, time, time_mode, weights, Weights};
 use crate::models::lanes::{index_of, Lane, Lanes, LANES};
 use crate::models::pieces::{Pieces, PiecesVisitor};
 use crate::models::{tangent_ops, Model};
@@ -163,6 +161,7 @@ tangent_variant! {
 
 /// Picks the variant of whichever model's pieces it visits: the level and
 /// the number of vectors. `None` below AVX2 (the tape runs there).
+#[derive(Clone, Copy)]
 struct Builder {
     isa: Isa,
     vectors: usize,
@@ -212,10 +211,9 @@ pub struct CompiledTangent<R> {
     kernels: [TangentFn<R>; MAX_VECTORS],
     /// The lane index of each of the model's state variables.
     vars: Vec<usize>,
-    pub stages: Vec<Weights<R>>,
-    pub time_mode: u8,
-    pub time_terms: bool,
-    pub isa: Isa,
+    stages: Vec<Weights<R>>,
+    time_mode: u8,
+    time_terms: bool,
     /// The lane index of each tangent-space variable, in order.
     pub space: Vec<usize>,
     vectors: usize,
@@ -271,7 +269,6 @@ impl<R: Real> CompiledTangent<R> {
             stages: weights(plan)?,
             time_mode: time_mode(plan, shared),
             time_terms: plan.time,
-            isa,
             space: space.iter().map(|v| index_of(v).expect("a lane")).collect(),
             vectors,
             takes_step: !plan.stages.as_ref()?.with_optional,
@@ -307,21 +304,10 @@ impl<R: Real> CompiledTangent<R> {
 }
 
 /// The kernel of `model` in precision `R` at level `isa`, compiled in this
-/// crate alone (as `StageBuilder::build` does for the fused steps).
+/// crate alone (see [`in_precision`]).
 fn kernel<R: Real>(model: &Model, isa: Isa, vectors: usize) -> Option<TangentFn<R>> {
     let b = Builder { isa, vectors };
-    let (f32s, f64s);
-    let out: &dyn Any = if TypeId::of::<R>() == TypeId::of::<f32>() {
-        f32s = kernel_f32(model, b);
-        &f32s
-    } else if TypeId::of::<R>() == TypeId::of::<f64>() {
-        f64s = kernel_f64(model, b);
-        &f64s
-    } else {
-        return None;
-    };
-    out.downcast_ref::<Option<TangentFn<R>>>()
-        .copied()
+    in_precision::<R, Option<TangentFn<R>>, _, _>(|| kernel_f32(model, b), || kernel_f64(model, b))
         .flatten()
 }
 

@@ -52,6 +52,34 @@ impl Prim {
     pub fn unary(self) -> bool {
         matches!(self, Prim::Neg | Prim::Call(_))
     }
+
+    /// The name of a call's function: reeb's own (`num/math.rs` and the
+    /// preludes), except the exactly rounded `sqrt` and `abs`; the same in
+    /// WGSL (`wgsl.rs`) and as `R::name` in Rust (`models/tangent_gen.rs`).
+    pub fn function(self) -> &'static str {
+        match self {
+            Prim::Call(f) => match f {
+                Func::Sqrt => "sqrt",
+                Func::Exp => "exp_r",
+                Func::Log => "log_r",
+                Func::Sin => "sin_r",
+                Func::Cos => "cos_r",
+                Func::Tan => "tan_r",
+                Func::Atan => "atan_r",
+                Func::Sinh => "sinh_r",
+                Func::Cosh => "cosh_r",
+                Func::Tanh => "tanh_r",
+                Func::Abs => "abs",
+                Func::Sign => "sign_r",
+            },
+            Prim::Call2(f) => match f {
+                Func2::Pow => "pow_r",
+                Func2::Min => "min_r",
+                Func2::Max => "max_r",
+            },
+            _ => unreachable!("{self:?} is an operator"),
+        }
+    }
 }
 
 /// Lowers `roots` of `dag` into one program (shared nodes computed once).

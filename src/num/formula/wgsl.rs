@@ -3,7 +3,7 @@
 
 use std::fmt::Write;
 
-use super::dag::{Func, Func2};
+use super::dag::Func;
 use super::lower::{key, Lowered, Operand, Prim};
 
 /// A WGSL literal for `v` (abstract float: full f64 precision, converted by
@@ -19,33 +19,6 @@ pub fn lit(v: f64) -> String {
         format!("({s})")
     } else {
         s
-    }
-}
-
-/// The WGSL name of a function (reeb's own, from `num/math.rs` and the
-/// preludes, except the exactly rounded `sqrt` and `abs`).
-fn function(op: Prim) -> &'static str {
-    match op {
-        Prim::Call(f) => match f {
-            Func::Sqrt => "sqrt",
-            Func::Exp => "exp_r",
-            Func::Log => "log_r",
-            Func::Sin => "sin_r",
-            Func::Cos => "cos_r",
-            Func::Tan => "tan_r",
-            Func::Atan => "atan_r",
-            Func::Sinh => "sinh_r",
-            Func::Cosh => "cosh_r",
-            Func::Tanh => "tanh_r",
-            Func::Abs => "abs",
-            Func::Sign => "sign_r",
-        },
-        Prim::Call2(f) => match f {
-            Func2::Pow => "pow_r",
-            Func2::Min => "min_r",
-            Func2::Max => "max_r",
-        },
-        _ => unreachable!("{op:?} is an operator"),
     }
 }
 
@@ -107,8 +80,8 @@ pub fn function_text(name: &str, l: &Lowered, inputs: &[&str], outputs: &[&str])
             Prim::Sub => format!("{a} - {b}"),
             Prim::Mul => format!("{a} * {b}"),
             Prim::Div => format!("{a} / {b}"),
-            Prim::Call(_) => format!("{}({a})", function(i.op)),
-            Prim::Call2(_) => format!("{}({a}, {b})", function(i.op)),
+            Prim::Call(_) => format!("{}({a})", i.op.function()),
+            Prim::Call2(_) => format!("{}({a}, {b})", i.op.function()),
         };
         writeln!(body, "    let v{k}: R = {e};").unwrap();
     }
