@@ -123,7 +123,7 @@ mod common;
 
 use reeb::backend::{cpu, gpu};
 use reeb::plan::observations::Observations;
-use reeb::plan::observers::TrajectoryObs;
+use reeb::plan::observers::{AverageObs, TrajectoryObs};
 use reeb::reference::variational::flow_exponents;
 
 /// `problem` asking for `k` exponents (re-orthonormalised every `every`
@@ -458,4 +458,85 @@ fn indicators_leave_the_state_bitwise_unchanged() {
         }
         assert!(b.fli.iter().all(|x| x.is_finite()), "{name} {order:?}");
     }
+}
+
+/// Where the tangent and the samples are compiled and no other observer
+/// looks at every step, the CPU takes runs of steps in one call
+/// (`IndicatorTapes::steps`, the vectors in scratch lanes throughout). It
+/// computes the bits of the step-by-step path, which a time average (an
+/// observer of every step) forces here: two exponents, FLI and MEGNO
+/// (three vectors, so two passes), trajectory frames, 100 trajectories
+/// (a padded second block), some of them diverging mid-run; f32 and f64.
+#[test]
+fn runs_of_steps_are_the_steps_one_by_one() {
+    fn bits<R: Copy + Into<f64>>(v: &[R]) -> Vec<u64> {
+        v.iter().map(|x| (*x).into().to_bits()).collect()
+    }
+    fn same<R: reeb::models::Flows + Into<f64>>(name: &str, runs: &Plan, steps: &Plan) -> usize {
+        let a = cpu::run::<R>(runs, None);
+        let b = cpu::run::<R>(steps, None);
+        assert_eq!(a.nonfinite_step, b.nonfinite_step, "{name}");
+        assert_eq!(bits(&a.lyapunov), bits(&b.lyapunov), "{name}: exponents");
+        assert_eq!(bits(&a.fli), bits(&b.fli), "{name}: FLI");
+        assert_eq!(bits(&a.megno), bits(&b.megno), "{name}: MEGNO");
+        assert_eq!(bits(&a.trajectory_fli), bits(&b.trajectory_fli), "{name}");
+        assert_eq!(
+            bits(&a.trajectory_megno),
+            bits(&b.trajectory_megno),
+            "{name}"
+        );
+        assert_eq!(
+            bits(&a.trajectory_lyapunov),
+            bits(&b.trajectory_lyapunov),
+            "{name}"
+        );
+        assert!(
+            a.fli.iter().any(|x| Into::<f64>::into(*x).is_finite()),
+            "{name}"
+        );
+        a.nonfinite_step.iter().filter(|s| **s != 0).count()
+    }
+    let mut diverged = 0;
+    for name in [
+        "damped_oscillator",
+        "van_der_pol",
+        "kepler",
+        "spin_orbit",
+        "quadratic_s",
+    ] {
+        let mut p = problem(name, "triple_jump4");
+        let var = p.model.spec().vars[0];
+        // Every 37th trajectory starts far out, where the nonlinear models'
+        // steps overflow.
+        let values = (0..100)
+            .map(|i| match i % 37 == 5 {
+                true => 1e200,
+                false => 0.3 + 0.01 * f64::from(i),
+            })
+            .collect();
+        let q0 = p.axis(var, values);
+        p = p.initial(var, q0);
+        p.observers.trajectory = Some(TrajectoryObs {
+            every: 60,
+            vars: vec![var.to_string()],
+        });
+        let runs = with_indicators(p, 2, 1, 0.1, 400, 0.01);
+        let mut steps = runs.clone();
+        steps.observers.average = Some(AverageObs {
+            vars: vec![var.to_string()],
+            skip: 0.0,
+        });
+        let (runs, steps) = (Plan::new(&runs).unwrap(), Plan::new(&steps).unwrap());
+        let takes_runs = |plan: &Plan| {
+            let p = cpu::program::Program::<f64>::new(plan, cpu::isa(), true);
+            p.indicators.as_ref().is_some_and(|i| i.takes_runs())
+                && !plan.others_observe_every_step()
+        };
+        let avx2 = cpu::isa() != cpu::Isa::Baseline;
+        assert_eq!(takes_runs(&runs), avx2, "{name} takes runs of steps");
+        assert!(!takes_runs(&steps), "{name}");
+        diverged += same::<f64>(name, &runs, &steps);
+        diverged += same::<f32>(name, &runs, &steps);
+    }
+    assert!(diverged > 0, "some trajectory diverges");
 }

@@ -24,7 +24,7 @@ pub mod spec;
 pub mod spin_orbit;
 pub mod symbolic;
 #[cfg(test)]
-mod tangent_gen;
+pub(crate) mod tangent_gen;
 // Generated (`tangent_gen.rs`), checked against its generator by a test.
 #[rustfmt::skip]
 pub mod tangent_ops;

@@ -68,17 +68,37 @@ fn tangent_fn(model: &Model, op: &str) -> Option<String> {
 
 /// The Rust text of `program` as the function `name`.
 fn body(name: &str, l: &Lowered, input: &dyn Fn(u32) -> String, written: &[&str]) -> String {
-    let operand = |o: Operand| match o {
-        Operand::Val(k) => format!("v{k}"),
-        Operand::Input(k) => input(k),
-        Operand::Const(c) => format!("R::from_f64({c:?})"),
-    };
     let mut s = String::new();
     writeln!(s, "#[inline(always)]").unwrap();
     writeln!(s, "pub fn {name}<R: Real>(x: &Lane<R>, d: &mut Lane<R>) {{").unwrap();
     writeln!(s, "    let _ = x;").unwrap();
+    s.push_str(&rust_lets(l, input, "    "));
+    // Every read before any write: the outputs change together.
+    for (k, o) in l.outputs.iter().enumerate() {
+        writeln!(s, "    let o{k}: R = {};", rust_operand(*o, input)).unwrap();
+    }
+    for (k, w) in written.iter().enumerate() {
+        writeln!(s, "    d.{w} = o{k};").unwrap();
+    }
+    s.push_str("}\n");
+    s
+}
+
+/// An operand of a lowered program as Rust: `input(k)` names input k.
+pub(crate) fn rust_operand(o: Operand, input: &dyn Fn(u32) -> String) -> String {
+    match o {
+        Operand::Val(k) => format!("v{k}"),
+        Operand::Input(k) => input(k),
+        Operand::Const(c) => format!("R::from_f64({c:?})"),
+    }
+}
+
+/// A lowered program's instructions as Rust, one `let vK: R = …;` each,
+/// in the precision `R` and with the same functions the tape calls.
+pub(crate) fn rust_lets(l: &Lowered, input: &dyn Fn(u32) -> String, indent: &str) -> String {
+    let mut s = String::new();
     for (k, i) in l.instrs.iter().enumerate() {
-        let (a, b) = (operand(i.a), operand(i.b));
+        let (a, b) = (rust_operand(i.a, input), rust_operand(i.b, input));
         let e = match i.op {
             Prim::Neg => format!("-{a}"),
             Prim::Add => format!("{a} + {b}"),
@@ -88,16 +108,8 @@ fn body(name: &str, l: &Lowered, input: &dyn Fn(u32) -> String, written: &[&str]
             Prim::Call(_) => format!("R::{}({a})", i.op.function()),
             Prim::Call2(_) => format!("R::{}({a}, {b})", i.op.function()),
         };
-        writeln!(s, "    let v{k}: R = {e};").unwrap();
+        writeln!(s, "{indent}let v{k}: R = {e};").unwrap();
     }
-    // Every read before any write: the outputs change together.
-    for (k, o) in l.outputs.iter().enumerate() {
-        writeln!(s, "    let o{k}: R = {};", operand(*o)).unwrap();
-    }
-    for (k, w) in written.iter().enumerate() {
-        writeln!(s, "    d.{w} = o{k};").unwrap();
-    }
-    s.push_str("}\n");
     s
 }
 

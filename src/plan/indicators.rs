@@ -28,8 +28,9 @@ pub enum SampleInput {
     Slot(usize),
     /// The time since the start, `n1·dt`.
     Elapsed,
-    /// The sample's number (1 for the first).
-    Count,
+    /// One over the sample's number (1 for the first): the running mean's
+    /// weight, a product where a quotient would cost a division per lane.
+    InvCount,
     /// 1 when the sample counts (after the skipped part), else 0.
     Counted,
 }
@@ -39,6 +40,7 @@ pub enum SampleInput {
 #[derive(Debug, Clone)]
 pub struct Sampler {
     pub every: u64,
+    pub shape: SampleShape,
     pub program: Lowered,
     pub inputs: Vec<SampleInput>,
     pub outputs: Vec<usize>,
@@ -136,7 +138,7 @@ impl Indicators {
     }
 
     /// Modified Gram–Schmidt on vectors `0..k`, adding ln Rᵢᵢ (when the
-    /// sample counts) to the sums.
+    /// sample counts) to the sums ([`lyapunov_program`]).
     fn lyapunov_sampler(&mut self, k: usize, every: u64) -> Sampler {
         let d = self.dimension();
         let sums: Vec<usize> = (0..k)
@@ -146,44 +148,20 @@ impl Indicators {
         let mut inputs: Vec<SampleInput> = w.iter().map(|s| SampleInput::Slot(*s)).collect();
         inputs.extend(sums.iter().map(|s| SampleInput::Slot(*s)));
         inputs.push(SampleInput::Counted);
-        let mut g = Dag::new();
-        let var = |g: &mut Dag, k: usize| g.var(k as u32);
-        let counted = var(&mut g, inputs.len() - 1);
-        let mut basis: Vec<Vec<Id>> = vec![];
-        let mut roots_sums = vec![];
-        for i in 0..k {
-            let mut v: Vec<Id> = (0..d).map(|j| var(&mut g, i * d + j)).collect();
-            for e in &basis {
-                let proj = dot(&mut g, &v, e);
-                v = v
-                    .iter()
-                    .zip(e)
-                    .map(|(x, y)| {
-                        let p = g.mul(proj, *y);
-                        g.sub(*x, p)
-                    })
-                    .collect();
-            }
-            let r = norm(&mut g, &v);
-            basis.push(v.iter().map(|x| g.div(*x, r)).collect());
-            let ln = g.call(Func::Log, r);
-            let add = g.mul(counted, ln);
-            let sum = var(&mut g, k * d + i);
-            roots_sums.push(g.add(sum, add));
-        }
-        let mut roots: Vec<Id> = basis.concat();
-        roots.extend(roots_sums);
         let mut outputs = w.to_vec();
         outputs.extend(sums);
+        let shape = SampleShape::Lyapunov { d, k };
         Sampler {
             every,
-            program: lower(&g, &roots),
+            program: shape.program(),
+            shape,
             inputs,
             outputs,
         }
     }
 
-    /// The FLI/MEGNO vector (number `k`) normalised, its growth logged.
+    /// The FLI/MEGNO vector (number `k`) normalised, its growth logged
+    /// ([`chaos_program`]).
     fn chaos_sampler(&mut self, k: usize, every: u64) -> Sampler {
         let d = self.dimension();
         let u = self.deviation_slots[k * d..(k + 1) * d].to_vec();
@@ -195,32 +173,14 @@ impl Indicators {
         ];
         let mut inputs: Vec<SampleInput> = u.iter().map(|s| SampleInput::Slot(*s)).collect();
         inputs.extend(state.iter().map(|s| SampleInput::Slot(*s)));
-        inputs.extend([SampleInput::Elapsed, SampleInput::Count]);
-        let mut g = Dag::new();
-        let x: Vec<Id> = (0..inputs.len()).map(|i| g.var(i as u32)).collect();
-        let [log0, max0, sum0, mean0, elapsed, count] = x[d..] else {
-            unreachable!("six inputs after the vector")
-        };
-        let r = norm(&mut g, &x[..d]);
-        let mut roots: Vec<Id> = x[..d].iter().map(|c| g.div(*c, r)).collect();
-        let ln = g.call(Func::Log, r);
-        let log = g.add(log0, ln);
-        let max = g.call2(Func2::Max, max0, log);
-        let weighted = g.mul(elapsed, ln);
-        let sum = g.add(sum0, weighted);
-        // Y = 2 Σ / t, and ⟨Y⟩ as a running mean.
-        let two = g.num(2.0);
-        let twice = g.mul(two, sum);
-        let y = g.div(twice, elapsed);
-        let dev = g.sub(y, mean0);
-        let step = g.div(dev, count);
-        let mean = g.add(mean0, step);
-        roots.extend([log, max, sum, mean]);
+        inputs.extend([SampleInput::Elapsed, SampleInput::InvCount]);
         let mut outputs = u;
         outputs.extend(state);
+        let shape = SampleShape::Chaos { d };
         Sampler {
             every,
-            program: lower(&g, &roots),
+            program: shape.program(),
+            shape,
             inputs,
             outputs,
         }
@@ -249,6 +209,98 @@ impl Indicators {
     }
 }
 
+/// A sample program's shape: which indicator, over a tangent space of
+/// dimension `d` (and `k` Lyapunov vectors). The program depends on the
+/// shape alone, so the CPU compiles the usual shapes ahead
+/// (`backend/cpu/sample_ops.rs`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SampleShape {
+    Lyapunov { d: usize, k: usize },
+    Chaos { d: usize },
+}
+
+impl SampleShape {
+    /// How many inputs its program reads.
+    pub fn inputs(self) -> usize {
+        match self {
+            SampleShape::Lyapunov { d, k } => k * d + k + 1,
+            SampleShape::Chaos { d } => d + 6,
+        }
+    }
+
+    pub fn program(self) -> Lowered {
+        match self {
+            SampleShape::Lyapunov { d, k } => lyapunov_program(d, k),
+            SampleShape::Chaos { d } => chaos_program(d),
+        }
+    }
+}
+
+/// Modified Gram–Schmidt on `k` vectors of dimension `d`, adding ln Rᵢᵢ
+/// (when the sample counts) to the sums. Inputs: the vectors' components
+/// (vector i's component j at i·d + j), the k sums, whether the sample
+/// counts; outputs: the orthonormal vectors, then the sums.
+pub fn lyapunov_program(d: usize, k: usize) -> Lowered {
+    let mut g = Dag::new();
+    let var = |g: &mut Dag, k: usize| g.var(k as u32);
+    let counted = var(&mut g, k * d + k);
+    let mut basis: Vec<Vec<Id>> = vec![];
+    let mut roots_sums = vec![];
+    for i in 0..k {
+        let mut v: Vec<Id> = (0..d).map(|j| var(&mut g, i * d + j)).collect();
+        for e in &basis {
+            let proj = dot(&mut g, &v, e);
+            v = v
+                .iter()
+                .zip(e)
+                .map(|(x, y)| {
+                    let p = g.mul(proj, *y);
+                    g.sub(*x, p)
+                })
+                .collect();
+        }
+        let r = norm(&mut g, &v);
+        let inv = reciprocal(&mut g, r);
+        basis.push(v.iter().map(|x| g.mul(*x, inv)).collect());
+        let ln = g.call(Func::Log, r);
+        let add = g.mul(counted, ln);
+        let sum = var(&mut g, k * d + i);
+        roots_sums.push(g.add(sum, add));
+    }
+    let mut roots: Vec<Id> = basis.concat();
+    roots.extend(roots_sums);
+    lower(&g, &roots)
+}
+
+/// The FLI/MEGNO vector of dimension `d` normalised, its growth logged.
+/// Inputs: its components, `fli_log`, `fli_max`, `megno_sum`,
+/// `megno_mean`, the elapsed time, one over the sample's number; outputs: the
+/// vector, then the four sums.
+pub fn chaos_program(d: usize) -> Lowered {
+    let mut g = Dag::new();
+    let x: Vec<Id> = (0..d + 6).map(|i| g.var(i as u32)).collect();
+    let [log0, max0, sum0, mean0, elapsed, inv_count] = x[d..] else {
+        unreachable!("six inputs after the vector")
+    };
+    let r = norm(&mut g, &x[..d]);
+    let inv = reciprocal(&mut g, r);
+    let mut roots: Vec<Id> = x[..d].iter().map(|c| g.mul(*c, inv)).collect();
+    let ln = g.call(Func::Log, r);
+    let log = g.add(log0, ln);
+    let max = g.call2(Func2::Max, max0, log);
+    let weighted = g.mul(elapsed, ln);
+    let sum = g.add(sum0, weighted);
+    // Y = 2 Σ / t, and ⟨Y⟩ as a running mean.
+    let two = g.num(2.0);
+    let twice = g.mul(two, sum);
+    let y = g.div(twice, elapsed);
+    let dev = g.sub(y, mean0);
+    let step = g.mul(dev, inv_count);
+    let mean = g.add(mean0, step);
+    roots.extend([log, max, sum, mean]);
+    lower(&g, &roots)
+}
+
 fn dot(g: &mut Dag, a: &[Id], b: &[Id]) -> Id {
     let mut s = g.num(0.0);
     for (x, y) in a.iter().zip(b) {
@@ -256,6 +308,13 @@ fn dot(g: &mut Dag, a: &[Id], b: &[Id]) -> Id {
         s = g.add(s, p);
     }
     s
+}
+
+/// 1/r: one division, then a product per component (a division each
+/// would be d of them, the costliest operation of a sample).
+fn reciprocal(g: &mut Dag, r: Id) -> Id {
+    let one = g.num(1.0);
+    g.div(one, r)
 }
 
 fn norm(g: &mut Dag, v: &[Id]) -> Id {

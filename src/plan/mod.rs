@@ -279,11 +279,15 @@ impl Plan {
 
     /// Does an observer look at the state after every step?
     pub fn observes_every_step(&self) -> bool {
+        self.others_observe_every_step() || self.indicators.is_some()
+    }
+
+    /// Does an observer other than the chaos indicators look at every step?
+    pub fn others_observe_every_step(&self) -> bool {
         self.needs_field()
             || self.cycle_var.is_some()
             || !self.average_vars.is_empty()
             || self.stop.is_some()
-            || self.indicators.is_some()
     }
 
     /// Does any observer need the vector field at the step ends (for

@@ -1,16 +1,21 @@
 //! The chaos indicators on the CPU: the tangent step and the samples of
-//! `plan/indicators.rs` through the block interpreter, on the observer
-//! slots of a block (the GPU runs the same programs as WGSL).
+//! `plan/indicators.rs` on the observer slots of a block — compiled where
+//! they can be (`tangent.rs`, `samples.rs`), else through the block
+//! interpreter (the GPU runs the same programs as WGSL). Where both are
+//! compiled and nothing else observes the steps, a run of steps goes in one
+//! call ([`IndicatorTapes::steps`]), the deviation vectors in the compiled
+//! tangent's scratch lanes throughout.
 
 // Lane loops index several arrays by lane; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
+use super::samples::{sample_fn, SampleFn};
 use super::tangent::{CompiledTangent, TangentScratch};
 use crate::models::lanes::{index_of, Lanes, LANES};
 use crate::num::formula::tape::{Inputs, Tape};
 use crate::num::isa::Isa;
 use crate::num::precision::Real;
-use crate::plan::indicators::{Indicators, SampleInput, Sampler};
+use crate::plan::indicators::{Indicators, SampleInput, SampleShape, Sampler};
 use crate::plan::slots;
 use crate::plan::tangent::TangentInput;
 use crate::plan::Plan;
@@ -25,7 +30,7 @@ enum Src {
     /// A value the same in every lane, set per call (step, sample number,
     /// whether the sample counts).
     Step,
-    Count,
+    InvCount,
     Counted,
     /// `n1·dt` per lane.
     Elapsed,
@@ -35,12 +40,14 @@ enum Src {
 pub struct Program<R> {
     tape: Tape<R>,
     inputs: Vec<Src>,
-    /// The inputs among Step, Count, Counted and Elapsed it reads: the
+    /// The inputs among Step, InvCount, Counted and Elapsed it reads: the
     /// arrays to fill before each call.
     fills: Vec<Src>,
     /// The real slots the outputs are written to.
     outputs: Vec<usize>,
     every: u64,
+    /// A sample program compiled (`samples.rs`), run instead of the tape.
+    compiled: Option<(SampleShape, SampleFn<R>)>,
 }
 
 /// The indicators' programs for a plan.
@@ -52,9 +59,53 @@ pub struct IndicatorTapes<R> {
     /// The lane index of each of the plan's state variables.
     var_lanes: Vec<usize>,
     samples: Vec<Program<R>>,
+    /// Where each sample's inputs and outputs are in a run of steps
+    /// ([`IndicatorTapes::steps`]), where it can take one.
+    runs: Option<Vec<RunLocs>>,
     skip_step: u64,
     /// Lane index of `dt` (the samples' elapsed time).
     dt_lane: usize,
+}
+
+/// Where a compiled sample's array is in a run of steps: the deviation
+/// vectors live in the compiled tangent's scratch lanes then.
+#[derive(Debug, Clone, Copy)]
+enum Loc {
+    /// Vector `k`'s lane `lane` in the scratch.
+    Vector(usize, usize),
+    /// A real slot.
+    Real(usize),
+    /// The sample's number, whether it counts, or the elapsed time.
+    InvCount,
+    Counted,
+    Elapsed,
+}
+
+/// Where a sample's arrays (its inputs, in order; output k replaces input
+/// k) are in a run of steps.
+struct RunLocs {
+    arrays: Vec<Loc>,
+}
+
+/// The steps of a run and the lanes still running (bits).
+#[derive(Clone, Copy)]
+struct Run {
+    n: u64,
+    k: u64,
+    running: u64,
+}
+
+/// What a run of steps ([`IndicatorTapes::steps`]) did.
+#[derive(Debug, Clone, Copy)]
+pub struct RunOutcome {
+    /// How many steps it took.
+    pub done: u64,
+    /// Whether the last step's samples were taken: not when that step left
+    /// some state variable non-finite (the caller marks those lanes first,
+    /// then samples, as after any step).
+    pub sampled: bool,
+    /// The lanes whose vectors became non-finite, as bits.
+    pub bad: u64,
 }
 
 impl<R: Real> IndicatorTapes<R> {
@@ -62,6 +113,7 @@ impl<R: Real> IndicatorTapes<R> {
         plan: &Plan,
         ind: &Indicators,
         compiled: Option<CompiledTangent<R>>,
+        isa: Isa,
     ) -> IndicatorTapes<R> {
         // The indicators' slots among the block's real slots.
         let first = slots::indicator_first(plan);
@@ -85,14 +137,17 @@ impl<R: Real> IndicatorTapes<R> {
             inputs,
             outputs: ind.deviation_slots.iter().map(|k| first + k).collect(),
             every: 1,
+            compiled: None,
         };
-        let samples = [&ind.lyapunov, &ind.chaos]
+        let samples: Vec<Program<R>> = [&ind.lyapunov, &ind.chaos]
             .into_iter()
             .flatten()
-            .map(|s| sampler(s, first))
+            .map(|s| sampler(s, first, isa))
             .collect();
+        let runs = run_locs(&tangent.outputs, compiled.as_ref(), &samples);
         IndicatorTapes {
             tangent,
+            runs,
             compiled,
             var_lanes: plan
                 .vars
@@ -105,11 +160,14 @@ impl<R: Real> IndicatorTapes<R> {
         }
     }
 
-    /// Registers the programs need, and [`FILLS`] more for the inputs
-    /// that are one value per call.
+    /// Registers the programs need (compiled samples: their arrays, all
+    /// at once in a run of steps), and [`FILLS`] more for the inputs that are one value per
+    /// call.
     pub fn registers(&self) -> usize {
         let all = std::iter::once(&self.tangent).chain(&self.samples);
-        all.map(|p| p.tape.registers).max().unwrap_or(0) + FILLS
+        let tapes = all.map(|p| p.tape.registers).max().unwrap_or(0);
+        let runs: usize = self.samples.iter().map(|p| p.inputs.len()).sum();
+        tapes.max(runs) + FILLS
     }
 
     /// The scratch lanes the compiled tangent runs on, for block `l`;
@@ -117,6 +175,12 @@ impl<R: Real> IndicatorTapes<R> {
     pub fn scratch(&self, l: &Lanes<R>) -> Option<TangentScratch<R>> {
         let c = self.compiled.as_ref()?;
         Some(TangentScratch::new(l, c.vectors()))
+    }
+
+    /// Whether [`IndicatorTapes::steps`] can take runs of steps: the
+    /// tangent and every sample compiled, the tangent the whole step.
+    pub fn takes_runs(&self) -> bool {
+        self.runs.is_some()
     }
 
     /// Whether [`IndicatorTapes::step`] takes the plan's steps: the
@@ -148,6 +212,38 @@ impl<R: Real> IndicatorTapes<R> {
         }
     }
 
+    /// Steps `n … n+k−1` of block `l` where [`IndicatorTapes::takes_runs`],
+    /// with the deviation vectors of its `running` lanes (bits) and their
+    /// samples: the same operations as [`IndicatorTapes::step`] and
+    /// [`IndicatorTapes::after_step`] step by step, so the same bits, with
+    /// the vectors in `scratch` and the samples' sums in `regs` until the
+    /// run ends. It ends early after a step that leaves a state variable or
+    /// a vector non-finite.
+    #[allow(clippy::too_many_arguments)]
+    pub fn steps(
+        &self,
+        l: &mut Lanes<R>,
+        scratch: &mut TangentScratch<R>,
+        real: &mut [[R; LANES]],
+        regs: &mut [[R; LANES]],
+        n: u64,
+        k: u64,
+        running: u64,
+        isa: Isa,
+    ) -> RunOutcome {
+        let run = Run { n, k, running };
+        #[cfg(target_arch = "x86_64")]
+        match isa {
+            // SAFETY: `kernels::isa` names a level only where the CPU has
+            // its features.
+            Isa::V4 => return unsafe { steps_v4(self, l, scratch, real, regs, run) },
+            Isa::V3 => return unsafe { steps_v3(self, l, scratch, real, regs, run) },
+            Isa::Baseline => {}
+        }
+        let _ = isa;
+        steps_body(self, l, scratch, real, regs, run)
+    }
+
     /// After step `n1` (1 for the first): the deviation vectors of the
     /// `running` lanes (bits) through the step's tangent map (compiled,
     /// on `scratch`, where there is one), then the samples due. Returns
@@ -172,7 +268,7 @@ impl<R: Real> IndicatorTapes<R> {
         };
         let scalars = Scalars {
             step: R::from_f64((n1 - 1) as f64),
-            count: R::from_f64(0.0),
+            inv_count: R::from_f64(0.0),
             counted: R::from_f64(0.0),
         };
         match (&self.compiled, scratch) {
@@ -188,7 +284,7 @@ impl<R: Real> IndicatorTapes<R> {
         }
         for s in self.samples.iter().filter(|s| n1.is_multiple_of(s.every)) {
             let scalars = Scalars {
-                count: R::from_f64((n1 / s.every) as f64),
+                inv_count: inv_count::<R>(n1 / s.every),
                 counted: R::from_f64(f64::from(u8::from(n1 > self.skip_step))),
                 ..scalars
             };
@@ -227,22 +323,284 @@ impl<R: Real> IndicatorTapes<R> {
         n: u64,
         running: u64,
     ) {
+        self.load_vectors(c, s, real, running);
+        c.run(&mut s.x, &mut s.d, n);
+        self.store_vectors(c, s, real, running);
+    }
+
+    /// The deviation vectors from their slots into the scratch lanes; a
+    /// lane not `running` (bits) takes a running lane's, so that what it
+    /// computes stays finite (it is never stored).
+    #[inline(always)]
+    fn load_vectors(
+        &self,
+        c: &CompiledTangent<R>,
+        s: &mut TangentScratch<R>,
+        real: &[[R; LANES]],
+        running: u64,
+    ) {
         // The tape's outputs are the vectors' slots, vector k's component j
         // at k·d + j.
         let slots = &self.tangent.outputs;
         let d = c.space.len();
+        let twin = (running != 0).then(|| running.trailing_zeros() as usize);
         for (k, v) in s.d.iter_mut().enumerate() {
             for (j, &lane) in c.space.iter().enumerate() {
-                *v.at_mut(lane) = real[slots[k * d + j]];
+                let a = v.at_mut(lane);
+                *a = real[slots[k * d + j]];
+                if let (Some(t), true) = (twin, running != u64::MAX) {
+                    for i in (0..LANES).filter(|i| running >> i & 1 == 0) {
+                        a[i] = a[t];
+                    }
+                }
             }
         }
-        c.run(&mut s.x, &mut s.d, n);
+    }
+
+    /// Sample `p` after step `n1` inside a run of steps, on its arrays
+    /// `buf` (at `loc`): the vectors from the scratch lanes and back, the
+    /// one-value inputs filled.
+    #[inline(always)]
+    fn sample_in_run(
+        &self,
+        p: &Program<R>,
+        loc: &RunLocs,
+        s: &mut TangentScratch<R>,
+        buf: &mut [[R; LANES]],
+        n1: u64,
+    ) {
+        let (shape, f) = p.compiled.expect("a compiled sample");
+        for (a, at) in buf.iter_mut().zip(&loc.arrays) {
+            match *at {
+                Loc::Vector(k, lane) => *a = *s.d[k].at(lane),
+                Loc::Real(_) => {}
+                Loc::InvCount => *a = [inv_count::<R>(n1 / p.every); LANES],
+                Loc::Counted => *a = [R::from_f64(f64::from(u8::from(n1 > self.skip_step))); LANES],
+                Loc::Elapsed => {
+                    let n1r = R::from_f64(n1 as f64);
+                    let dt = s.x.at(self.dt_lane);
+                    *a = std::array::from_fn(|i| n1r * dt[i]);
+                }
+            }
+        }
+        // SAFETY: `sample_fn` compiled it for the block's level, which
+        // `kernels::isa` names only where the CPU has its features.
+        unsafe { f(shape, buf) };
+        for (a, at) in buf.iter().zip(&loc.arrays) {
+            if let Loc::Vector(k, lane) = *at {
+                *s.d[k].at_mut(lane) = *a;
+            }
+        }
+    }
+
+    /// The vectors of the `running` lanes (bits) back into their slots.
+    #[inline(always)]
+    fn store_vectors(
+        &self,
+        c: &CompiledTangent<R>,
+        s: &TangentScratch<R>,
+        real: &mut [[R; LANES]],
+        running: u64,
+    ) {
+        let slots = &self.tangent.outputs;
+        let d = c.space.len();
         for (k, v) in s.d.iter().enumerate() {
             for (j, &lane) in c.space.iter().enumerate() {
                 put(&mut real[slots[k * d + j]], v.at(lane), running);
             }
         }
     }
+}
+
+macro_rules! steps_variant {
+    ($(#[$m:meta])* $name:ident) => {
+        $(#[$m])*
+        unsafe fn $name<R: Real>(
+            ind: &IndicatorTapes<R>,
+            l: &mut Lanes<R>,
+            s: &mut TangentScratch<R>,
+            real: &mut [[R; LANES]],
+            regs: &mut [[R; LANES]],
+            run: Run,
+        ) -> RunOutcome {
+            steps_body(ind, l, s, real, regs, run)
+        }
+    };
+}
+
+steps_variant! {
+    /// [`steps_body`] compiled for AVX2 and FMA.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    steps_v3
+}
+
+steps_variant! {
+    /// [`steps_body`] compiled for AVX-512.
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
+    steps_v4
+}
+
+/// [`IndicatorTapes::steps`]: each sample's arrays in `regs` for the run
+/// (its sums loaded once), the vectors copied in and out of them around
+/// each sample.
+#[inline(always)]
+fn steps_body<R: Real>(
+    ind: &IndicatorTapes<R>,
+    l: &mut Lanes<R>,
+    s: &mut TangentScratch<R>,
+    real: &mut [[R; LANES]],
+    regs: &mut [[R; LANES]],
+    run: Run,
+) -> RunOutcome {
+    let c = ind.compiled.as_ref().expect("a compiled tangent");
+    let locs = ind.runs.as_ref().expect("compiled samples");
+    for &lane in &ind.var_lanes {
+        *s.x.at_mut(lane) = *l.at(lane);
+    }
+    ind.load_vectors(c, s, real, run.running);
+    // Each sample's arrays, one after the other in `regs`.
+    let mut bufs: Vec<&mut [[R; LANES]]> = vec![];
+    let mut rest = regs;
+    for loc in locs {
+        let (buf, r) = rest.split_at_mut(loc.arrays.len());
+        for (a, at) in buf.iter_mut().zip(&loc.arrays) {
+            if let Loc::Real(j) = *at {
+                *a = real[j];
+            }
+        }
+        bufs.push(buf);
+        rest = r;
+    }
+    let mut out = RunOutcome {
+        done: run.k,
+        sampled: true,
+        bad: 0,
+    };
+    for j in 0..run.k {
+        c.run(&mut s.x, &mut s.d, run.n + j);
+        if any_nonfinite(&s.x, &ind.var_lanes) {
+            out = RunOutcome {
+                done: j + 1,
+                sampled: false,
+                bad: 0,
+            };
+            break;
+        }
+        let n1 = run.n + j + 1;
+        for ((p, loc), buf) in ind.samples.iter().zip(locs).zip(bufs.iter_mut()) {
+            if n1.is_multiple_of(p.every) {
+                ind.sample_in_run(p, loc, s, buf, n1);
+            }
+        }
+        let bad = nonfinite_vectors(c, s);
+        if bad != 0 {
+            out = RunOutcome {
+                done: j + 1,
+                sampled: true,
+                bad: bad & run.running,
+            };
+            break;
+        }
+    }
+    for &lane in &ind.var_lanes {
+        *l.at_mut(lane) = *s.x.at(lane);
+    }
+    ind.store_vectors(c, s, real, run.running);
+    for (loc, buf) in locs.iter().zip(bufs) {
+        for (a, at) in buf.iter().zip(&loc.arrays) {
+            if let Loc::Real(j) = *at {
+                put(&mut real[j], a, run.running);
+            }
+        }
+    }
+    out
+}
+
+/// Whether any of the lanes `vars` of `x` is non-finite in any lane: one
+/// vectorised OR-reduction per variable.
+#[inline(always)]
+fn any_nonfinite<R: Real>(x: &Lanes<R>, vars: &[usize]) -> bool {
+    let mut any = false;
+    for &k in vars {
+        let a = x.at(k);
+        for i in 0..LANES {
+            any |= !a[i].finite();
+        }
+    }
+    any
+}
+
+/// The lanes whose deviation vectors in `s` are non-finite, as bits.
+#[inline(always)]
+fn nonfinite_vectors<R: Real>(c: &CompiledTangent<R>, s: &TangentScratch<R>) -> u64 {
+    let mut any = false;
+    for v in &s.d {
+        for &lane in &c.space {
+            let a = v.at(lane);
+            for i in 0..LANES {
+                any |= !a[i].finite();
+            }
+        }
+    }
+    if !any {
+        return 0;
+    }
+    let mut bad = 0u64;
+    for v in &s.d {
+        for &lane in &c.space {
+            let a = v.at(lane);
+            for i in 0..LANES {
+                bad |= u64::from(!a[i].finite()) << i;
+            }
+        }
+    }
+    bad
+}
+
+/// Where each sample's inputs and outputs are in a run of steps: `None`
+/// unless the tangent takes the whole step compiled and every sample is
+/// compiled. `slots`: the vectors' slots (vector k's component j at
+/// k·d + j).
+fn run_locs<R: Real>(
+    slots: &[usize],
+    c: Option<&CompiledTangent<R>>,
+    samples: &[Program<R>],
+) -> Option<Vec<RunLocs>> {
+    let c = c.filter(|c| c.takes_step)?;
+    let d = c.space.len();
+    let at = |j: usize| match slots.iter().position(|&s| s == j) {
+        Some(pos) => Loc::Vector(pos / d, c.space[pos % d]),
+        None => Loc::Real(j),
+    };
+    samples
+        .iter()
+        .map(|p| {
+            p.compiled?;
+            // Output k is written over input k: the same slot.
+            let over = |(k, &j): (usize, &usize)| p.inputs.get(k) == Some(&Src::Slot(j));
+            if !p.outputs.iter().enumerate().all(over) {
+                return None;
+            }
+            let inputs = p.inputs.iter().map(|src| match *src {
+                Src::Slot(j) => Some(at(j)),
+                Src::InvCount => Some(Loc::InvCount),
+                Src::Counted => Some(Loc::Counted),
+                Src::Elapsed => Some(Loc::Elapsed),
+                _ => None,
+            });
+            Some(RunLocs {
+                arrays: inputs.collect::<Option<_>>()?,
+            })
+        })
+        .collect()
 }
 
 /// `out` into `slot` where `running` (bits) has the lane.
@@ -258,15 +616,16 @@ fn put<R: Real>(slot: &mut [R; LANES], out: &[R; LANES], running: u64) {
     }
 }
 
-/// A sampler's program, its slots `first` on among the real slots.
-fn sampler<R: Real>(s: &Sampler, first: usize) -> Program<R> {
+/// A sampler's program, its slots `first` on among the real slots,
+/// compiled for `isa` where its shape is.
+fn sampler<R: Real>(s: &Sampler, first: usize, isa: Isa) -> Program<R> {
     let inputs: Vec<Src> = s
         .inputs
         .iter()
         .map(|i| match *i {
             SampleInput::Slot(k) => Src::Slot(first + k),
             SampleInput::Elapsed => Src::Elapsed,
-            SampleInput::Count => Src::Count,
+            SampleInput::InvCount => Src::InvCount,
             SampleInput::Counted => Src::Counted,
         })
         .collect();
@@ -276,6 +635,7 @@ fn sampler<R: Real>(s: &Sampler, first: usize) -> Program<R> {
         inputs,
         outputs: s.outputs.iter().map(|k| first + k).collect(),
         every: s.every,
+        compiled: sample_fn::<R>(s.shape, isa).map(|f| (s.shape, f)),
     }
 }
 
@@ -283,7 +643,7 @@ fn sampler<R: Real>(s: &Sampler, first: usize) -> Program<R> {
 fn fills(inputs: &[Src]) -> Vec<Src> {
     let mut f: Vec<Src> = vec![];
     for src in inputs {
-        let one = matches!(src, Src::Step | Src::Count | Src::Counted | Src::Elapsed);
+        let one = matches!(src, Src::Step | Src::InvCount | Src::Counted | Src::Elapsed);
         if one && !f.contains(src) {
             f.push(*src);
         }
@@ -301,15 +661,20 @@ struct Call {
     dt_lane: usize,
 }
 
-/// The values of [`Src::Step`], [`Src::Count`] and [`Src::Counted`].
+/// The values of [`Src::Step`], [`Src::InvCount`] and [`Src::Counted`].
 #[derive(Clone, Copy)]
 struct Scalars<R> {
     step: R,
-    count: R,
+    inv_count: R,
     counted: R,
 }
 
-/// Arrays for Step, Count, Counted and Elapsed, after the registers.
+/// 1/n in precision `R`, as the GPU computes it.
+fn inv_count<R: Real>(n: u64) -> R {
+    R::from_f64(1.0) / R::from_f64(n as f64)
+}
+
+/// Arrays for Step, InvCount, Counted and Elapsed, after the registers.
 const FILLS: usize = 4;
 
 /// A program's inputs on a block, resolved per read (no list built per call).
@@ -318,7 +683,7 @@ struct View<'a, R> {
     l: &'a Lanes<R>,
     prev: &'a [[R; LANES]],
     real: &'a [[R; LANES]],
-    /// Step, Count, Counted and Elapsed, as arrays (filled where read).
+    /// Step, InvCount, Counted and Elapsed, as arrays (filled where read).
     fills: &'a [[R; LANES]],
 }
 
@@ -330,7 +695,7 @@ impl<R: Real> Inputs<R, LANES> for View<'_, R> {
             Src::Prev(j) => &self.prev[j],
             Src::Slot(j) => &self.real[j],
             Src::Step => &self.fills[0],
-            Src::Count => &self.fills[1],
+            Src::InvCount => &self.fills[1],
             Src::Counted => &self.fills[2],
             Src::Elapsed => &self.fills[3],
         }
@@ -355,7 +720,7 @@ fn run<R: Real>(
     for src in &p.fills {
         match *src {
             Src::Step => fills[0] = [s.step; LANES],
-            Src::Count => fills[1] = [s.count; LANES],
+            Src::InvCount => fills[1] = [s.inv_count; LANES],
             Src::Counted => fills[2] = [s.counted; LANES],
             Src::Elapsed => {
                 let n1r = R::from_f64(at.n1 as f64);
@@ -372,6 +737,19 @@ fn run<R: Real>(
         real,
         fills,
     };
+    if let Some((shape, f)) = p.compiled {
+        let x = &mut regs[..p.inputs.len()];
+        for (k, a) in x.iter_mut().enumerate() {
+            *a = *view.array(k as u32);
+        }
+        // SAFETY: `sample_fn` compiled it for `at.isa`, which
+        // `kernels::isa` names only where the CPU has its features.
+        unsafe { f(shape, x) };
+        for (&slot, out) in p.outputs.iter().zip(x.iter()) {
+            put(&mut real[slot], out, at.running);
+        }
+        return;
+    }
     p.tape.run(regs, &view, at.isa);
     // A lane that stopped or became non-finite keeps its indicators.
     for (k, &slot) in p.outputs.iter().enumerate() {

@@ -12,6 +12,12 @@ pub mod indicators;
 pub mod kernels;
 pub mod observe;
 pub mod program;
+#[cfg(test)]
+mod sample_gen;
+// Generated (`sample_gen.rs`), checked against its generator by a test.
+#[rustfmt::skip]
+mod sample_ops;
+pub mod samples;
 pub mod tangent;
 
 use std::io::{self, Read, Write};
@@ -361,6 +367,10 @@ fn run_block<R: Flows>(
     let mut tangent = p.indicators.as_ref().and_then(|i| i.scratch(l));
     let tangent_steps = p.indicators.as_ref().is_some_and(|i| i.takes_step());
     let reads_prev = p.indicators.is_some() && !tangent_steps;
+    // Whether the indicators take runs of steps: compiled throughout, and
+    // no other observer looks at every step.
+    let indicator_runs =
+        p.indicators.as_ref().is_some_and(|i| i.takes_runs()) && !plan.others_observe_every_step();
     // State (and slopes) at the start of the current step, for interpolation.
     let mut prev = LaneArrays::filled(nv, R::default());
     let mut dprev = LaneArrays::filled(nv, R::default());
@@ -415,7 +425,19 @@ fn run_block<R: Flows>(
                 dprev[k] = *l.at(p.dvar[k]);
             }
         }
+        // The vectors of lanes gone non-finite in a run of steps, when the
+        // run took the samples of its last step.
+        let mut sampled = None;
         let (done, any) = match (&p.indicators, tangent.as_mut()) {
+            // Runs of steps no other observer looks at, in one call.
+            (Some(ind), Some(scratch)) if indicator_runs => {
+                let (running, padding) = observe::running_lanes(&status[..count]);
+                let k = quiet_run(p, &obs, n, count, true);
+                let (real, mask) = (obs.slots_mut(), running | padding);
+                let out = ind.steps(l, scratch, real, &mut regs, n, k, mask, p.isa);
+                sampled = out.sampled.then_some(out.bad & running);
+                (out.done, !out.sampled)
+            }
             // The compiled tangent step moves state and vectors at once.
             (Some(ind), Some(scratch)) if tangent_steps => {
                 let (running, padding) = observe::running_lanes(&status[..count]);
@@ -428,7 +450,7 @@ fn run_block<R: Flows>(
                 &mut regs,
                 memory.as_mut(),
                 n,
-                quiet_run(p, &obs, n, count),
+                quiet_run(p, &obs, n, count, false),
             ),
         };
         if any {
@@ -446,7 +468,10 @@ fn run_block<R: Flows>(
         obs.observe(&view);
         obs.cycle(&view);
         obs.average(&view);
-        let bad = obs.indicators(&view, &mut regs, tangent.as_mut());
+        let bad = match sampled {
+            Some(bad) => bad,
+            None => obs.indicators(&view, &mut regs, tangent.as_mut()),
+        };
         if bad != 0 {
             let bad: [bool; LANES] = std::array::from_fn(|i| bad >> i & 1 == 1);
             alive -= mark_nonfinite(&bad, &mut status, count, n - 1);
@@ -496,13 +521,24 @@ fn load_inputs<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, base: usize, count: u
 
 /// How many steps from step `n` the block takes in one call: 1 where
 /// something looks at every step (the vector field, cycle statistics, an
-/// event or interpolated Poincaré section) or the step is not fused stages;
-/// else up to the next trajectory frame, exact stroboscopic sample of one of
-/// the block's `count` lanes or multiple of [`LANES`] steps (where a pause
-/// may come), at most to the end.
-fn quiet_run<R: Flows>(p: &Program<R>, obs: &BlockObservers<R>, n: u64, count: usize) -> u64 {
+/// event or interpolated Poincaré section, the chaos indicators unless they
+/// take the run themselves: `indicator_run`) or the step is not fused
+/// stages; else up to the next trajectory frame, exact stroboscopic sample
+/// of one of the block's `count` lanes or multiple of [`LANES`] steps (where
+/// a pause may come), at most to the end.
+fn quiet_run<R: Flows>(
+    p: &Program<R>,
+    obs: &BlockObservers<R>,
+    n: u64,
+    count: usize,
+    indicator_run: bool,
+) -> u64 {
     let plan = p.plan;
-    if p.stages.is_none() || p.observes_every_step {
+    let every_step = match indicator_run {
+        true => plan.others_observe_every_step(),
+        false => p.stages.is_none() || p.observes_every_step,
+    };
+    if every_step {
         return 1;
     }
     let strobe = plan

@@ -123,7 +123,7 @@ impl<'p, R: Flows> Program<'p, R> {
         let indicators = plan
             .indicators
             .as_ref()
-            .map(|i| IndicatorTapes::new(plan, i, compiled_tangent(plan, isa, shared_time)));
+            .map(|i| IndicatorTapes::new(plan, i, compiled_tangent(plan, isa, shared_time), isa));
         let registers = registers
             .max(stop.as_ref().map_or(0, |s| s.registers()))
             .max(indicators.as_ref().map_or(0, |i| i.registers()));

@@ -1,0 +1,147 @@
+//! The chaos indicators' sample programs compiled: for the usual shapes
+//! (`plan/indicators.rs`'s [`SampleShape`], tangent dimensions 2 to 4)
+//! `sample_ops.rs` holds each program as one lane loop, generated from the
+//! same lowered program the tape and WGSL run and with the same functions,
+//! so it computes the same bits as the tape. Other shapes keep the tape.
+
+use super::kernels::in_precision;
+use super::sample_ops::{self, SHAPES};
+use crate::models::lanes::LANES;
+use crate::num::isa::Isa;
+use crate::num::precision::Real;
+use crate::plan::indicators::SampleShape;
+
+/// One sample over a block: `(shape, arrays)`, the program's inputs in its
+/// order, each one array of lanes; output k is written over input k (the
+/// programs keep their state in that order: the vectors, then the sums).
+/// Unsafe to call: the AVX2/FMA and AVX-512 variants need those features.
+pub type SampleFn<R> = unsafe fn(SampleShape, &mut [[R; LANES]]);
+
+/// The sample program of `shape` compiled at level `isa`, if it is one of
+/// the compiled shapes.
+pub fn sample_fn<R: Real>(shape: SampleShape, isa: Isa) -> Option<SampleFn<R>> {
+    if !SHAPES.contains(&shape) {
+        return None;
+    }
+    in_precision::<R, SampleFn<R>, _, _>(|| pick_f32(isa), || pick_f64(isa))
+}
+
+#[inline(never)]
+fn pick_f32(isa: Isa) -> SampleFn<f32> {
+    pick::<f32>(isa)
+}
+
+#[inline(never)]
+fn pick_f64(isa: Isa) -> SampleFn<f64> {
+    pick::<f64>(isa)
+}
+
+#[inline(always)]
+fn pick<R: Real>(isa: Isa) -> SampleFn<R> {
+    #[cfg(target_arch = "x86_64")]
+    match isa {
+        Isa::V4 => return sample_v4::<R>,
+        Isa::V3 => return sample_v3::<R>,
+        Isa::Baseline => {}
+    }
+    let _ = isa;
+    sample_baseline::<R>
+}
+
+/// [`sample_ops::run`] for any CPU.
+///
+/// # Safety
+/// None needed; unsafe only to be a [`SampleFn`].
+unsafe fn sample_baseline<R: Real>(s: SampleShape, x: &mut [[R; LANES]]) {
+    sample_ops::run::<R>(s, x)
+}
+
+/// [`sample_ops::run`] compiled for AVX2 and FMA.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn sample_v3<R: Real>(s: SampleShape, x: &mut [[R; LANES]]) {
+    sample_ops::run::<R>(s, x)
+}
+
+/// [`sample_ops::run`] compiled for AVX-512.
+///
+/// # Safety
+/// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
+unsafe fn sample_v4<R: Real>(s: SampleShape, x: &mut [[R; LANES]]) {
+    sample_ops::run::<R>(s, x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backend::cpu::kernels::isa;
+    use crate::num::formula::tape::Tape;
+
+    /// Inputs a sample sees: vectors of mixed signs, well conditioned
+    /// (vector k leans on axis k), scaled by 10⁻³ to 10³ from lane to lane;
+    /// then sums, times and counts, positive.
+    fn inputs<R: Real>(shape: SampleShape) -> Vec<[R; LANES]> {
+        let (n, d) = match shape {
+            SampleShape::Lyapunov { d, k } => (k * d, d),
+            SampleShape::Chaos { d } => (d, d),
+        };
+        (0..shape.inputs())
+            .map(|k| {
+                std::array::from_fn(|i| {
+                    let x = ((k * 37 + i * 11) % 97) as f64 / 97.0 - 0.5;
+                    let lean = f64::from(u8::from(k < n && k % d == k / d)) * 4.0;
+                    R::from_f64(match k < n {
+                        true => (x + lean) * 10f64.powi((i % 7) as i32 - 3),
+                        false => 1.0 + 10.0 * x.abs(),
+                    })
+                })
+            })
+            .collect()
+    }
+
+    /// Every compiled shape, at every level this CPU runs, computes what
+    /// the tape does: the same bits at the baseline level, within a few
+    /// roundings where the compiler fuses a·b + c into one FMA (the
+    /// build's `-fp-contract=fast`; the tape runs one operation at a time).
+    fn same_values<R: Real>(eps: f64) {
+        let levels = [Isa::Baseline, Isa::V3, Isa::V4];
+        for &shape in SHAPES {
+            let program = shape.program();
+            let tape = Tape::<R>::new(&program, |_| false);
+            let x = inputs::<R>(shape);
+            let mut regs = vec![[R::default(); LANES]; tape.registers];
+            tape.run(&mut regs, &x[..], Isa::Baseline);
+            for level in levels.into_iter().filter(|l| *l as u8 <= isa() as u8) {
+                let f = sample_fn::<R>(shape, level).expect("compiled");
+                let mut y = x.clone();
+                // SAFETY: only levels this CPU runs.
+                unsafe { f(shape, &mut y) };
+                let tol = match level {
+                    Isa::Baseline => 0.0,
+                    _ => 64.0 * eps,
+                };
+                for (k, got) in y[..program.outputs.len()].iter().enumerate() {
+                    let want = tape.output(&regs, k);
+                    for i in 0..LANES {
+                        let (g, w) = (got[i].to_f64(), want[i].to_f64());
+                        assert!(
+                            (g - w).abs() <= tol * w.abs().max(1.0),
+                            "{shape:?} {level:?} output {k} lane {i}: {g:e} vs {w:e}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn compiled_samples_are_the_tape() {
+        same_values::<f32>(f32::EPSILON as f64);
+        same_values::<f64>(f64::EPSILON);
+    }
+}
