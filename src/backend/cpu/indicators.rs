@@ -27,8 +27,8 @@ enum Src {
     /// State variable `k` of the plan at the step's start.
     Prev(usize),
     Slot(usize),
-    /// A value the same in every lane, set per call (step, sample number,
-    /// whether the sample counts).
+    /// A value the same in every lane, set per call (step, one over the
+    /// sample's number, whether the sample counts).
     Step,
     InvCount,
     Counted,
@@ -75,7 +75,7 @@ enum Loc {
     Vector(usize, usize),
     /// A real slot.
     Real(usize),
-    /// The sample's number, whether it counts, or the elapsed time.
+    /// One over the sample's number, whether it counts, the elapsed time.
     InvCount,
     Counted,
     Elapsed,
@@ -161,8 +161,8 @@ impl<R: Real> IndicatorTapes<R> {
     }
 
     /// Registers the programs need (compiled samples: their arrays, all
-    /// at once in a run of steps), and [`FILLS`] more for the inputs that are one value per
-    /// call.
+    /// at once in a run of steps), and [`FILLS`] more for the inputs that
+    /// are one value per call.
     pub fn registers(&self) -> usize {
         let all = std::iter::once(&self.tangent).chain(&self.samples);
         let tapes = all.map(|p| p.tape.registers).max().unwrap_or(0);

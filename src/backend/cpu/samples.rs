@@ -1,8 +1,9 @@
 //! The chaos indicators' sample programs compiled: for the usual shapes
 //! (`plan/indicators.rs`'s [`SampleShape`], tangent dimensions 2 to 4)
 //! `sample_ops.rs` holds each program as one lane loop, generated from the
-//! same lowered program the tape and WGSL run and with the same functions,
-//! so it computes the same bits as the tape. Other shapes keep the tape.
+//! same lowered program the tape and WGSL run and with the same functions:
+//! the tape's operations, its bits where the compiler fuses no a·b + c
+//! into an FMA. Other shapes keep the tape.
 
 use super::kernels::in_precision;
 use super::sample_ops::{self, SHAPES};
