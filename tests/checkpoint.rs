@@ -69,6 +69,29 @@ final = ["q", "p"]
 poincare = { period = 6.283185307179586, vars = ["q", "p"], max_points = 90 }
 "#;
 
+/// Chaos indicators (two exponents, FLI, MEGNO, their running values per
+/// frame): on the CPU the compiled tangent and samples take runs of steps,
+/// the vectors in scratch lanes between the pause points.
+const CHAOS: &str = r#"
+model = "spin_orbit"
+[params]
+eccentricity = 0.1
+epsilon = 0.05
+[initial]
+q = { linspace = [0.0, 6.0, 9] }
+p = { linspace = [0.5, 1.5, 11] }
+[integrator]
+scheme = "triple_jump4"
+dt = 0.05
+steps = 3500
+[output]
+final = ["q", "p"]
+trajectory = { every = 50, vars = ["q"] }
+lyapunov = { vectors = 2, every = 5 }
+fli = true
+megno = true
+"#;
+
 /// A formula model (the interpreter) with an exactly sampled section.
 const DUFFING: &str = r#"
 model = "mechanical"
@@ -176,6 +199,7 @@ fn cpu_runs_continue_bitwise_from_any_snapshot() {
     for (label, text) in [
         ("van der Pol", VAN_DER_POL),
         ("spin–orbit", SPIN_ORBIT),
+        ("chaos indicators", CHAOS),
         ("formula Duffing", DUFFING),
     ] {
         let plan = plan(text);
@@ -193,7 +217,11 @@ fn gpu_runs_continue_bitwise_from_any_snapshot() {
         max_steps_per_dispatch: Some(97),
         ..Default::default()
     };
-    for (label, text) in [("van der Pol", VAN_DER_POL), ("spin–orbit", SPIN_ORBIT)] {
+    for (label, text) in [
+        ("van der Pol", VAN_DER_POL),
+        ("spin–orbit", SPIN_ORBIT),
+        ("chaos indicators", CHAOS),
+    ] {
         let plan = plan(text);
         let run = |cp: Option<&mut Checkpoints>| {
             gpu::run_resumable::<f32>(ctx, &plan, None, &opts, cp).map(|r| r.observations)
