@@ -8,7 +8,7 @@
 
 use std::fmt::Write;
 
-use crate::num::formula::lower::{lower, Lowered, Operand, Prim};
+use crate::num::formula::lower::{lower, Lowered, Operand};
 use crate::num::formula::Id;
 
 use super::symbolic::LaneFormulas;
@@ -99,15 +99,7 @@ pub(crate) fn rust_lets(l: &Lowered, input: &dyn Fn(u32) -> String, indent: &str
     let mut s = String::new();
     for (k, i) in l.instrs.iter().enumerate() {
         let (a, b) = (rust_operand(i.a, input), rust_operand(i.b, input));
-        let e = match i.op {
-            Prim::Neg => format!("-{a}"),
-            Prim::Add => format!("{a} + {b}"),
-            Prim::Sub => format!("{a} - {b}"),
-            Prim::Mul => format!("{a} * {b}"),
-            Prim::Div => format!("{a} / {b}"),
-            Prim::Call(_) => format!("R::{}({a})", i.op.function()),
-            Prim::Call2(_) => format!("R::{}({a}, {b})", i.op.function()),
-        };
+        let e = i.op.expression(&a, &b, "R::");
         writeln!(s, "{indent}let v{k}: R = {e};").unwrap();
     }
     s

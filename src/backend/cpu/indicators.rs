@@ -290,24 +290,8 @@ impl<R: Real> IndicatorTapes<R> {
             };
             run(s, l, prev, real, regs, scalars, at);
         }
-        // One vectorised pass finds whether any lane is non-finite (rare);
-        // only then are the lanes told apart.
-        let mut any = false;
-        for &k in &self.tangent.outputs {
-            for i in 0..LANES {
-                any |= !real[k][i].finite();
-            }
-        }
-        if !any {
-            return 0;
-        }
-        let mut bad = 0u64;
-        for &k in &self.tangent.outputs {
-            for i in 0..LANES {
-                bad |= u64::from(!real[k][i].finite()) << i;
-            }
-        }
-        bad & running
+        let real: &[[R; LANES]] = real;
+        nonfinite_bits(|| self.tangent.outputs.iter().map(|&k| &real[k])) & running
     }
 }
 
@@ -343,12 +327,14 @@ impl<R: Real> IndicatorTapes<R> {
         // at k·d + j.
         let slots = &self.tangent.outputs;
         let d = c.space.len();
-        let twin = (running != 0).then(|| running.trailing_zeros() as usize);
+        // The first running lane, where some lane does not run.
+        let some_stopped = running != 0 && running != u64::MAX;
+        let twin = some_stopped.then(|| running.trailing_zeros() as usize);
         for (k, v) in s.d.iter_mut().enumerate() {
             for (j, &lane) in c.space.iter().enumerate() {
                 let a = v.at_mut(lane);
                 *a = real[slots[k * d + j]];
-                if let (Some(t), true) = (twin, running != u64::MAX) {
+                if let Some(t) = twin {
                     for i in (0..LANES).filter(|i| running >> i & 1 == 0) {
                         a[i] = a[t];
                     }
@@ -486,7 +472,7 @@ fn steps_body<R: Real>(
     };
     for j in 0..run.k {
         c.run(&mut s.x, &mut s.d, run.n + j);
-        if any_nonfinite(&s.x, &ind.var_lanes) {
+        if super::any_nonfinite(&s.x, &ind.var_lanes) {
             out = RunOutcome {
                 done: j + 1,
                 sampled: false,
@@ -524,42 +510,35 @@ fn steps_body<R: Real>(
     out
 }
 
-/// Whether any of the lanes `vars` of `x` is non-finite in any lane: one
-/// vectorised OR-reduction per variable.
-#[inline(always)]
-fn any_nonfinite<R: Real>(x: &Lanes<R>, vars: &[usize]) -> bool {
-    let mut any = false;
-    for &k in vars {
-        let a = x.at(k);
-        for i in 0..LANES {
-            any |= !a[i].finite();
-        }
-    }
-    any
-}
-
 /// The lanes whose deviation vectors in `s` are non-finite, as bits.
 #[inline(always)]
 fn nonfinite_vectors<R: Real>(c: &CompiledTangent<R>, s: &TangentScratch<R>) -> u64 {
+    nonfinite_bits(|| {
+        s.d.iter()
+            .flat_map(|v| c.space.iter().map(move |&lane| v.at(lane)))
+    })
+}
+
+/// The lanes where any of the `arrays` is non-finite, as bits: one
+/// vectorised OR-reduction finds whether any is (rare); only then are the
+/// lanes told apart.
+#[inline(always)]
+fn nonfinite_bits<'a, R: Real + 'a, I: Iterator<Item = &'a [R; LANES]>>(
+    arrays: impl Fn() -> I,
+) -> u64 {
     let mut any = false;
-    for v in &s.d {
-        for &lane in &c.space {
-            let a = v.at(lane);
-            for i in 0..LANES {
-                any |= !a[i].finite();
-            }
+    for a in arrays() {
+        for i in 0..LANES {
+            any |= !a[i].finite();
         }
     }
     if !any {
         return 0;
     }
     let mut bad = 0u64;
-    for v in &s.d {
-        for &lane in &c.space {
-            let a = v.at(lane);
-            for i in 0..LANES {
-                bad |= u64::from(!a[i].finite()) << i;
-            }
+    for a in arrays() {
+        for i in 0..LANES {
+            bad |= u64::from(!a[i].finite()) << i;
         }
     }
     bad

@@ -31,6 +31,7 @@ use super::error::BackendError;
 
 use crate::models::lanes::{LaneArrays, Lanes, LANES};
 use crate::models::Flows;
+use crate::num::precision::Real;
 use crate::plan::observations::{Observations, Sink};
 use crate::plan::snapshot::{get, get_array, get_one, get_vec, invalid, put, put_slice, Header};
 use crate::plan::{slots, Plan};
@@ -442,7 +443,7 @@ fn run_block<R: Flows>(
             (Some(ind), Some(scratch)) if tangent_steps => {
                 let (running, padding) = observe::running_lanes(&status[..count]);
                 ind.step(l, scratch, obs.slots_mut(), n, running | padding);
-                (1, any_nonfinite(p, l))
+                (1, any_nonfinite(l, &p.var))
             }
             _ => advance(
                 p,
@@ -578,10 +579,10 @@ fn advance<R: Flows>(
     }
     if let (Some(f), Some(m)) = (&p.formula_step, memory) {
         // A variable no op assigns keeps its initial value: checked once.
-        return (1, f.step(l, m, n) || (n == 0 && any_nonfinite(p, l)));
+        return (1, f.step(l, m, n) || (n == 0 && any_nonfinite(l, &p.var)));
     }
     run_ops(p, l, regs, R::from_f64(n as f64));
-    (1, any_nonfinite(p, l))
+    (1, any_nonfinite(l, &p.var))
 }
 
 /// Makes every lane whose state is non-finite (`bad`: marked, or padding)
@@ -598,10 +599,11 @@ fn retire<R: Flows>(bad: &[bool; LANES], l: &mut Lanes<R>, status: &[u64; LANES]
 }
 
 /// Whether some state variable is non-finite in some lane.
-fn any_nonfinite<R: Flows>(p: &Program<R>, l: &Lanes<R>) -> bool {
+#[inline(always)]
+fn any_nonfinite<R: Real>(l: &Lanes<R>, vars: &[usize]) -> bool {
     // One vectorised pass per variable with an OR-reduction.
     let mut any = false;
-    for &k in &p.var {
+    for &k in vars {
         let x = l.at(k);
         for i in 0..LANES {
             any |= !x[i].finite();

@@ -53,6 +53,21 @@ impl Prim {
         matches!(self, Prim::Neg | Prim::Call(_))
     }
 
+    /// The instruction as an expression of its operands' text `a`, `b`,
+    /// the same in WGSL and Rust: operators infix, calls with `call`
+    /// before the function's name (`""` in WGSL, `"R::"` in Rust).
+    pub fn expression(self, a: &str, b: &str, call: &str) -> String {
+        match self {
+            Prim::Neg => format!("-{a}"),
+            Prim::Add => format!("{a} + {b}"),
+            Prim::Sub => format!("{a} - {b}"),
+            Prim::Mul => format!("{a} * {b}"),
+            Prim::Div => format!("{a} / {b}"),
+            Prim::Call(_) => format!("{call}{}({a})", self.function()),
+            Prim::Call2(_) => format!("{call}{}({a}, {b})", self.function()),
+        }
+    }
+
     /// The name of a call's function: reeb's own (`num/math.rs` and the
     /// preludes), except the exactly rounded `sqrt` and `abs`; the same in
     /// WGSL (`wgsl.rs`) and as `R::name` in Rust (`models/tangent_gen.rs`).

@@ -74,15 +74,7 @@ pub fn function_text(name: &str, l: &Lowered, inputs: &[&str], outputs: &[&str])
             writeln!(body, "    let v{k}: R = {v}{first};").unwrap();
             continue;
         }
-        let e = match i.op {
-            Prim::Neg => format!("-{a}"),
-            Prim::Add => format!("{a} + {b}"),
-            Prim::Sub => format!("{a} - {b}"),
-            Prim::Mul => format!("{a} * {b}"),
-            Prim::Div => format!("{a} / {b}"),
-            Prim::Call(_) => format!("{}({a})", i.op.function()),
-            Prim::Call2(_) => format!("{}({a}, {b})", i.op.function()),
-        };
+        let e = i.op.expression(&a, &b, "");
         writeln!(body, "    let v{k}: R = {e};").unwrap();
     }
     // Outputs read as values first, then written.
