@@ -426,6 +426,29 @@ crate::shared_fns! {
         let one: R = 1.0;
         return R::select(R::select(x, -one, x < 0.0), one, x > 0.0);
     }
+    /// The power of two a that brings a vector of squared norm n2 back
+    /// inside [2⁻⁴⁰, 2⁴⁰] when multiplied by 2^a: −20 above that band, 20
+    /// below it, else 0 (one rung: growth by more than 2²⁰ from sample to
+    /// sample drifts out of the band, without harm until ‖u‖ nears the
+    /// precision's range); NaN unless n2 > 0 (a vector collapsed to 0, or
+    /// NaN). The chaos indicators keep their vectors in range with it.
+    fn octave_r(n2: R) -> R {
+        // Typed constants: WGSL's select takes no abstract literal for f64.
+        let none: R = 0.0;
+        let up: R = 20.0;
+        let down: R = -20.0;
+        let nan: R = R::inf() * 0.0;
+        let a: R = R::select(R::select(none, up, n2 < 9.094947017729282e-13), down, n2 > 1099511627776.0);
+        return R::select(nan, a, n2 > 0.0);
+    }
+    /// 2^a for a of [`octave_r`]: −20, 0 or 20 (NaN stays NaN).
+    fn rescale_r(a: R) -> R {
+        let one: R = 1.0;
+        let up: R = 1048576.0;
+        let down: R = 9.5367431640625e-07;
+        let s: R = R::select(R::select(one, up, a > 0.0), down, a < 0.0);
+        return R::select(a, s, a > -64.0);
+    }
     fn min_r(x: R, y: R) -> R {
         return R::select(y, x, x < y);
     }

@@ -1,18 +1,30 @@
 //! Chaos indicators as observers: finite-time Lyapunov exponents
 //! (Benettin's method), the Fast Lyapunov Indicator and MEGNO. Their
 //! deviation vectors follow the exact tangent map of the step
-//! (`plan/tangent.rs`); at each sample a program re-normalises them and
-//! updates the sums. The tangent step and the samples are formulas lowered
+//! (`plan/tangent.rs`); at each sample a program orthogonalises them
+//! (Gram–Schmidt without normalising), reads their logarithmic growth and
+//! brings them back near norm 1 by an exact power of two. The tangent step and the samples are formulas lowered
 //! to one program each, which both backends run (the CPU's block
 //! interpreter, WGSL on the GPU): one source for all of it.
 //!
+//! Why no normalisation: the vector a sample keeps, u, is the true
+//! (Gram–Schmidt) vector times 2^−E with E an integer in a slot, so
+//! ln‖w‖ = E ln 2 + ½ ln‖u‖², and the Rᵢᵢ of the normalised method
+//! telescope into differences of it. A square root and a division per
+//! lane go (the samples were bound by the divider); the Lyapunov samples
+//! take no logarithm at all (the exponents are read from E and ‖u‖² when
+//! asked for, [`lyapunov_finish`]), the FLI/MEGNO sample one.
+//!
 //! Per-trajectory state (real slots, after the time averages'): the
 //! deviation vectors `w{k}_{j}` (Lyapunov's k vectors, starting as the
-//! identity's columns, then the FLI/MEGNO vector, (1, …, 1)/√d); the sums
-//! of ln Rᵢᵢ `lyap_{i}`; `fli_log` = ln‖w‖ so far (the vector is kept
-//! normalised, its growth in this running logarithm, so nothing
-//! overflows), `fli_max` its maximum over the samples; `megno_sum` =
-//! Σ t_k ln(‖w_k‖/‖w_{k−1}‖) and `megno_mean` = ⟨Y⟩.
+//! identity's columns, then the FLI/MEGNO vector, (1, …, 1)/√d); per
+//! Lyapunov vector i its octaves `lyap_oct_{i}` (E) and ‖u‖² at the last
+//! sample `lyap_n2_{i}`, and both at the skip step, `lyap_start_oct_{i}`
+//! and `lyap_start_n2_{i}`; for the FLI/MEGNO vector `fli_oct` (E),
+//! `fli_log` = ln‖w‖ at the last sample, `fli_max` its maximum over the
+//! samples, `megno_sum` = Σ k ln(‖w_k‖/‖w_{k−1}‖) over the samples
+//! k = 1, 2, … and `megno_mean` = ⟨Y⟩ (Y_n = 2·megno_sum/n: the
+//! definition's t_k = k·m·dt cancel).
 
 use crate::num::formula::lower::{lower, Lowered};
 use crate::num::formula::{Dag, Func, Func2, Id};
@@ -26,13 +38,14 @@ use super::tangent::{StepSpec, TangentInput, TangentStep};
 pub enum SampleInput {
     /// The indicators' slot at this index (of [`Indicators::slots`]).
     Slot(usize),
-    /// The time since the start, `n1·dt`.
-    Elapsed,
-    /// One over the sample's number (1 for the first): the running mean's
-    /// weight, a product where a quotient would cost a division per lane.
+    /// The sample's number (1 for the first).
+    Count,
+    /// One over it: the running mean's weight, a product where a quotient
+    /// would cost a division per lane.
     InvCount,
-    /// 1 when the sample counts (after the skipped part), else 0.
-    Counted,
+    /// 1 at the sample of the skip step (where the Lyapunov sums start),
+    /// else 0.
+    AtSkip,
 }
 
 /// A program run every `every` steps: it reads `inputs` and writes its
@@ -137,19 +150,20 @@ impl Indicators {
         self.slots.len() - 1
     }
 
-    /// Modified Gram–Schmidt on vectors `0..k`, adding ln Rᵢᵢ (when the
-    /// sample counts) to the sums ([`lyapunov_program`]).
+    /// Gram–Schmidt on vectors `0..k`, their growth kept
+    /// ([`lyapunov_program`]).
     fn lyapunov_sampler(&mut self, k: usize, every: u64) -> Sampler {
         let d = self.dimension();
-        let sums: Vec<usize> = (0..k)
-            .map(|i| self.slot(format!("lyap_{i}"), 0.0))
-            .collect();
+        let mut state = vec![];
+        for (name, init) in LYAPUNOV_STATE {
+            state.extend((0..k).map(|i| self.slot(format!("{name}_{i}"), init)));
+        }
         let w = &self.deviation_slots[..k * d];
         let mut inputs: Vec<SampleInput> = w.iter().map(|s| SampleInput::Slot(*s)).collect();
-        inputs.extend(sums.iter().map(|s| SampleInput::Slot(*s)));
-        inputs.push(SampleInput::Counted);
+        inputs.extend(state.iter().map(|s| SampleInput::Slot(*s)));
+        inputs.push(SampleInput::AtSkip);
         let mut outputs = w.to_vec();
-        outputs.extend(sums);
+        outputs.extend(state);
         let shape = SampleShape::Lyapunov { d, k };
         Sampler {
             every,
@@ -160,12 +174,13 @@ impl Indicators {
         }
     }
 
-    /// The FLI/MEGNO vector (number `k`) normalised, its growth logged
-    /// ([`chaos_program`]).
+    /// The FLI/MEGNO vector (number `k`): its growth read, the sums
+    /// updated ([`chaos_program`]).
     fn chaos_sampler(&mut self, k: usize, every: u64) -> Sampler {
         let d = self.dimension();
         let u = self.deviation_slots[k * d..(k + 1) * d].to_vec();
         let state = [
+            self.slot("fli_oct".into(), 0.0),
             self.slot("fli_log".into(), 0.0),
             self.slot("fli_max".into(), f64::NEG_INFINITY),
             self.slot("megno_sum".into(), 0.0),
@@ -173,7 +188,7 @@ impl Indicators {
         ];
         let mut inputs: Vec<SampleInput> = u.iter().map(|s| SampleInput::Slot(*s)).collect();
         inputs.extend(state.iter().map(|s| SampleInput::Slot(*s)));
-        inputs.extend([SampleInput::Elapsed, SampleInput::InvCount]);
+        inputs.extend([SampleInput::Count, SampleInput::InvCount]);
         let mut outputs = u;
         outputs.extend(state);
         let shape = SampleShape::Chaos { d };
@@ -203,11 +218,21 @@ impl Indicators {
 
     /// How many Lyapunov exponents each trajectory has.
     pub fn exponents(&self) -> usize {
-        self.lyapunov
-            .as_ref()
-            .map_or(0, |l| l.outputs.len() / (self.dimension() + 1))
+        match self.lyapunov.as_ref().map(|l| l.shape) {
+            Some(SampleShape::Lyapunov { k, .. }) => k,
+            _ => 0,
+        }
     }
 }
+
+/// Each Lyapunov vector's slots besides its components, in the program's
+/// order, and their values before the first step (ln‖w‖ = 0 at both).
+const LYAPUNOV_STATE: [(&str, f64); 4] = [
+    ("lyap_oct", 0.0),
+    ("lyap_n2", 1.0),
+    ("lyap_start_oct", 0.0),
+    ("lyap_start_n2", 1.0),
+];
 
 /// A sample program's shape: which indicator, over a tangent space of
 /// dimension `d` (and `k` Lyapunov vectors). The program depends on the
@@ -223,8 +248,8 @@ impl SampleShape {
     /// How many inputs its program reads.
     pub fn inputs(self) -> usize {
         match self {
-            SampleShape::Lyapunov { d, k } => k * d + k + 1,
-            SampleShape::Chaos { d } => d + 6,
+            SampleShape::Lyapunov { d, k } => k * d + 4 * k + 1,
+            SampleShape::Chaos { d } => d + 7,
         }
     }
 
@@ -236,69 +261,105 @@ impl SampleShape {
     }
 }
 
-/// Modified Gram–Schmidt on `k` vectors of dimension `d`, adding ln Rᵢᵢ
-/// (when the sample counts) to the sums. Inputs: the vectors' components
-/// (vector i's component j at i·d + j), the k sums, whether the sample
-/// counts; outputs: the orthonormal vectors, then the sums.
+/// Gram–Schmidt on `k` vectors of dimension `d` without normalising
+/// (each vector minus its projections on the ones before), each brought
+/// near norm 1 by a power of two. Inputs: the vectors' components (vector
+/// i's component j at i·d + j), then for each vector in turn its octaves
+/// E, its ‖u‖², both at the skip step, and whether this sample is the
+/// skip step's; outputs: the vectors, then the rest in the inputs' order.
+/// No logarithm: [`lyapunov_finish`] reads the growth from them.
 pub fn lyapunov_program(d: usize, k: usize) -> Lowered {
     let mut g = Dag::new();
     let var = |g: &mut Dag, k: usize| g.var(k as u32);
-    let counted = var(&mut g, k * d + k);
-    let mut basis: Vec<Vec<Id>> = vec![];
-    let mut roots_sums = vec![];
+    let at_skip = var(&mut g, k * d + 4 * k);
+    let one = g.num(1.0);
+    let before = g.sub(one, at_skip);
+    // The vectors orthogonalised, each with 1/‖v‖² (to project on it).
+    let mut basis: Vec<(Vec<Id>, Id)> = vec![];
+    let mut vectors = vec![];
+    let mut state: Vec<Vec<Id>> = vec![vec![]; 4];
     for i in 0..k {
         let mut v: Vec<Id> = (0..d).map(|j| var(&mut g, i * d + j)).collect();
-        for e in &basis {
-            let proj = dot(&mut g, &v, e);
+        for (b, inv) in &basis {
+            let c = dot(&mut g, &v, b);
+            let proj = g.mul(c, *inv);
             v = v
                 .iter()
-                .zip(e)
+                .zip(b)
                 .map(|(x, y)| {
                     let p = g.mul(proj, *y);
                     g.sub(*x, p)
                 })
                 .collect();
         }
-        let r = norm(&mut g, &v);
-        let inv = reciprocal(&mut g, r);
-        basis.push(v.iter().map(|x| g.mul(*x, inv)).collect());
-        let ln = g.call(Func::Log, r);
-        let add = g.mul(counted, ln);
-        let sum = var(&mut g, k * d + i);
-        roots_sums.push(g.add(sum, add));
+        let n2 = dot(&mut g, &v, &v);
+        let octave = var(&mut g, k * d + i);
+        let (scaled, e, s) = rescale(&mut g, &v, octave, n2);
+        let s2 = g.mul(s, s);
+        let n2_scaled = g.mul(n2, s2);
+        // At the skip step the start takes E and ‖u‖²; 0·x + 1·y and
+        // 1·x + 0·y are exact.
+        for (j, now) in [(2, e), (3, n2_scaled)] {
+            let start = var(&mut g, k * d + j * k + i);
+            let keep = g.mul(before, start);
+            let take = g.mul(at_skip, now);
+            state[j].push(g.add(keep, take));
+        }
+        if i + 1 < k {
+            basis.push((v, reciprocal(&mut g, n2)));
+        }
+        vectors.extend(scaled);
+        state[0].push(e);
+        state[1].push(n2_scaled);
     }
-    let mut roots: Vec<Id> = basis.concat();
-    roots.extend(roots_sums);
+    let mut roots = vectors;
+    roots.extend(state.concat());
     lower(&g, &roots)
 }
 
-/// The FLI/MEGNO vector of dimension `d` normalised, its growth logged.
-/// Inputs: its components, `fli_log`, `fli_max`, `megno_sum`,
-/// `megno_mean`, the elapsed time, one over the sample's number; outputs: the
-/// vector, then the four sums.
+/// The FLI/MEGNO vector of dimension `d`: its growth read, the sums
+/// updated. Inputs: its components, `fli_oct`, `fli_log`, `fli_max`,
+/// `megno_sum`, `megno_mean`, the sample's number, one over it; outputs:
+/// the vector brought near norm 1, then the five in the inputs' order.
 pub fn chaos_program(d: usize) -> Lowered {
     let mut g = Dag::new();
-    let x: Vec<Id> = (0..d + 6).map(|i| g.var(i as u32)).collect();
-    let [log0, max0, sum0, mean0, elapsed, inv_count] = x[d..] else {
-        unreachable!("six inputs after the vector")
+    let x: Vec<Id> = (0..d + 7).map(|i| g.var(i as u32)).collect();
+    let [octave, log0, max0, sum0, mean0, count, inv_count] = x[d..] else {
+        unreachable!("seven inputs after the vector")
     };
-    let r = norm(&mut g, &x[..d]);
-    let inv = reciprocal(&mut g, r);
-    let mut roots: Vec<Id> = x[..d].iter().map(|c| g.mul(*c, inv)).collect();
-    let ln = g.call(Func::Log, r);
-    let log = g.add(log0, ln);
-    let max = g.call2(Func2::Max, max0, log);
-    let weighted = g.mul(elapsed, ln);
+    let u = &x[..d];
+    let n2 = dot(&mut g, u, u);
+    let ln2 = g.num(std::f64::consts::LN_2);
+    let whole = g.mul(octave, ln2);
+    let log = g.call(Func::Log, n2);
+    let half = g.num(0.5);
+    let part = g.mul(half, log);
+    let ln = g.add(whole, part);
+    let max = g.call2(Func2::Max, max0, ln);
+    let delta = g.sub(ln, log0);
+    let weighted = g.mul(count, delta);
     let sum = g.add(sum0, weighted);
-    // Y = 2 Σ / t, and ⟨Y⟩ as a running mean.
+    // Y = 2 Σ / n, and ⟨Y⟩ as a running mean.
     let two = g.num(2.0);
     let twice = g.mul(two, sum);
-    let y = g.div(twice, elapsed);
+    let y = g.mul(twice, inv_count);
     let dev = g.sub(y, mean0);
     let step = g.mul(dev, inv_count);
     let mean = g.add(mean0, step);
-    roots.extend([log, max, sum, mean]);
+    let (mut roots, e, _) = rescale(&mut g, u, octave, n2);
+    roots.extend([e, ln, max, sum, mean]);
     lower(&g, &roots)
+}
+
+/// `v` times the power of two s = 2^a that keeps it in range (`n2` its
+/// squared norm), exactly, its octaves E − a, and s: NaN where `n2` is
+/// not positive, so that a collapsed vector is flagged like a diverged
+/// one.
+fn rescale(g: &mut Dag, v: &[Id], octave: Id, n2: Id) -> (Vec<Id>, Id, Id) {
+    let a = g.call(Func::Octave, n2);
+    let s = g.call(Func::Rescale, a);
+    let scaled = v.iter().map(|x| g.mul(*x, s)).collect();
+    (scaled, g.sub(octave, a), s)
 }
 
 fn dot(g: &mut Dag, a: &[Id], b: &[Id]) -> Id {
@@ -310,28 +371,24 @@ fn dot(g: &mut Dag, a: &[Id], b: &[Id]) -> Id {
     s
 }
 
-/// 1/r: one division, then a product per component (a division each
+/// 1/x: one division, then a product per component (a division each
 /// would be d of them, the costliest operation of a sample).
-fn reciprocal(g: &mut Dag, r: Id) -> Id {
+fn reciprocal(g: &mut Dag, x: Id) -> Id {
     let one = g.num(1.0);
-    g.div(one, r)
+    g.div(one, x)
 }
 
-fn norm(g: &mut Dag, v: &[Id]) -> Id {
-    let s = dot(g, v, v);
-    g.call(Func::Sqrt, s)
-}
-
-/// The Lyapunov exponents from the sums (`sum(i)`), largest first: each
-/// sum over the time between the skip step and the last sample at or
-/// before `last_step`; NaN when no sample counted or the trajectory did
+/// The Lyapunov exponents from the indicators' slots (`slot(k)` the value
+/// of slot k), largest first: each Σ ln Rᵢᵢ = ln‖wᵢ‖ at the last sample at
+/// or before `last_step` minus ln‖wᵢ‖ at the skip step, in f64, over the
+/// time between them; NaN when no sample counted or the trajectory did
 /// not finish (`ok` false).
 pub fn lyapunov_finish(
     ind: &Indicators,
     dt: f64,
     last_step: u64,
     ok: bool,
-    sum: impl Fn(usize) -> f64,
+    slot: impl Fn(usize) -> f64,
 ) -> Vec<f64> {
     let k = ind.exponents();
     let every = ind.lyapunov.as_ref().map_or(1, |l| l.every);
@@ -340,7 +397,27 @@ pub fn lyapunov_finish(
         return vec![f64::NAN; k];
     }
     let span = (last_sample - ind.skip_step) as f64 * dt;
-    let mut out: Vec<f64> = (0..k).map(|i| sum(i) / span).collect();
+    let value = |name: &str, i: usize| ind.slot_of(&format!("{name}_{i}")).map_or(f64::NAN, &slot);
+    let ln = |oct: f64, n2: f64| oct * std::f64::consts::LN_2 + 0.5 * n2.ln();
+    let mut out: Vec<f64> = (0..k)
+        .map(|i| {
+            let now = ln(value("lyap_oct", i), value("lyap_n2", i));
+            let start = ln(value("lyap_start_oct", i), value("lyap_start_n2", i));
+            (now - start) / span
+        })
+        .collect();
     out.sort_by(|a, b| b.total_cmp(a));
     out
+}
+
+/// The Lyapunov slots [`lyapunov_finish`] reads.
+pub fn lyapunov_slots(ind: &Indicators) -> Vec<usize> {
+    (0..ind.exponents())
+        .flat_map(|i| {
+            LYAPUNOV_STATE
+                .iter()
+                .map(move |(name, _)| format!("{name}_{i}"))
+        })
+        .filter_map(|name| ind.slot_of(&name))
+        .collect()
 }

@@ -6,7 +6,7 @@
 //! made of from its slots, is here too, so both backends share it.
 
 use crate::models::Flows;
-use crate::plan::indicators::lyapunov_finish;
+use crate::plan::indicators::{lyapunov_finish, lyapunov_slots};
 use crate::plan::Plan;
 
 /// A slot's value before the first step.
@@ -176,11 +176,7 @@ pub fn indicators_at<R: Flows>(
     };
     let first = indicator_first(plan);
     let slot = |k: usize| slot(first + k);
-    let lyap = |i: usize| {
-        ind.slot_of(&format!("lyap_{i}"))
-            .map_or(f64::NAN, |k| slot(k).to_f64())
-    };
-    let exponents = lyapunov_finish(ind, dt.to_f64(), last, ok, lyap);
+    let exponents = lyapunov_finish(ind, dt.to_f64(), last, ok, |k| slot(k).to_f64());
     let sampled = ok && plan.observers.chaos_every().is_some_and(|e| last >= e);
     let value = |name: &str| match (sampled, ind.slot_of(name)) {
         (true, Some(k)) => slot(k),
@@ -199,9 +195,10 @@ pub fn indicator_frame_slots(plan: &Plan) -> Vec<usize> {
     match (&plan.indicators, &plan.observers.trajectory) {
         (Some(ind), Some(_)) => {
             let first = indicator_first(plan);
-            let lyap = (0..ind.exponents()).map(|i| format!("lyap_{i}"));
-            lyap.chain(["fli_max".into(), "megno_mean".into()])
-                .filter_map(|name| ind.slot_of(&name))
+            let chaos = ["fli_max", "megno_mean"].map(|name| ind.slot_of(name));
+            lyapunov_slots(ind)
+                .into_iter()
+                .chain(chaos.into_iter().flatten())
                 .map(|k| first + k)
                 .collect()
         }

@@ -27,20 +27,19 @@ enum Src {
     /// State variable `k` of the plan at the step's start.
     Prev(usize),
     Slot(usize),
-    /// A value the same in every lane, set per call (step, one over the
-    /// sample's number, whether the sample counts).
+    /// A value the same in every lane, set per call (step, the sample's
+    /// number and one over it, whether the sample counts).
     Step,
+    Count,
     InvCount,
-    Counted,
-    /// `n1·dt` per lane.
-    Elapsed,
+    AtSkip,
 }
 
 /// A program and where its inputs come from and its outputs go.
 pub struct Program<R> {
     tape: Tape<R>,
     inputs: Vec<Src>,
-    /// The inputs among Step, InvCount, Counted and Elapsed it reads: the
+    /// The inputs among Step, Count, InvCount and AtSkip it reads: the
     /// arrays to fill before each call.
     fills: Vec<Src>,
     /// The real slots the outputs are written to.
@@ -63,8 +62,6 @@ pub struct IndicatorTapes<R> {
     /// ([`IndicatorTapes::steps`]), where it can take one.
     runs: Option<Vec<RunLocs>>,
     skip_step: u64,
-    /// Lane index of `dt` (the samples' elapsed time).
-    dt_lane: usize,
 }
 
 /// Where a compiled sample's array is in a run of steps: the deviation
@@ -75,10 +72,10 @@ enum Loc {
     Vector(usize, usize),
     /// A real slot.
     Real(usize),
-    /// One over the sample's number, whether it counts, the elapsed time.
+    /// The sample's number, one over it, whether it counts.
+    Count,
     InvCount,
-    Counted,
-    Elapsed,
+    AtSkip,
 }
 
 /// Where a sample's arrays (its inputs, in order; output k replaces input
@@ -156,7 +153,6 @@ impl<R: Real> IndicatorTapes<R> {
                 .collect(),
             samples,
             skip_step: ind.skip_step,
-            dt_lane: index_of("dt").expect("dt is a lane"),
         }
     }
 
@@ -260,16 +256,12 @@ impl<R: Real> IndicatorTapes<R> {
         running: u64,
         isa: Isa,
     ) -> u64 {
-        let at = Call {
-            n1,
-            running,
-            isa,
-            dt_lane: self.dt_lane,
-        };
+        let at = Call { running, isa };
         let scalars = Scalars {
             step: R::from_f64((n1 - 1) as f64),
+            count: R::from_f64(0.0),
             inv_count: R::from_f64(0.0),
-            counted: R::from_f64(0.0),
+            at_skip: R::from_f64(0.0),
         };
         match (&self.compiled, scratch) {
             // The step moved the vectors already.
@@ -284,8 +276,9 @@ impl<R: Real> IndicatorTapes<R> {
         }
         for s in self.samples.iter().filter(|s| n1.is_multiple_of(s.every)) {
             let scalars = Scalars {
+                count: R::from_f64((n1 / s.every) as f64),
                 inv_count: inv_count::<R>(n1 / s.every),
-                counted: R::from_f64(f64::from(u8::from(n1 > self.skip_step))),
+                at_skip: R::from_f64(f64::from(u8::from(n1 == self.skip_step))),
                 ..scalars
             };
             run(s, l, prev, real, regs, scalars, at);
@@ -360,13 +353,9 @@ impl<R: Real> IndicatorTapes<R> {
             match *at {
                 Loc::Vector(k, lane) => *a = *s.d[k].at(lane),
                 Loc::Real(_) => {}
+                Loc::Count => *a = [R::from_f64((n1 / p.every) as f64); LANES],
                 Loc::InvCount => *a = [inv_count::<R>(n1 / p.every); LANES],
-                Loc::Counted => *a = [R::from_f64(f64::from(u8::from(n1 > self.skip_step))); LANES],
-                Loc::Elapsed => {
-                    let n1r = R::from_f64(n1 as f64);
-                    let dt = s.x.at(self.dt_lane);
-                    *a = std::array::from_fn(|i| n1r * dt[i]);
-                }
+                Loc::AtSkip => *a = [R::from_f64(f64::from(u8::from(n1 == self.skip_step))); LANES],
             }
         }
         // SAFETY: `sample_fn` compiled it for the block's level, which
@@ -570,9 +559,9 @@ fn run_locs<R: Real>(
             }
             let inputs = p.inputs.iter().map(|src| match *src {
                 Src::Slot(j) => Some(at(j)),
+                Src::Count => Some(Loc::Count),
                 Src::InvCount => Some(Loc::InvCount),
-                Src::Counted => Some(Loc::Counted),
-                Src::Elapsed => Some(Loc::Elapsed),
+                Src::AtSkip => Some(Loc::AtSkip),
                 _ => None,
             });
             Some(RunLocs {
@@ -603,9 +592,9 @@ fn sampler<R: Real>(s: &Sampler, first: usize, isa: Isa) -> Program<R> {
         .iter()
         .map(|i| match *i {
             SampleInput::Slot(k) => Src::Slot(first + k),
-            SampleInput::Elapsed => Src::Elapsed,
+            SampleInput::Count => Src::Count,
             SampleInput::InvCount => Src::InvCount,
-            SampleInput::Counted => Src::Counted,
+            SampleInput::AtSkip => Src::AtSkip,
         })
         .collect();
     Program {
@@ -622,7 +611,7 @@ fn sampler<R: Real>(s: &Sampler, first: usize, isa: Isa) -> Program<R> {
 fn fills(inputs: &[Src]) -> Vec<Src> {
     let mut f: Vec<Src> = vec![];
     for src in inputs {
-        let one = matches!(src, Src::Step | Src::InvCount | Src::Counted | Src::Elapsed);
+        let one = matches!(src, Src::Step | Src::Count | Src::InvCount | Src::AtSkip);
         if one && !f.contains(src) {
             f.push(*src);
         }
@@ -630,22 +619,22 @@ fn fills(inputs: &[Src]) -> Vec<Src> {
     f
 }
 
-/// The step a call follows, the lanes still running (as bits: only their
-/// slots change) and the instruction-set level.
+/// The lanes still running (as bits: only their slots change) and the
+/// instruction-set level.
 #[derive(Clone, Copy)]
 struct Call {
-    n1: u64,
     running: u64,
     isa: Isa,
-    dt_lane: usize,
 }
 
-/// The values of [`Src::Step`], [`Src::InvCount`] and [`Src::Counted`].
+/// The values of [`Src::Step`], [`Src::Count`], [`Src::InvCount`] and
+/// [`Src::AtSkip`].
 #[derive(Clone, Copy)]
 struct Scalars<R> {
     step: R,
+    count: R,
     inv_count: R,
-    counted: R,
+    at_skip: R,
 }
 
 /// 1/n in precision `R`, as the GPU computes it.
@@ -653,7 +642,7 @@ fn inv_count<R: Real>(n: u64) -> R {
     R::from_f64(1.0) / R::from_f64(n as f64)
 }
 
-/// Arrays for Step, InvCount, Counted and Elapsed, after the registers.
+/// Arrays for Step, Count, InvCount and AtSkip, after the registers.
 const FILLS: usize = 4;
 
 /// A program's inputs on a block, resolved per read (no list built per call).
@@ -662,7 +651,7 @@ struct View<'a, R> {
     l: &'a Lanes<R>,
     prev: &'a [[R; LANES]],
     real: &'a [[R; LANES]],
-    /// Step, InvCount, Counted and Elapsed, as arrays (filled where read).
+    /// Step, Count, InvCount and AtSkip, as arrays (filled where read).
     fills: &'a [[R; LANES]],
 }
 
@@ -674,9 +663,9 @@ impl<R: Real> Inputs<R, LANES> for View<'_, R> {
             Src::Prev(j) => &self.prev[j],
             Src::Slot(j) => &self.real[j],
             Src::Step => &self.fills[0],
-            Src::InvCount => &self.fills[1],
-            Src::Counted => &self.fills[2],
-            Src::Elapsed => &self.fills[3],
+            Src::Count => &self.fills[1],
+            Src::InvCount => &self.fills[2],
+            Src::AtSkip => &self.fills[3],
         }
     }
     fn scalar(&self, k: u32) -> R {
@@ -699,13 +688,9 @@ fn run<R: Real>(
     for src in &p.fills {
         match *src {
             Src::Step => fills[0] = [s.step; LANES],
-            Src::InvCount => fills[1] = [s.inv_count; LANES],
-            Src::Counted => fills[2] = [s.counted; LANES],
-            Src::Elapsed => {
-                let n1r = R::from_f64(at.n1 as f64);
-                let dt = l.at(at.dt_lane);
-                fills[3] = std::array::from_fn(|i| n1r * dt[i]);
-            }
+            Src::Count => fills[1] = [s.count; LANES],
+            Src::InvCount => fills[2] = [s.inv_count; LANES],
+            Src::AtSkip => fills[3] = [s.at_skip; LANES],
             _ => {}
         }
     }

@@ -226,7 +226,7 @@ pub(super) fn frame_width(plan: &Plan) -> usize {
 /// locals: `tangent_step` (the state at the step's start is `prev_<v>`,
 /// the step number `nf`, the deviation vectors the slots `w<k>_<j>`), and
 /// `lyapunov_sample`, `chaos_sample` over the slots and the locals
-/// `elapsed`, `inv_count`, `counted`.
+/// `count`, `inv_count`, `at_skip`.
 fn indicator_functions(plan: &Plan, ind: &Indicators) -> String {
     // The indicators' slots are real slots from `first` on.
     let first = slots::indicator_first(plan);
@@ -264,9 +264,9 @@ fn indicator_functions(plan: &Plan, ind: &Indicators) -> String {
             .iter()
             .map(|i| match *i {
                 SampleInput::Slot(k) => slot_names[k].clone(),
-                SampleInput::Elapsed => "elapsed".into(),
+                SampleInput::Count => "count".into(),
                 SampleInput::InvCount => "inv_count".into(),
-                SampleInput::Counted => "counted".into(),
+                SampleInput::AtSkip => "at_skip".into(),
             })
             .collect();
         text.push_str(&function_text(
@@ -862,7 +862,7 @@ impl Gen<'_> {
             let every = smp.every;
             writeln!(
                 s,
-                "        if (n + 1u) % {every}u == 0u {{\n            let elapsed: R = R(n + 1u) * dt;\n            let inv_count: R = R(1.0) / R((n + 1u) / {every}u);\n            let counted: R = select(R(0.0), R(1.0), n + 1u > {}u);\n    {}        }}",
+                "        if (n + 1u) % {every}u == 0u {{\n            let count: R = R((n + 1u) / {every}u);\n            let inv_count: R = R(1.0) / count;\n            let at_skip: R = select(R(0.0), R(1.0), n + 1u == {}u);\n    {}        }}",
                 ind.skip_step,
                 self.call(name)
             )

@@ -123,7 +123,8 @@ impl Dag {
                 self.sub(one, t2)
             }
             Func::Abs => self.call(Func::Sign, a),
-            Func::Sign => self.num(0.0),
+            // Step functions.
+            Func::Sign | Func::Octave | Func::Rescale => self.num(0.0),
         }
     }
 

@@ -15,6 +15,10 @@ pub enum Func {
     Tanh,
     Abs,
     Sign,
+    /// The chaos indicators' exact rescaling (`octave_r`, `rescale_r` in
+    /// `num/math.rs`); not for formulas.
+    Octave,
+    Rescale,
 }
 
 /// Functions of two arguments.
@@ -67,6 +71,8 @@ pub fn func(f: Func, x: f64) -> f64 {
                 x
             }
         }
+        Func::Octave => <f64 as crate::num::math::Elementary>::octave_r(x),
+        Func::Rescale => <f64 as crate::num::math::Elementary>::rescale_r(x),
     }
 }
 

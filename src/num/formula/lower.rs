@@ -86,6 +86,8 @@ impl Prim {
                 Func::Tanh => "tanh_r",
                 Func::Abs => "abs",
                 Func::Sign => "sign_r",
+                Func::Octave => "octave_r",
+                Func::Rescale => "rescale_r",
             },
             Prim::Call2(f) => match f {
                 Func2::Pow => "pow_r",

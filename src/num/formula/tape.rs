@@ -534,6 +534,8 @@ fn unary<R: Real, const N: usize>(op: Prim, d: &mut [R; N], a: impl At<R>) {
             Func::Tanh => lanes!(d, R::tanh_r, a),
             Func::Abs => map1(d, a, R::abs),
             Func::Sign => lanes!(d, R::sign_r, a),
+            Func::Octave => lanes!(d, R::octave_r, a),
+            Func::Rescale => lanes!(d, R::rescale_r, a),
         },
         _ => unreachable!("binary operation {op:?} as unary"),
     }
