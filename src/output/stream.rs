@@ -157,13 +157,23 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
         if progress && left > 0 {
             scope.spawn(|| progress::follow(&followed));
         }
-        let result = match t.engines.len() {
+        // Set on the way out, a panic's too: the scope waits for the bar,
+        // which would otherwise wait for ever.
+        let _finish = Finish(&finished);
+        match t.engines.len() {
             0 | 1 => todo.iter().try_for_each(|k| chunk::<R>(t, *k, &sink, done)),
             _ => share::<R>(t, &todo, &sink, done),
-        };
-        finished.store(true, Ordering::Relaxed);
-        result
+        }
     })
+}
+
+/// Tells the progress bar the run is over when dropped.
+struct Finish<'a>(&'a AtomicBool);
+
+impl Drop for Finish<'_> {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
 }
 
 /// The chunks `todo` shared among the engines: each, on a thread of its
