@@ -638,4 +638,33 @@ mod tests {
             );
         }
     }
+
+    /// The indicators' rescaling: a vector of squared norm n2 times 2^a
+    /// has n2·4^a back in [2⁻⁴⁰, 2⁴⁰] from a rung beyond it, exactly (a
+    /// power of two), nothing moves inside it, and a collapsed or NaN
+    /// vector gets NaN (so that it is flagged).
+    #[test]
+    fn octaves_rescale_exactly_into_the_band() {
+        fn check<R: Elementary + Copy + PartialOrd + std::fmt::Debug + Into<f64>>(
+            from: impl Fn(f64) -> R,
+        ) {
+            for e in -100..=100 {
+                let n2 = from(2f64.powi(e) * 1.375);
+                let a: f64 = R::octave_r(n2).into();
+                let s: f64 = R::rescale_r(from(a)).into();
+                assert_eq!(s, 2f64.powf(a), "2^{a}");
+                let band = (-40..40).contains(&e);
+                assert_eq!(a == 0.0, band, "n2 = 2^{e}·1.375: a = {a}");
+                let moved = Into::<f64>::into(n2) * s * s;
+                let closer = (moved.log2().abs() < (e as f64 + 0.46).abs()) || band;
+                assert!(closer, "n2 = 2^{e}·1.375 moved to {moved:e}");
+            }
+            for bad in [0.0, f64::NAN] {
+                let a: f64 = R::octave_r(from(bad)).into();
+                assert!(a.is_nan() && Into::<f64>::into(R::rescale_r(from(a))).is_nan());
+            }
+        }
+        check::<f32>(|x| x as f32);
+        check::<f64>(|x| x);
+    }
 }
