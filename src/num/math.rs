@@ -487,7 +487,8 @@ pub trait Math: Sized {
 /// ln x on the CPU: `log_f32`'s kernel with x = 2^e·m read from the bits
 /// rather than found by its ladder of scalings (a third of the cost). Both
 /// are exact, so m, e and the result are the same bits (tested over the
-/// f32 and the f64); WGSL keeps the ladder, having no bit access in f64.
+/// f32 and the f64). WGSL reads the bits in f32 too (`prelude_f32.wgsl`)
+/// and keeps the ladder in f64, having no bit access there.
 #[inline(always)]
 pub fn log_f32_bits(x: f32) -> f32 {
     // Subnormals are scaled into the normal range first, exactly.

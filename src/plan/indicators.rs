@@ -2,18 +2,19 @@
 //! (Benettin's method), the Fast Lyapunov Indicator and MEGNO. Their
 //! deviation vectors follow the exact tangent map of the step
 //! (`plan/tangent.rs`); at each sample a program orthogonalises them
-//! (Gram–Schmidt without normalising), reads their logarithmic growth and
-//! brings them back near norm 1 by an exact power of two. The tangent step and the samples are formulas lowered
-//! to one program each, which both backends run (the CPU's block
-//! interpreter, WGSL on the GPU): one source for all of it.
+//! (Gram–Schmidt without normalising), keeps what their growth is read
+//! from, and brings them back in range by an exact power of two. The
+//! tangent step and the samples are formulas lowered to one program each,
+//! which both backends run (the CPU's block interpreter, WGSL on the GPU):
+//! one source for all of it.
 //!
 //! Why no normalisation: the vector a sample keeps, u, is the true
 //! (Gram–Schmidt) vector times 2^−E with E an integer in a slot, so
 //! ln‖w‖ = E ln 2 + ½ ln‖u‖², and the Rᵢᵢ of the normalised method
-//! telescope into differences of it. A square root and a division per
-//! lane go (the samples were bound by the divider); the Lyapunov samples
-//! take no logarithm at all (the exponents are read from E and ‖u‖² when
-//! asked for, [`lyapunov_finish`]), the FLI/MEGNO sample one.
+//! telescope into differences of it, read with one rounding whatever the
+//! horizon. A square root and a division per lane go; the Lyapunov
+//! samples take no logarithm at all (the exponents are read from E and
+//! ‖u‖² when asked for, [`lyapunov_finish`]), the FLI/MEGNO sample one.
 //!
 //! Per-trajectory state (real slots, after the time averages'): the
 //! deviation vectors `w{k}_{j}` (Lyapunov's k vectors, starting as the
