@@ -275,13 +275,7 @@ impl<R: Real> IndicatorTapes<R> {
             _ => run(&self.tangent, l, prev, real, regs, scalars, at),
         }
         for s in self.samples.iter().filter(|s| n1.is_multiple_of(s.every)) {
-            let scalars = Scalars {
-                count: R::from_f64((n1 / s.every) as f64),
-                inv_count: inv_count::<R>(n1 / s.every),
-                at_skip: R::from_f64(f64::from(u8::from(n1 == self.skip_step))),
-                ..scalars
-            };
-            run(s, l, prev, real, regs, scalars, at);
+            run(s, l, prev, real, regs, self.sample_scalars(s.every, n1), at);
         }
         let real: &[[R; LANES]] = real;
         nonfinite_bits(|| self.tangent.outputs.iter().map(|&k| &real[k])) & running
@@ -289,6 +283,17 @@ impl<R: Real> IndicatorTapes<R> {
 }
 
 impl<R: Real> IndicatorTapes<R> {
+    /// The one-value inputs of a sample taken every `every` steps, after
+    /// step `n1`: its number, one over it, whether it is the skip step's.
+    fn sample_scalars(&self, every: u64, n1: u64) -> Scalars<R> {
+        Scalars {
+            step: R::from_f64((n1 - 1) as f64),
+            count: R::from_f64((n1 / every) as f64),
+            inv_count: inv_count::<R>(n1 / every),
+            at_skip: R::from_f64(f64::from(u8::from(n1 == self.skip_step))),
+        }
+    }
+
     /// The compiled tangent step `n` from the state in `s.x`: the
     /// deviation vectors into the scratch lanes, the step on both, the
     /// vectors of the `running` lanes back into their slots.
@@ -349,13 +354,14 @@ impl<R: Real> IndicatorTapes<R> {
         n1: u64,
     ) {
         let (shape, f) = p.compiled.expect("a compiled sample");
+        let v = self.sample_scalars(p.every, n1);
         for (a, at) in buf.iter_mut().zip(&loc.arrays) {
             match *at {
                 Loc::Vector(k, lane) => *a = *s.d[k].at(lane),
                 Loc::Real(_) => {}
-                Loc::Count => *a = [R::from_f64((n1 / p.every) as f64); LANES],
-                Loc::InvCount => *a = [inv_count::<R>(n1 / p.every); LANES],
-                Loc::AtSkip => *a = [R::from_f64(f64::from(u8::from(n1 == self.skip_step))); LANES],
+                Loc::Count => *a = [v.count; LANES],
+                Loc::InvCount => *a = [v.inv_count; LANES],
+                Loc::AtSkip => *a = [v.at_skip; LANES],
             }
         }
         // SAFETY: `sample_fn` compiled it for the block's level, which
