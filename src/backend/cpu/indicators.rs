@@ -79,9 +79,34 @@ enum Loc {
 }
 
 /// Where a sample's arrays (its inputs, in order; output k replaces input
-/// k) are in a run of steps.
+/// k) are in a run of steps, and the same sorted for each step's copies
+/// (no match per array and step).
 struct RunLocs {
     arrays: Vec<Loc>,
+    /// `(array, vector, lane)` of each vector component.
+    vectors: Vec<(usize, usize, usize)>,
+    /// `(array, which)` of each one-value input (a [`Loc::Count`],
+    /// [`Loc::InvCount`] or [`Loc::AtSkip`]).
+    scalars: Vec<(usize, Loc)>,
+}
+
+impl RunLocs {
+    fn new(arrays: Vec<Loc>) -> RunLocs {
+        let mut vectors = vec![];
+        let mut scalars = vec![];
+        for (a, &at) in arrays.iter().enumerate() {
+            match at {
+                Loc::Vector(k, lane) => vectors.push((a, k, lane)),
+                Loc::Real(_) => {}
+                one => scalars.push((a, one)),
+            }
+        }
+        RunLocs {
+            arrays,
+            vectors,
+            scalars,
+        }
+    }
 }
 
 /// The steps of a run and the lanes still running (bits).
@@ -306,7 +331,7 @@ impl<R: Real> IndicatorTapes<R> {
         running: u64,
     ) {
         self.load_vectors(c, s, real, running);
-        c.run(&mut s.x, &mut s.d, n);
+        c.run(s, n);
         self.store_vectors(c, s, real, running);
     }
 
@@ -355,22 +380,21 @@ impl<R: Real> IndicatorTapes<R> {
     ) {
         let (shape, f) = p.compiled.expect("a compiled sample");
         let v = self.sample_scalars(p.every, n1);
-        for (a, at) in buf.iter_mut().zip(&loc.arrays) {
-            match *at {
-                Loc::Vector(k, lane) => *a = *s.d[k].at(lane),
-                Loc::Real(_) => {}
-                Loc::Count => *a = [v.count; LANES],
-                Loc::InvCount => *a = [v.inv_count; LANES],
-                Loc::AtSkip => *a = [v.at_skip; LANES],
-            }
+        for &(a, k, lane) in &loc.vectors {
+            buf[a] = *s.d[k].at(lane);
+        }
+        for &(a, one) in &loc.scalars {
+            buf[a] = [match one {
+                Loc::Count => v.count,
+                Loc::InvCount => v.inv_count,
+                _ => v.at_skip,
+            }; LANES];
         }
         // SAFETY: `sample_fn` compiled it for the block's level, which
         // `kernels::isa` names only where the CPU has its features.
         unsafe { f(shape, buf) };
-        for (a, at) in buf.iter().zip(&loc.arrays) {
-            if let Loc::Vector(k, lane) = *at {
-                *s.d[k].at_mut(lane) = *a;
-            }
+        for &(a, k, lane) in &loc.vectors {
+            *s.d[k].at_mut(lane) = buf[a];
         }
     }
 
@@ -432,6 +456,16 @@ steps_variant! {
 /// [`IndicatorTapes::steps`]: each sample's arrays in `regs` for the run
 /// (its sums loaded once), the vectors copied in and out of them around
 /// each sample.
+///
+/// As the fused stages do (`kernels::fused_steps_body`), a run of several
+/// steps first goes unchecked and is looked at once, at its end: a state
+/// variable or a vector that leaves the finite numbers stays out (the
+/// pieces add to or scale a variable; the tangent maps are linear in the
+/// vectors with the state's finite coefficients; a sample scales a vector
+/// by a power of two or subtracts multiples of the others). Only when
+/// something is non-finite then is the run taken again from its start,
+/// which is still in `l` and `real`, checking after each step: the same
+/// operations, so the same bits and verdict as checking every step.
 #[inline(always)]
 fn steps_body<R: Real>(
     ind: &IndicatorTapes<R>,
@@ -443,54 +477,36 @@ fn steps_body<R: Real>(
 ) -> RunOutcome {
     let c = ind.compiled.as_ref().expect("a compiled tangent");
     let locs = ind.runs.as_ref().expect("compiled samples");
-    for &lane in &ind.var_lanes {
-        *s.x.at_mut(lane) = *l.at(lane);
-    }
-    ind.load_vectors(c, s, real, run.running);
     // Each sample's arrays, one after the other in `regs`.
     let mut bufs: Vec<&mut [[R; LANES]]> = vec![];
     let mut rest = regs;
     for loc in locs {
         let (buf, r) = rest.split_at_mut(loc.arrays.len());
-        for (a, at) in buf.iter_mut().zip(&loc.arrays) {
-            if let Loc::Real(j) = *at {
-                *a = real[j];
-            }
-        }
         bufs.push(buf);
         rest = r;
     }
-    let mut out = RunOutcome {
-        done: run.k,
-        sampled: true,
-        bad: 0,
-    };
-    for j in 0..run.k {
-        c.run(&mut s.x, &mut s.d, run.n + j);
-        if super::any_nonfinite(&s.x, &ind.var_lanes) {
-            out = RunOutcome {
-                done: j + 1,
-                sampled: false,
-                bad: 0,
-            };
-            break;
+    let mut check = run.k == 1;
+    let out = loop {
+        // The run's start: the state, the vectors, the samples' sums.
+        for &lane in &ind.var_lanes {
+            *s.x.at_mut(lane) = *l.at(lane);
         }
-        let n1 = run.n + j + 1;
-        for ((p, loc), buf) in ind.samples.iter().zip(locs).zip(bufs.iter_mut()) {
-            if n1.is_multiple_of(p.every) {
-                ind.sample_in_run(p, loc, s, buf, n1);
+        ind.load_vectors(c, s, real, run.running);
+        for (loc, buf) in locs.iter().zip(bufs.iter_mut()) {
+            for (a, at) in buf.iter_mut().zip(&loc.arrays) {
+                if let Loc::Real(j) = *at {
+                    *a = real[j];
+                }
             }
         }
-        let bad = nonfinite_vectors(c, s);
-        if bad != 0 {
-            out = RunOutcome {
-                done: j + 1,
-                sampled: true,
-                bad: bad & run.running,
-            };
-            break;
+        let out = run_steps(ind, c, s, &mut bufs, run, check);
+        let bad =
+            !check && (super::any_nonfinite(&s.x, &ind.var_lanes) || nonfinite_vectors(c, s) != 0);
+        if !bad {
+            break out;
         }
-    }
+        check = true;
+    };
     for &lane in &ind.var_lanes {
         *l.at_mut(lane) = *s.x.at(lane);
     }
@@ -503,6 +519,53 @@ fn steps_body<R: Real>(
         }
     }
     out
+}
+
+/// The steps of `run` on the scratch and the samples' arrays `bufs`;
+/// `check`: look at the state and the vectors after every step, and stop
+/// after the first that left some non-finite.
+#[inline(always)]
+fn run_steps<R: Real>(
+    ind: &IndicatorTapes<R>,
+    c: &CompiledTangent<R>,
+    s: &mut TangentScratch<R>,
+    bufs: &mut [&mut [[R; LANES]]],
+    run: Run,
+    check: bool,
+) -> RunOutcome {
+    let locs = ind.runs.as_ref().expect("compiled samples");
+    for j in 0..run.k {
+        c.run(s, run.n + j);
+        if check && super::any_nonfinite(&s.x, &ind.var_lanes) {
+            return RunOutcome {
+                done: j + 1,
+                sampled: false,
+                bad: 0,
+            };
+        }
+        let n1 = run.n + j + 1;
+        for ((p, loc), buf) in ind.samples.iter().zip(locs).zip(bufs.iter_mut()) {
+            if n1.is_multiple_of(p.every) {
+                ind.sample_in_run(p, loc, s, buf, n1);
+            }
+        }
+        let bad = match check {
+            true => nonfinite_vectors(c, s),
+            false => 0,
+        };
+        if bad != 0 {
+            return RunOutcome {
+                done: j + 1,
+                sampled: true,
+                bad: bad & run.running,
+            };
+        }
+    }
+    RunOutcome {
+        done: run.k,
+        sampled: true,
+        bad: 0,
+    }
 }
 
 /// The lanes whose deviation vectors in `s` are non-finite, as bits.
@@ -570,9 +633,7 @@ fn run_locs<R: Real>(
                 Src::AtSkip => Some(Loc::AtSkip),
                 _ => None,
             });
-            Some(RunLocs {
-                arrays: inputs.collect::<Option<_>>()?,
-            })
+            Some(RunLocs::new(inputs.collect::<Option<_>>()?))
         })
         .collect()
 }

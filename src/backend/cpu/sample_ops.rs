@@ -49,23 +49,37 @@ pub fn run<R: Real>(shape: SampleShape, x: &mut [[R; LANES]]) {
 #[inline(always)]
 pub fn lyapunov_2_1<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 7] = x.try_into().expect("7 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6] = x.each_mut();
+    lyapunov_2_1_lanes(x0, x1, x2, x3, x4, x5, x6);
+}
+
+#[inline(always)]
+fn lyapunov_2_1_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &[R; LANES],
+) {
     for i in 0..LANES {
-        let v0: R = x[0][i] * x[0][i];
-        let v1: R = x[1][i] * x[1][i];
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
         let v2: R = v0 + v1;
         let v3: R = R::octave_r(v2);
         let v4: R = R::rescale_r(v3);
-        let v5: R = x[0][i] * v4;
-        let v6: R = x[1][i] * v4;
-        let v7: R = x[2][i] - v3;
+        let v5: R = x0[i] * v4;
+        let v6: R = x1[i] * v4;
+        let v7: R = x2[i] - v3;
         let v8: R = v4 * v4;
         let v9: R = v2 * v8;
-        let v10: R = R::from_f64(1.0) - x[6][i];
-        let v11: R = v10 * x[4][i];
-        let v12: R = x[6][i] * v7;
+        let v10: R = R::from_f64(1.0) - x6[i];
+        let v11: R = v10 * x4[i];
+        let v12: R = x6[i] * v7;
         let v13: R = v11 + v12;
-        let v14: R = v10 * x[5][i];
-        let v15: R = x[6][i] * v9;
+        let v14: R = v10 * x5[i];
+        let v15: R = x6[i] * v9;
         let v16: R = v14 + v15;
         let o0: R = v5;
         let o1: R = v6;
@@ -73,60 +87,80 @@ pub fn lyapunov_2_1<R: Real>(x: &mut [[R; LANES]]) {
         let o3: R = v9;
         let o4: R = v13;
         let o5: R = v16;
-        x[0][i] = o0;
-        x[1][i] = o1;
-        x[2][i] = o2;
-        x[3][i] = o3;
-        x[4][i] = o4;
-        x[5][i] = o5;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
     }
 }
 
 #[inline(always)]
 pub fn lyapunov_2_2<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 13] = x.try_into().expect("13 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12] = x.each_mut();
+    lyapunov_2_2_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12);
+}
+
+#[inline(always)]
+fn lyapunov_2_2_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &mut [R; LANES],
+    x11: &mut [R; LANES],
+    x12: &[R; LANES],
+) {
     for i in 0..LANES {
-        let v0: R = x[0][i] * x[0][i];
-        let v1: R = x[1][i] * x[1][i];
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
         let v2: R = v0 + v1;
         let v3: R = R::octave_r(v2);
         let v4: R = R::rescale_r(v3);
-        let v5: R = x[0][i] * v4;
-        let v6: R = x[1][i] * v4;
+        let v5: R = x0[i] * v4;
+        let v6: R = x1[i] * v4;
         let v7: R = R::from_f64(1.0) / v2;
-        let v8: R = x[0][i] * x[2][i];
-        let v9: R = x[1][i] * x[3][i];
+        let v8: R = x0[i] * x2[i];
+        let v9: R = x1[i] * x3[i];
         let v10: R = v8 + v9;
         let v11: R = v7 * v10;
-        let v12: R = x[0][i] * v11;
-        let v13: R = x[2][i] - v12;
+        let v12: R = x0[i] * v11;
+        let v13: R = x2[i] - v12;
         let v14: R = v13 * v13;
-        let v15: R = x[1][i] * v11;
-        let v16: R = x[3][i] - v15;
+        let v15: R = x1[i] * v11;
+        let v16: R = x3[i] - v15;
         let v17: R = v16 * v16;
         let v18: R = v14 + v17;
         let v19: R = R::octave_r(v18);
         let v20: R = R::rescale_r(v19);
         let v21: R = v13 * v20;
         let v22: R = v16 * v20;
-        let v23: R = x[4][i] - v3;
-        let v24: R = x[5][i] - v19;
+        let v23: R = x4[i] - v3;
+        let v24: R = x5[i] - v19;
         let v25: R = v4 * v4;
         let v26: R = v2 * v25;
         let v27: R = v20 * v20;
         let v28: R = v18 * v27;
-        let v29: R = R::from_f64(1.0) - x[12][i];
-        let v30: R = v29 * x[8][i];
-        let v31: R = x[12][i] * v23;
+        let v29: R = R::from_f64(1.0) - x12[i];
+        let v30: R = v29 * x8[i];
+        let v31: R = x12[i] * v23;
         let v32: R = v30 + v31;
-        let v33: R = v29 * x[9][i];
-        let v34: R = x[12][i] * v24;
+        let v33: R = v29 * x9[i];
+        let v34: R = x12[i] * v24;
         let v35: R = v33 + v34;
-        let v36: R = v29 * x[10][i];
-        let v37: R = x[12][i] * v26;
+        let v36: R = v29 * x10[i];
+        let v37: R = x12[i] * v26;
         let v38: R = v36 + v37;
-        let v39: R = v29 * x[11][i];
-        let v40: R = x[12][i] * v28;
+        let v39: R = v29 * x11[i];
+        let v40: R = x12[i] * v28;
         let v41: R = v39 + v40;
         let o0: R = v5;
         let o1: R = v6;
@@ -140,46 +174,62 @@ pub fn lyapunov_2_2<R: Real>(x: &mut [[R; LANES]]) {
         let o9: R = v35;
         let o10: R = v38;
         let o11: R = v41;
-        x[0][i] = o0;
-        x[1][i] = o1;
-        x[2][i] = o2;
-        x[3][i] = o3;
-        x[4][i] = o4;
-        x[5][i] = o5;
-        x[6][i] = o6;
-        x[7][i] = o7;
-        x[8][i] = o8;
-        x[9][i] = o9;
-        x[10][i] = o10;
-        x[11][i] = o11;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+        x10[i] = o10;
+        x11[i] = o11;
     }
 }
 
 #[inline(always)]
 pub fn chaos_2<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 9] = x.try_into().expect("9 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8] = x.each_mut();
+    chaos_2_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8);
+}
+
+#[inline(always)]
+fn chaos_2_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &[R; LANES],
+    x8: &[R; LANES],
+) {
     for i in 0..LANES {
-        let v0: R = x[0][i] * x[0][i];
-        let v1: R = x[1][i] * x[1][i];
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
         let v2: R = v0 + v1;
         let v3: R = R::octave_r(v2);
         let v4: R = R::rescale_r(v3);
-        let v5: R = x[0][i] * v4;
-        let v6: R = x[1][i] * v4;
-        let v7: R = x[2][i] - v3;
-        let v8: R = x[2][i] * R::from_f64(0.6931471805599453);
+        let v5: R = x0[i] * v4;
+        let v6: R = x1[i] * v4;
+        let v7: R = x2[i] - v3;
+        let v8: R = x2[i] * R::from_f64(0.6931471805599453);
         let v9: R = R::log_r(v2);
         let v10: R = v9 * R::from_f64(0.5);
         let v11: R = v8 + v10;
-        let v12: R = R::max_r(x[4][i], v11);
-        let v13: R = v11 - x[3][i];
-        let v14: R = x[7][i] * v13;
-        let v15: R = x[5][i] + v14;
+        let v12: R = R::max_r(x4[i], v11);
+        let v13: R = v11 - x3[i];
+        let v14: R = x7[i] * v13;
+        let v15: R = x5[i] + v14;
         let v16: R = v15 * R::from_f64(2.0);
-        let v17: R = x[8][i] * v16;
-        let v18: R = v17 - x[6][i];
-        let v19: R = x[8][i] * v18;
-        let v20: R = x[6][i] + v19;
+        let v17: R = x8[i] * v16;
+        let v18: R = v17 - x6[i];
+        let v19: R = x8[i] * v18;
+        let v20: R = x6[i] + v19;
         let o0: R = v5;
         let o1: R = v6;
         let o2: R = v7;
@@ -187,39 +237,54 @@ pub fn chaos_2<R: Real>(x: &mut [[R; LANES]]) {
         let o4: R = v12;
         let o5: R = v15;
         let o6: R = v20;
-        x[0][i] = o0;
-        x[1][i] = o1;
-        x[2][i] = o2;
-        x[3][i] = o3;
-        x[4][i] = o4;
-        x[5][i] = o5;
-        x[6][i] = o6;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
     }
 }
 
 #[inline(always)]
 pub fn lyapunov_3_1<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 8] = x.try_into().expect("8 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7] = x.each_mut();
+    lyapunov_3_1_lanes(x0, x1, x2, x3, x4, x5, x6, x7);
+}
+
+#[inline(always)]
+fn lyapunov_3_1_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &[R; LANES],
+) {
     for i in 0..LANES {
-        let v0: R = x[0][i] * x[0][i];
-        let v1: R = x[1][i] * x[1][i];
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
         let v2: R = v0 + v1;
-        let v3: R = x[2][i] * x[2][i];
+        let v3: R = x2[i] * x2[i];
         let v4: R = v2 + v3;
         let v5: R = R::octave_r(v4);
         let v6: R = R::rescale_r(v5);
-        let v7: R = x[0][i] * v6;
-        let v8: R = x[1][i] * v6;
-        let v9: R = x[2][i] * v6;
-        let v10: R = x[3][i] - v5;
+        let v7: R = x0[i] * v6;
+        let v8: R = x1[i] * v6;
+        let v9: R = x2[i] * v6;
+        let v10: R = x3[i] - v5;
         let v11: R = v6 * v6;
         let v12: R = v4 * v11;
-        let v13: R = R::from_f64(1.0) - x[7][i];
-        let v14: R = v13 * x[5][i];
-        let v15: R = x[7][i] * v10;
+        let v13: R = R::from_f64(1.0) - x7[i];
+        let v14: R = v13 * x5[i];
+        let v15: R = x7[i] * v10;
         let v16: R = v14 + v15;
-        let v17: R = v13 * x[6][i];
-        let v18: R = x[7][i] * v12;
+        let v17: R = v13 * x6[i];
+        let v18: R = x7[i] * v12;
         let v19: R = v17 + v18;
         let o0: R = v7;
         let o1: R = v8;
@@ -228,46 +293,68 @@ pub fn lyapunov_3_1<R: Real>(x: &mut [[R; LANES]]) {
         let o4: R = v12;
         let o5: R = v16;
         let o6: R = v19;
-        x[0][i] = o0;
-        x[1][i] = o1;
-        x[2][i] = o2;
-        x[3][i] = o3;
-        x[4][i] = o4;
-        x[5][i] = o5;
-        x[6][i] = o6;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
     }
 }
 
 #[inline(always)]
 pub fn lyapunov_3_2<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 15] = x.try_into().expect("15 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14] = x.each_mut();
+    lyapunov_3_2_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14);
+}
+
+#[inline(always)]
+fn lyapunov_3_2_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &mut [R; LANES],
+    x11: &mut [R; LANES],
+    x12: &mut [R; LANES],
+    x13: &mut [R; LANES],
+    x14: &[R; LANES],
+) {
     for i in 0..LANES {
-        let v0: R = x[0][i] * x[0][i];
-        let v1: R = x[1][i] * x[1][i];
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
         let v2: R = v0 + v1;
-        let v3: R = x[2][i] * x[2][i];
+        let v3: R = x2[i] * x2[i];
         let v4: R = v2 + v3;
         let v5: R = R::octave_r(v4);
         let v6: R = R::rescale_r(v5);
-        let v7: R = x[0][i] * v6;
-        let v8: R = x[1][i] * v6;
-        let v9: R = x[2][i] * v6;
+        let v7: R = x0[i] * v6;
+        let v8: R = x1[i] * v6;
+        let v9: R = x2[i] * v6;
         let v10: R = R::from_f64(1.0) / v4;
-        let v11: R = x[0][i] * x[3][i];
-        let v12: R = x[1][i] * x[4][i];
+        let v11: R = x0[i] * x3[i];
+        let v12: R = x1[i] * x4[i];
         let v13: R = v11 + v12;
-        let v14: R = x[2][i] * x[5][i];
+        let v14: R = x2[i] * x5[i];
         let v15: R = v13 + v14;
         let v16: R = v10 * v15;
-        let v17: R = x[0][i] * v16;
-        let v18: R = x[3][i] - v17;
+        let v17: R = x0[i] * v16;
+        let v18: R = x3[i] - v17;
         let v19: R = v18 * v18;
-        let v20: R = x[1][i] * v16;
-        let v21: R = x[4][i] - v20;
+        let v20: R = x1[i] * v16;
+        let v21: R = x4[i] - v20;
         let v22: R = v21 * v21;
         let v23: R = v19 + v22;
-        let v24: R = x[2][i] * v16;
-        let v25: R = x[5][i] - v24;
+        let v24: R = x2[i] * v16;
+        let v25: R = x5[i] - v24;
         let v26: R = v25 * v25;
         let v27: R = v23 + v26;
         let v28: R = R::octave_r(v27);
@@ -275,24 +362,24 @@ pub fn lyapunov_3_2<R: Real>(x: &mut [[R; LANES]]) {
         let v30: R = v18 * v29;
         let v31: R = v21 * v29;
         let v32: R = v25 * v29;
-        let v33: R = x[6][i] - v5;
-        let v34: R = x[7][i] - v28;
+        let v33: R = x6[i] - v5;
+        let v34: R = x7[i] - v28;
         let v35: R = v6 * v6;
         let v36: R = v4 * v35;
         let v37: R = v29 * v29;
         let v38: R = v27 * v37;
-        let v39: R = R::from_f64(1.0) - x[14][i];
-        let v40: R = v39 * x[10][i];
-        let v41: R = x[14][i] * v33;
+        let v39: R = R::from_f64(1.0) - x14[i];
+        let v40: R = v39 * x10[i];
+        let v41: R = x14[i] * v33;
         let v42: R = v40 + v41;
-        let v43: R = v39 * x[11][i];
-        let v44: R = x[14][i] * v34;
+        let v43: R = v39 * x11[i];
+        let v44: R = x14[i] * v34;
         let v45: R = v43 + v44;
-        let v46: R = v39 * x[12][i];
-        let v47: R = x[14][i] * v36;
+        let v46: R = v39 * x12[i];
+        let v47: R = x14[i] * v36;
         let v48: R = v46 + v47;
-        let v49: R = v39 * x[13][i];
-        let v50: R = x[14][i] * v38;
+        let v49: R = v39 * x13[i];
+        let v50: R = x14[i] * v38;
         let v51: R = v49 + v50;
         let o0: R = v7;
         let o1: R = v8;
@@ -308,53 +395,82 @@ pub fn lyapunov_3_2<R: Real>(x: &mut [[R; LANES]]) {
         let o11: R = v45;
         let o12: R = v48;
         let o13: R = v51;
-        x[0][i] = o0;
-        x[1][i] = o1;
-        x[2][i] = o2;
-        x[3][i] = o3;
-        x[4][i] = o4;
-        x[5][i] = o5;
-        x[6][i] = o6;
-        x[7][i] = o7;
-        x[8][i] = o8;
-        x[9][i] = o9;
-        x[10][i] = o10;
-        x[11][i] = o11;
-        x[12][i] = o12;
-        x[13][i] = o13;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+        x10[i] = o10;
+        x11[i] = o11;
+        x12[i] = o12;
+        x13[i] = o13;
     }
 }
 
 #[inline(always)]
 pub fn lyapunov_3_3<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 22] = x.try_into().expect("22 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21] = x.each_mut();
+    lyapunov_3_3_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21);
+}
+
+#[inline(always)]
+fn lyapunov_3_3_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &mut [R; LANES],
+    x11: &mut [R; LANES],
+    x12: &mut [R; LANES],
+    x13: &mut [R; LANES],
+    x14: &mut [R; LANES],
+    x15: &mut [R; LANES],
+    x16: &mut [R; LANES],
+    x17: &mut [R; LANES],
+    x18: &mut [R; LANES],
+    x19: &mut [R; LANES],
+    x20: &mut [R; LANES],
+    x21: &[R; LANES],
+) {
     for i in 0..LANES {
-        let v0: R = x[0][i] * x[0][i];
-        let v1: R = x[1][i] * x[1][i];
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
         let v2: R = v0 + v1;
-        let v3: R = x[2][i] * x[2][i];
+        let v3: R = x2[i] * x2[i];
         let v4: R = v2 + v3;
         let v5: R = R::octave_r(v4);
         let v6: R = R::rescale_r(v5);
-        let v7: R = x[0][i] * v6;
-        let v8: R = x[1][i] * v6;
-        let v9: R = x[2][i] * v6;
+        let v7: R = x0[i] * v6;
+        let v8: R = x1[i] * v6;
+        let v9: R = x2[i] * v6;
         let v10: R = R::from_f64(1.0) / v4;
-        let v11: R = x[0][i] * x[3][i];
-        let v12: R = x[1][i] * x[4][i];
+        let v11: R = x0[i] * x3[i];
+        let v12: R = x1[i] * x4[i];
         let v13: R = v11 + v12;
-        let v14: R = x[2][i] * x[5][i];
+        let v14: R = x2[i] * x5[i];
         let v15: R = v13 + v14;
         let v16: R = v10 * v15;
-        let v17: R = x[0][i] * v16;
-        let v18: R = x[3][i] - v17;
+        let v17: R = x0[i] * v16;
+        let v18: R = x3[i] - v17;
         let v19: R = v18 * v18;
-        let v20: R = x[1][i] * v16;
-        let v21: R = x[4][i] - v20;
+        let v20: R = x1[i] * v16;
+        let v21: R = x4[i] - v20;
         let v22: R = v21 * v21;
         let v23: R = v19 + v22;
-        let v24: R = x[2][i] * v16;
-        let v25: R = x[5][i] - v24;
+        let v24: R = x2[i] * v16;
+        let v25: R = x5[i] - v24;
         let v26: R = v25 * v25;
         let v27: R = v23 + v26;
         let v28: R = R::octave_r(v27);
@@ -362,22 +478,22 @@ pub fn lyapunov_3_3<R: Real>(x: &mut [[R; LANES]]) {
         let v30: R = v18 * v29;
         let v31: R = v21 * v29;
         let v32: R = v25 * v29;
-        let v33: R = x[0][i] * x[6][i];
-        let v34: R = x[1][i] * x[7][i];
+        let v33: R = x0[i] * x6[i];
+        let v34: R = x1[i] * x7[i];
         let v35: R = v33 + v34;
-        let v36: R = x[2][i] * x[8][i];
+        let v36: R = x2[i] * x8[i];
         let v37: R = v35 + v36;
         let v38: R = v10 * v37;
-        let v39: R = x[0][i] * v38;
-        let v40: R = x[6][i] - v39;
+        let v39: R = x0[i] * v38;
+        let v40: R = x6[i] - v39;
         let v41: R = R::from_f64(1.0) / v27;
         let v42: R = v18 * v40;
-        let v43: R = x[1][i] * v38;
-        let v44: R = x[7][i] - v43;
+        let v43: R = x1[i] * v38;
+        let v44: R = x7[i] - v43;
         let v45: R = v21 * v44;
         let v46: R = v42 + v45;
-        let v47: R = x[2][i] * v38;
-        let v48: R = x[8][i] - v47;
+        let v47: R = x2[i] * v38;
+        let v48: R = x8[i] - v47;
         let v49: R = v25 * v48;
         let v50: R = v46 + v49;
         let v51: R = v41 * v50;
@@ -397,33 +513,33 @@ pub fn lyapunov_3_3<R: Real>(x: &mut [[R; LANES]]) {
         let v65: R = v53 * v64;
         let v66: R = v56 * v64;
         let v67: R = v60 * v64;
-        let v68: R = x[9][i] - v5;
-        let v69: R = x[10][i] - v28;
-        let v70: R = x[11][i] - v63;
+        let v68: R = x9[i] - v5;
+        let v69: R = x10[i] - v28;
+        let v70: R = x11[i] - v63;
         let v71: R = v6 * v6;
         let v72: R = v4 * v71;
         let v73: R = v29 * v29;
         let v74: R = v27 * v73;
         let v75: R = v64 * v64;
         let v76: R = v62 * v75;
-        let v77: R = R::from_f64(1.0) - x[21][i];
-        let v78: R = v77 * x[15][i];
-        let v79: R = x[21][i] * v68;
+        let v77: R = R::from_f64(1.0) - x21[i];
+        let v78: R = v77 * x15[i];
+        let v79: R = x21[i] * v68;
         let v80: R = v78 + v79;
-        let v81: R = v77 * x[16][i];
-        let v82: R = x[21][i] * v69;
+        let v81: R = v77 * x16[i];
+        let v82: R = x21[i] * v69;
         let v83: R = v81 + v82;
-        let v84: R = v77 * x[17][i];
-        let v85: R = x[21][i] * v70;
+        let v84: R = v77 * x17[i];
+        let v85: R = x21[i] * v70;
         let v86: R = v84 + v85;
-        let v87: R = v77 * x[18][i];
-        let v88: R = x[21][i] * v72;
+        let v87: R = v77 * x18[i];
+        let v88: R = x21[i] * v72;
         let v89: R = v87 + v88;
-        let v90: R = v77 * x[19][i];
-        let v91: R = x[21][i] * v74;
+        let v90: R = v77 * x19[i];
+        let v91: R = x21[i] * v74;
         let v92: R = v90 + v91;
-        let v93: R = v77 * x[20][i];
-        let v94: R = x[21][i] * v76;
+        let v93: R = v77 * x20[i];
+        let v94: R = x21[i] * v76;
         let v95: R = v93 + v94;
         let o0: R = v7;
         let o1: R = v8;
@@ -446,58 +562,75 @@ pub fn lyapunov_3_3<R: Real>(x: &mut [[R; LANES]]) {
         let o18: R = v89;
         let o19: R = v92;
         let o20: R = v95;
-        x[0][i] = o0;
-        x[1][i] = o1;
-        x[2][i] = o2;
-        x[3][i] = o3;
-        x[4][i] = o4;
-        x[5][i] = o5;
-        x[6][i] = o6;
-        x[7][i] = o7;
-        x[8][i] = o8;
-        x[9][i] = o9;
-        x[10][i] = o10;
-        x[11][i] = o11;
-        x[12][i] = o12;
-        x[13][i] = o13;
-        x[14][i] = o14;
-        x[15][i] = o15;
-        x[16][i] = o16;
-        x[17][i] = o17;
-        x[18][i] = o18;
-        x[19][i] = o19;
-        x[20][i] = o20;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+        x10[i] = o10;
+        x11[i] = o11;
+        x12[i] = o12;
+        x13[i] = o13;
+        x14[i] = o14;
+        x15[i] = o15;
+        x16[i] = o16;
+        x17[i] = o17;
+        x18[i] = o18;
+        x19[i] = o19;
+        x20[i] = o20;
     }
 }
 
 #[inline(always)]
 pub fn chaos_3<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 10] = x.try_into().expect("10 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9] = x.each_mut();
+    chaos_3_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9);
+}
+
+#[inline(always)]
+fn chaos_3_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &[R; LANES],
+    x9: &[R; LANES],
+) {
     for i in 0..LANES {
-        let v0: R = x[0][i] * x[0][i];
-        let v1: R = x[1][i] * x[1][i];
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
         let v2: R = v0 + v1;
-        let v3: R = x[2][i] * x[2][i];
+        let v3: R = x2[i] * x2[i];
         let v4: R = v2 + v3;
         let v5: R = R::octave_r(v4);
         let v6: R = R::rescale_r(v5);
-        let v7: R = x[0][i] * v6;
-        let v8: R = x[1][i] * v6;
-        let v9: R = x[2][i] * v6;
-        let v10: R = x[3][i] - v5;
-        let v11: R = x[3][i] * R::from_f64(0.6931471805599453);
+        let v7: R = x0[i] * v6;
+        let v8: R = x1[i] * v6;
+        let v9: R = x2[i] * v6;
+        let v10: R = x3[i] - v5;
+        let v11: R = x3[i] * R::from_f64(0.6931471805599453);
         let v12: R = R::log_r(v4);
         let v13: R = v12 * R::from_f64(0.5);
         let v14: R = v11 + v13;
-        let v15: R = R::max_r(x[5][i], v14);
-        let v16: R = v14 - x[4][i];
-        let v17: R = x[8][i] * v16;
-        let v18: R = x[6][i] + v17;
+        let v15: R = R::max_r(x5[i], v14);
+        let v16: R = v14 - x4[i];
+        let v17: R = x8[i] * v16;
+        let v18: R = x6[i] + v17;
         let v19: R = v18 * R::from_f64(2.0);
-        let v20: R = x[9][i] * v19;
-        let v21: R = v20 - x[7][i];
-        let v22: R = x[9][i] * v21;
-        let v23: R = x[7][i] + v22;
+        let v20: R = x9[i] * v19;
+        let v21: R = v20 - x7[i];
+        let v22: R = x9[i] * v21;
+        let v23: R = x7[i] + v22;
         let o0: R = v7;
         let o1: R = v8;
         let o2: R = v9;
@@ -506,43 +639,59 @@ pub fn chaos_3<R: Real>(x: &mut [[R; LANES]]) {
         let o5: R = v15;
         let o6: R = v18;
         let o7: R = v23;
-        x[0][i] = o0;
-        x[1][i] = o1;
-        x[2][i] = o2;
-        x[3][i] = o3;
-        x[4][i] = o4;
-        x[5][i] = o5;
-        x[6][i] = o6;
-        x[7][i] = o7;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
     }
 }
 
 #[inline(always)]
 pub fn lyapunov_4_1<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 9] = x.try_into().expect("9 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8] = x.each_mut();
+    lyapunov_4_1_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8);
+}
+
+#[inline(always)]
+fn lyapunov_4_1_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &[R; LANES],
+) {
     for i in 0..LANES {
-        let v0: R = x[0][i] * x[0][i];
-        let v1: R = x[1][i] * x[1][i];
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
         let v2: R = v0 + v1;
-        let v3: R = x[2][i] * x[2][i];
+        let v3: R = x2[i] * x2[i];
         let v4: R = v2 + v3;
-        let v5: R = x[3][i] * x[3][i];
+        let v5: R = x3[i] * x3[i];
         let v6: R = v4 + v5;
         let v7: R = R::octave_r(v6);
         let v8: R = R::rescale_r(v7);
-        let v9: R = x[0][i] * v8;
-        let v10: R = x[1][i] * v8;
-        let v11: R = x[2][i] * v8;
-        let v12: R = x[3][i] * v8;
-        let v13: R = x[4][i] - v7;
+        let v9: R = x0[i] * v8;
+        let v10: R = x1[i] * v8;
+        let v11: R = x2[i] * v8;
+        let v12: R = x3[i] * v8;
+        let v13: R = x4[i] - v7;
         let v14: R = v8 * v8;
         let v15: R = v6 * v14;
-        let v16: R = R::from_f64(1.0) - x[8][i];
-        let v17: R = v16 * x[6][i];
-        let v18: R = x[8][i] * v13;
+        let v16: R = R::from_f64(1.0) - x8[i];
+        let v17: R = v16 * x6[i];
+        let v18: R = x8[i] * v13;
         let v19: R = v17 + v18;
-        let v20: R = v16 * x[7][i];
-        let v21: R = x[8][i] * v15;
+        let v20: R = v16 * x7[i];
+        let v21: R = x8[i] * v15;
         let v22: R = v20 + v21;
         let o0: R = v9;
         let o1: R = v10;
@@ -552,56 +701,80 @@ pub fn lyapunov_4_1<R: Real>(x: &mut [[R; LANES]]) {
         let o5: R = v15;
         let o6: R = v19;
         let o7: R = v22;
-        x[0][i] = o0;
-        x[1][i] = o1;
-        x[2][i] = o2;
-        x[3][i] = o3;
-        x[4][i] = o4;
-        x[5][i] = o5;
-        x[6][i] = o6;
-        x[7][i] = o7;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
     }
 }
 
 #[inline(always)]
 pub fn lyapunov_4_2<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 17] = x.try_into().expect("17 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16] = x.each_mut();
+    lyapunov_4_2_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16);
+}
+
+#[inline(always)]
+fn lyapunov_4_2_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &mut [R; LANES],
+    x11: &mut [R; LANES],
+    x12: &mut [R; LANES],
+    x13: &mut [R; LANES],
+    x14: &mut [R; LANES],
+    x15: &mut [R; LANES],
+    x16: &[R; LANES],
+) {
     for i in 0..LANES {
-        let v0: R = x[0][i] * x[0][i];
-        let v1: R = x[1][i] * x[1][i];
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
         let v2: R = v0 + v1;
-        let v3: R = x[2][i] * x[2][i];
+        let v3: R = x2[i] * x2[i];
         let v4: R = v2 + v3;
-        let v5: R = x[3][i] * x[3][i];
+        let v5: R = x3[i] * x3[i];
         let v6: R = v4 + v5;
         let v7: R = R::octave_r(v6);
         let v8: R = R::rescale_r(v7);
-        let v9: R = x[0][i] * v8;
-        let v10: R = x[1][i] * v8;
-        let v11: R = x[2][i] * v8;
-        let v12: R = x[3][i] * v8;
+        let v9: R = x0[i] * v8;
+        let v10: R = x1[i] * v8;
+        let v11: R = x2[i] * v8;
+        let v12: R = x3[i] * v8;
         let v13: R = R::from_f64(1.0) / v6;
-        let v14: R = x[0][i] * x[4][i];
-        let v15: R = x[1][i] * x[5][i];
+        let v14: R = x0[i] * x4[i];
+        let v15: R = x1[i] * x5[i];
         let v16: R = v14 + v15;
-        let v17: R = x[2][i] * x[6][i];
+        let v17: R = x2[i] * x6[i];
         let v18: R = v16 + v17;
-        let v19: R = x[3][i] * x[7][i];
+        let v19: R = x3[i] * x7[i];
         let v20: R = v18 + v19;
         let v21: R = v13 * v20;
-        let v22: R = x[0][i] * v21;
-        let v23: R = x[4][i] - v22;
+        let v22: R = x0[i] * v21;
+        let v23: R = x4[i] - v22;
         let v24: R = v23 * v23;
-        let v25: R = x[1][i] * v21;
-        let v26: R = x[5][i] - v25;
+        let v25: R = x1[i] * v21;
+        let v26: R = x5[i] - v25;
         let v27: R = v26 * v26;
         let v28: R = v24 + v27;
-        let v29: R = x[2][i] * v21;
-        let v30: R = x[6][i] - v29;
+        let v29: R = x2[i] * v21;
+        let v30: R = x6[i] - v29;
         let v31: R = v30 * v30;
         let v32: R = v28 + v31;
-        let v33: R = x[3][i] * v21;
-        let v34: R = x[7][i] - v33;
+        let v33: R = x3[i] * v21;
+        let v34: R = x7[i] - v33;
         let v35: R = v34 * v34;
         let v36: R = v32 + v35;
         let v37: R = R::octave_r(v36);
@@ -610,24 +783,24 @@ pub fn lyapunov_4_2<R: Real>(x: &mut [[R; LANES]]) {
         let v40: R = v26 * v38;
         let v41: R = v30 * v38;
         let v42: R = v34 * v38;
-        let v43: R = x[8][i] - v7;
-        let v44: R = x[9][i] - v37;
+        let v43: R = x8[i] - v7;
+        let v44: R = x9[i] - v37;
         let v45: R = v8 * v8;
         let v46: R = v6 * v45;
         let v47: R = v38 * v38;
         let v48: R = v36 * v47;
-        let v49: R = R::from_f64(1.0) - x[16][i];
-        let v50: R = v49 * x[12][i];
-        let v51: R = x[16][i] * v43;
+        let v49: R = R::from_f64(1.0) - x16[i];
+        let v50: R = v49 * x12[i];
+        let v51: R = x16[i] * v43;
         let v52: R = v50 + v51;
-        let v53: R = v49 * x[13][i];
-        let v54: R = x[16][i] * v44;
+        let v53: R = v49 * x13[i];
+        let v54: R = x16[i] * v44;
         let v55: R = v53 + v54;
-        let v56: R = v49 * x[14][i];
-        let v57: R = x[16][i] * v46;
+        let v56: R = v49 * x14[i];
+        let v57: R = x16[i] * v46;
         let v58: R = v56 + v57;
-        let v59: R = v49 * x[15][i];
-        let v60: R = x[16][i] * v48;
+        let v59: R = v49 * x15[i];
+        let v60: R = x16[i] * v48;
         let v61: R = v59 + v60;
         let o0: R = v9;
         let o1: R = v10;
@@ -645,64 +818,96 @@ pub fn lyapunov_4_2<R: Real>(x: &mut [[R; LANES]]) {
         let o13: R = v55;
         let o14: R = v58;
         let o15: R = v61;
-        x[0][i] = o0;
-        x[1][i] = o1;
-        x[2][i] = o2;
-        x[3][i] = o3;
-        x[4][i] = o4;
-        x[5][i] = o5;
-        x[6][i] = o6;
-        x[7][i] = o7;
-        x[8][i] = o8;
-        x[9][i] = o9;
-        x[10][i] = o10;
-        x[11][i] = o11;
-        x[12][i] = o12;
-        x[13][i] = o13;
-        x[14][i] = o14;
-        x[15][i] = o15;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+        x10[i] = o10;
+        x11[i] = o11;
+        x12[i] = o12;
+        x13[i] = o13;
+        x14[i] = o14;
+        x15[i] = o15;
     }
 }
 
 #[inline(always)]
 pub fn lyapunov_4_3<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 25] = x.try_into().expect("25 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21, x22, x23, x24] = x.each_mut();
+    lyapunov_4_3_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21, x22, x23, x24);
+}
+
+#[inline(always)]
+fn lyapunov_4_3_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &mut [R; LANES],
+    x11: &mut [R; LANES],
+    x12: &mut [R; LANES],
+    x13: &mut [R; LANES],
+    x14: &mut [R; LANES],
+    x15: &mut [R; LANES],
+    x16: &mut [R; LANES],
+    x17: &mut [R; LANES],
+    x18: &mut [R; LANES],
+    x19: &mut [R; LANES],
+    x20: &mut [R; LANES],
+    x21: &mut [R; LANES],
+    x22: &mut [R; LANES],
+    x23: &mut [R; LANES],
+    x24: &[R; LANES],
+) {
     for i in 0..LANES {
-        let v0: R = x[0][i] * x[0][i];
-        let v1: R = x[1][i] * x[1][i];
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
         let v2: R = v0 + v1;
-        let v3: R = x[2][i] * x[2][i];
+        let v3: R = x2[i] * x2[i];
         let v4: R = v2 + v3;
-        let v5: R = x[3][i] * x[3][i];
+        let v5: R = x3[i] * x3[i];
         let v6: R = v4 + v5;
         let v7: R = R::octave_r(v6);
         let v8: R = R::rescale_r(v7);
-        let v9: R = x[0][i] * v8;
-        let v10: R = x[1][i] * v8;
-        let v11: R = x[2][i] * v8;
-        let v12: R = x[3][i] * v8;
+        let v9: R = x0[i] * v8;
+        let v10: R = x1[i] * v8;
+        let v11: R = x2[i] * v8;
+        let v12: R = x3[i] * v8;
         let v13: R = R::from_f64(1.0) / v6;
-        let v14: R = x[0][i] * x[4][i];
-        let v15: R = x[1][i] * x[5][i];
+        let v14: R = x0[i] * x4[i];
+        let v15: R = x1[i] * x5[i];
         let v16: R = v14 + v15;
-        let v17: R = x[2][i] * x[6][i];
+        let v17: R = x2[i] * x6[i];
         let v18: R = v16 + v17;
-        let v19: R = x[3][i] * x[7][i];
+        let v19: R = x3[i] * x7[i];
         let v20: R = v18 + v19;
         let v21: R = v13 * v20;
-        let v22: R = x[0][i] * v21;
-        let v23: R = x[4][i] - v22;
+        let v22: R = x0[i] * v21;
+        let v23: R = x4[i] - v22;
         let v24: R = v23 * v23;
-        let v25: R = x[1][i] * v21;
-        let v26: R = x[5][i] - v25;
+        let v25: R = x1[i] * v21;
+        let v26: R = x5[i] - v25;
         let v27: R = v26 * v26;
         let v28: R = v24 + v27;
-        let v29: R = x[2][i] * v21;
-        let v30: R = x[6][i] - v29;
+        let v29: R = x2[i] * v21;
+        let v30: R = x6[i] - v29;
         let v31: R = v30 * v30;
         let v32: R = v28 + v31;
-        let v33: R = x[3][i] * v21;
-        let v34: R = x[7][i] - v33;
+        let v33: R = x3[i] * v21;
+        let v34: R = x7[i] - v33;
         let v35: R = v34 * v34;
         let v36: R = v32 + v35;
         let v37: R = R::octave_r(v36);
@@ -711,28 +916,28 @@ pub fn lyapunov_4_3<R: Real>(x: &mut [[R; LANES]]) {
         let v40: R = v26 * v38;
         let v41: R = v30 * v38;
         let v42: R = v34 * v38;
-        let v43: R = x[0][i] * x[8][i];
-        let v44: R = x[1][i] * x[9][i];
+        let v43: R = x0[i] * x8[i];
+        let v44: R = x1[i] * x9[i];
         let v45: R = v43 + v44;
-        let v46: R = x[2][i] * x[10][i];
+        let v46: R = x2[i] * x10[i];
         let v47: R = v45 + v46;
-        let v48: R = x[3][i] * x[11][i];
+        let v48: R = x3[i] * x11[i];
         let v49: R = v47 + v48;
         let v50: R = v13 * v49;
-        let v51: R = x[0][i] * v50;
-        let v52: R = x[8][i] - v51;
+        let v51: R = x0[i] * v50;
+        let v52: R = x8[i] - v51;
         let v53: R = R::from_f64(1.0) / v36;
         let v54: R = v23 * v52;
-        let v55: R = x[1][i] * v50;
-        let v56: R = x[9][i] - v55;
+        let v55: R = x1[i] * v50;
+        let v56: R = x9[i] - v55;
         let v57: R = v26 * v56;
         let v58: R = v54 + v57;
-        let v59: R = x[2][i] * v50;
-        let v60: R = x[10][i] - v59;
+        let v59: R = x2[i] * v50;
+        let v60: R = x10[i] - v59;
         let v61: R = v30 * v60;
         let v62: R = v58 + v61;
-        let v63: R = x[3][i] * v50;
-        let v64: R = x[11][i] - v63;
+        let v63: R = x3[i] * v50;
+        let v64: R = x11[i] - v63;
         let v65: R = v34 * v64;
         let v66: R = v62 + v65;
         let v67: R = v53 * v66;
@@ -757,33 +962,33 @@ pub fn lyapunov_4_3<R: Real>(x: &mut [[R; LANES]]) {
         let v86: R = v72 * v84;
         let v87: R = v76 * v84;
         let v88: R = v80 * v84;
-        let v89: R = x[12][i] - v7;
-        let v90: R = x[13][i] - v37;
-        let v91: R = x[14][i] - v83;
+        let v89: R = x12[i] - v7;
+        let v90: R = x13[i] - v37;
+        let v91: R = x14[i] - v83;
         let v92: R = v8 * v8;
         let v93: R = v6 * v92;
         let v94: R = v38 * v38;
         let v95: R = v36 * v94;
         let v96: R = v84 * v84;
         let v97: R = v82 * v96;
-        let v98: R = R::from_f64(1.0) - x[24][i];
-        let v99: R = v98 * x[18][i];
-        let v100: R = x[24][i] * v89;
+        let v98: R = R::from_f64(1.0) - x24[i];
+        let v99: R = v98 * x18[i];
+        let v100: R = x24[i] * v89;
         let v101: R = v99 + v100;
-        let v102: R = v98 * x[19][i];
-        let v103: R = x[24][i] * v90;
+        let v102: R = v98 * x19[i];
+        let v103: R = x24[i] * v90;
         let v104: R = v102 + v103;
-        let v105: R = v98 * x[20][i];
-        let v106: R = x[24][i] * v91;
+        let v105: R = v98 * x20[i];
+        let v106: R = x24[i] * v91;
         let v107: R = v105 + v106;
-        let v108: R = v98 * x[21][i];
-        let v109: R = x[24][i] * v93;
+        let v108: R = v98 * x21[i];
+        let v109: R = x24[i] * v93;
         let v110: R = v108 + v109;
-        let v111: R = v98 * x[22][i];
-        let v112: R = x[24][i] * v95;
+        let v111: R = v98 * x22[i];
+        let v112: R = x24[i] * v95;
         let v113: R = v111 + v112;
-        let v114: R = v98 * x[23][i];
-        let v115: R = x[24][i] * v97;
+        let v114: R = v98 * x23[i];
+        let v115: R = x24[i] * v97;
         let v116: R = v114 + v115;
         let o0: R = v9;
         let o1: R = v10;
@@ -809,72 +1014,112 @@ pub fn lyapunov_4_3<R: Real>(x: &mut [[R; LANES]]) {
         let o21: R = v110;
         let o22: R = v113;
         let o23: R = v116;
-        x[0][i] = o0;
-        x[1][i] = o1;
-        x[2][i] = o2;
-        x[3][i] = o3;
-        x[4][i] = o4;
-        x[5][i] = o5;
-        x[6][i] = o6;
-        x[7][i] = o7;
-        x[8][i] = o8;
-        x[9][i] = o9;
-        x[10][i] = o10;
-        x[11][i] = o11;
-        x[12][i] = o12;
-        x[13][i] = o13;
-        x[14][i] = o14;
-        x[15][i] = o15;
-        x[16][i] = o16;
-        x[17][i] = o17;
-        x[18][i] = o18;
-        x[19][i] = o19;
-        x[20][i] = o20;
-        x[21][i] = o21;
-        x[22][i] = o22;
-        x[23][i] = o23;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+        x10[i] = o10;
+        x11[i] = o11;
+        x12[i] = o12;
+        x13[i] = o13;
+        x14[i] = o14;
+        x15[i] = o15;
+        x16[i] = o16;
+        x17[i] = o17;
+        x18[i] = o18;
+        x19[i] = o19;
+        x20[i] = o20;
+        x21[i] = o21;
+        x22[i] = o22;
+        x23[i] = o23;
     }
 }
 
 #[inline(always)]
 pub fn lyapunov_4_4<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 33] = x.try_into().expect("33 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21, x22, x23, x24, x25, x26, x27, x28, x29, x30, x31, x32] = x.each_mut();
+    lyapunov_4_4_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21, x22, x23, x24, x25, x26, x27, x28, x29, x30, x31, x32);
+}
+
+#[inline(always)]
+fn lyapunov_4_4_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &mut [R; LANES],
+    x11: &mut [R; LANES],
+    x12: &mut [R; LANES],
+    x13: &mut [R; LANES],
+    x14: &mut [R; LANES],
+    x15: &mut [R; LANES],
+    x16: &mut [R; LANES],
+    x17: &mut [R; LANES],
+    x18: &mut [R; LANES],
+    x19: &mut [R; LANES],
+    x20: &mut [R; LANES],
+    x21: &mut [R; LANES],
+    x22: &mut [R; LANES],
+    x23: &mut [R; LANES],
+    x24: &mut [R; LANES],
+    x25: &mut [R; LANES],
+    x26: &mut [R; LANES],
+    x27: &mut [R; LANES],
+    x28: &mut [R; LANES],
+    x29: &mut [R; LANES],
+    x30: &mut [R; LANES],
+    x31: &mut [R; LANES],
+    x32: &[R; LANES],
+) {
     for i in 0..LANES {
-        let v0: R = x[0][i] * x[0][i];
-        let v1: R = x[1][i] * x[1][i];
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
         let v2: R = v0 + v1;
-        let v3: R = x[2][i] * x[2][i];
+        let v3: R = x2[i] * x2[i];
         let v4: R = v2 + v3;
-        let v5: R = x[3][i] * x[3][i];
+        let v5: R = x3[i] * x3[i];
         let v6: R = v4 + v5;
         let v7: R = R::octave_r(v6);
         let v8: R = R::rescale_r(v7);
-        let v9: R = x[0][i] * v8;
-        let v10: R = x[1][i] * v8;
-        let v11: R = x[2][i] * v8;
-        let v12: R = x[3][i] * v8;
+        let v9: R = x0[i] * v8;
+        let v10: R = x1[i] * v8;
+        let v11: R = x2[i] * v8;
+        let v12: R = x3[i] * v8;
         let v13: R = R::from_f64(1.0) / v6;
-        let v14: R = x[0][i] * x[4][i];
-        let v15: R = x[1][i] * x[5][i];
+        let v14: R = x0[i] * x4[i];
+        let v15: R = x1[i] * x5[i];
         let v16: R = v14 + v15;
-        let v17: R = x[2][i] * x[6][i];
+        let v17: R = x2[i] * x6[i];
         let v18: R = v16 + v17;
-        let v19: R = x[3][i] * x[7][i];
+        let v19: R = x3[i] * x7[i];
         let v20: R = v18 + v19;
         let v21: R = v13 * v20;
-        let v22: R = x[0][i] * v21;
-        let v23: R = x[4][i] - v22;
+        let v22: R = x0[i] * v21;
+        let v23: R = x4[i] - v22;
         let v24: R = v23 * v23;
-        let v25: R = x[1][i] * v21;
-        let v26: R = x[5][i] - v25;
+        let v25: R = x1[i] * v21;
+        let v26: R = x5[i] - v25;
         let v27: R = v26 * v26;
         let v28: R = v24 + v27;
-        let v29: R = x[2][i] * v21;
-        let v30: R = x[6][i] - v29;
+        let v29: R = x2[i] * v21;
+        let v30: R = x6[i] - v29;
         let v31: R = v30 * v30;
         let v32: R = v28 + v31;
-        let v33: R = x[3][i] * v21;
-        let v34: R = x[7][i] - v33;
+        let v33: R = x3[i] * v21;
+        let v34: R = x7[i] - v33;
         let v35: R = v34 * v34;
         let v36: R = v32 + v35;
         let v37: R = R::octave_r(v36);
@@ -883,28 +1128,28 @@ pub fn lyapunov_4_4<R: Real>(x: &mut [[R; LANES]]) {
         let v40: R = v26 * v38;
         let v41: R = v30 * v38;
         let v42: R = v34 * v38;
-        let v43: R = x[0][i] * x[8][i];
-        let v44: R = x[1][i] * x[9][i];
+        let v43: R = x0[i] * x8[i];
+        let v44: R = x1[i] * x9[i];
         let v45: R = v43 + v44;
-        let v46: R = x[2][i] * x[10][i];
+        let v46: R = x2[i] * x10[i];
         let v47: R = v45 + v46;
-        let v48: R = x[3][i] * x[11][i];
+        let v48: R = x3[i] * x11[i];
         let v49: R = v47 + v48;
         let v50: R = v13 * v49;
-        let v51: R = x[0][i] * v50;
-        let v52: R = x[8][i] - v51;
+        let v51: R = x0[i] * v50;
+        let v52: R = x8[i] - v51;
         let v53: R = R::from_f64(1.0) / v36;
         let v54: R = v23 * v52;
-        let v55: R = x[1][i] * v50;
-        let v56: R = x[9][i] - v55;
+        let v55: R = x1[i] * v50;
+        let v56: R = x9[i] - v55;
         let v57: R = v26 * v56;
         let v58: R = v54 + v57;
-        let v59: R = x[2][i] * v50;
-        let v60: R = x[10][i] - v59;
+        let v59: R = x2[i] * v50;
+        let v60: R = x10[i] - v59;
         let v61: R = v30 * v60;
         let v62: R = v58 + v61;
-        let v63: R = x[3][i] * v50;
-        let v64: R = x[11][i] - v63;
+        let v63: R = x3[i] * v50;
+        let v64: R = x11[i] - v63;
         let v65: R = v34 * v64;
         let v66: R = v62 + v65;
         let v67: R = v53 * v66;
@@ -929,27 +1174,27 @@ pub fn lyapunov_4_4<R: Real>(x: &mut [[R; LANES]]) {
         let v86: R = v72 * v84;
         let v87: R = v76 * v84;
         let v88: R = v80 * v84;
-        let v89: R = x[0][i] * x[12][i];
-        let v90: R = x[1][i] * x[13][i];
+        let v89: R = x0[i] * x12[i];
+        let v90: R = x1[i] * x13[i];
         let v91: R = v89 + v90;
-        let v92: R = x[2][i] * x[14][i];
+        let v92: R = x2[i] * x14[i];
         let v93: R = v91 + v92;
-        let v94: R = x[3][i] * x[15][i];
+        let v94: R = x3[i] * x15[i];
         let v95: R = v93 + v94;
         let v96: R = v13 * v95;
-        let v97: R = x[0][i] * v96;
-        let v98: R = x[12][i] - v97;
+        let v97: R = x0[i] * v96;
+        let v98: R = x12[i] - v97;
         let v99: R = v23 * v98;
-        let v100: R = x[1][i] * v96;
-        let v101: R = x[13][i] - v100;
+        let v100: R = x1[i] * v96;
+        let v101: R = x13[i] - v100;
         let v102: R = v26 * v101;
         let v103: R = v99 + v102;
-        let v104: R = x[2][i] * v96;
-        let v105: R = x[14][i] - v104;
+        let v104: R = x2[i] * v96;
+        let v105: R = x14[i] - v104;
         let v106: R = v30 * v105;
         let v107: R = v103 + v106;
-        let v108: R = x[3][i] * v96;
-        let v109: R = x[15][i] - v108;
+        let v108: R = x3[i] * v96;
+        let v109: R = x15[i] - v108;
         let v110: R = v34 * v109;
         let v111: R = v107 + v110;
         let v112: R = v53 * v111;
@@ -991,10 +1236,10 @@ pub fn lyapunov_4_4<R: Real>(x: &mut [[R; LANES]]) {
         let v148: R = v134 * v146;
         let v149: R = v138 * v146;
         let v150: R = v142 * v146;
-        let v151: R = x[16][i] - v7;
-        let v152: R = x[17][i] - v37;
-        let v153: R = x[18][i] - v83;
-        let v154: R = x[19][i] - v145;
+        let v151: R = x16[i] - v7;
+        let v152: R = x17[i] - v37;
+        let v153: R = x18[i] - v83;
+        let v154: R = x19[i] - v145;
         let v155: R = v8 * v8;
         let v156: R = v6 * v155;
         let v157: R = v38 * v38;
@@ -1003,30 +1248,30 @@ pub fn lyapunov_4_4<R: Real>(x: &mut [[R; LANES]]) {
         let v160: R = v82 * v159;
         let v161: R = v146 * v146;
         let v162: R = v144 * v161;
-        let v163: R = R::from_f64(1.0) - x[32][i];
-        let v164: R = v163 * x[24][i];
-        let v165: R = x[32][i] * v151;
+        let v163: R = R::from_f64(1.0) - x32[i];
+        let v164: R = v163 * x24[i];
+        let v165: R = x32[i] * v151;
         let v166: R = v164 + v165;
-        let v167: R = v163 * x[25][i];
-        let v168: R = x[32][i] * v152;
+        let v167: R = v163 * x25[i];
+        let v168: R = x32[i] * v152;
         let v169: R = v167 + v168;
-        let v170: R = v163 * x[26][i];
-        let v171: R = x[32][i] * v153;
+        let v170: R = v163 * x26[i];
+        let v171: R = x32[i] * v153;
         let v172: R = v170 + v171;
-        let v173: R = v163 * x[27][i];
-        let v174: R = x[32][i] * v154;
+        let v173: R = v163 * x27[i];
+        let v174: R = x32[i] * v154;
         let v175: R = v173 + v174;
-        let v176: R = v163 * x[28][i];
-        let v177: R = x[32][i] * v156;
+        let v176: R = v163 * x28[i];
+        let v177: R = x32[i] * v156;
         let v178: R = v176 + v177;
-        let v179: R = v163 * x[29][i];
-        let v180: R = x[32][i] * v158;
+        let v179: R = v163 * x29[i];
+        let v180: R = x32[i] * v158;
         let v181: R = v179 + v180;
-        let v182: R = v163 * x[30][i];
-        let v183: R = x[32][i] * v160;
+        let v182: R = v163 * x30[i];
+        let v183: R = x32[i] * v160;
         let v184: R = v182 + v183;
-        let v185: R = v163 * x[31][i];
-        let v186: R = x[32][i] * v162;
+        let v185: R = v163 * x31[i];
+        let v186: R = x32[i] * v162;
         let v187: R = v185 + v186;
         let o0: R = v9;
         let o1: R = v10;
@@ -1060,72 +1305,90 @@ pub fn lyapunov_4_4<R: Real>(x: &mut [[R; LANES]]) {
         let o29: R = v181;
         let o30: R = v184;
         let o31: R = v187;
-        x[0][i] = o0;
-        x[1][i] = o1;
-        x[2][i] = o2;
-        x[3][i] = o3;
-        x[4][i] = o4;
-        x[5][i] = o5;
-        x[6][i] = o6;
-        x[7][i] = o7;
-        x[8][i] = o8;
-        x[9][i] = o9;
-        x[10][i] = o10;
-        x[11][i] = o11;
-        x[12][i] = o12;
-        x[13][i] = o13;
-        x[14][i] = o14;
-        x[15][i] = o15;
-        x[16][i] = o16;
-        x[17][i] = o17;
-        x[18][i] = o18;
-        x[19][i] = o19;
-        x[20][i] = o20;
-        x[21][i] = o21;
-        x[22][i] = o22;
-        x[23][i] = o23;
-        x[24][i] = o24;
-        x[25][i] = o25;
-        x[26][i] = o26;
-        x[27][i] = o27;
-        x[28][i] = o28;
-        x[29][i] = o29;
-        x[30][i] = o30;
-        x[31][i] = o31;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+        x10[i] = o10;
+        x11[i] = o11;
+        x12[i] = o12;
+        x13[i] = o13;
+        x14[i] = o14;
+        x15[i] = o15;
+        x16[i] = o16;
+        x17[i] = o17;
+        x18[i] = o18;
+        x19[i] = o19;
+        x20[i] = o20;
+        x21[i] = o21;
+        x22[i] = o22;
+        x23[i] = o23;
+        x24[i] = o24;
+        x25[i] = o25;
+        x26[i] = o26;
+        x27[i] = o27;
+        x28[i] = o28;
+        x29[i] = o29;
+        x30[i] = o30;
+        x31[i] = o31;
     }
 }
 
 #[inline(always)]
 pub fn chaos_4<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 11] = x.try_into().expect("11 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10] = x.each_mut();
+    chaos_4_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10);
+}
+
+#[inline(always)]
+fn chaos_4_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &[R; LANES],
+    x10: &[R; LANES],
+) {
     for i in 0..LANES {
-        let v0: R = x[0][i] * x[0][i];
-        let v1: R = x[1][i] * x[1][i];
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
         let v2: R = v0 + v1;
-        let v3: R = x[2][i] * x[2][i];
+        let v3: R = x2[i] * x2[i];
         let v4: R = v2 + v3;
-        let v5: R = x[3][i] * x[3][i];
+        let v5: R = x3[i] * x3[i];
         let v6: R = v4 + v5;
         let v7: R = R::octave_r(v6);
         let v8: R = R::rescale_r(v7);
-        let v9: R = x[0][i] * v8;
-        let v10: R = x[1][i] * v8;
-        let v11: R = x[2][i] * v8;
-        let v12: R = x[3][i] * v8;
-        let v13: R = x[4][i] - v7;
-        let v14: R = x[4][i] * R::from_f64(0.6931471805599453);
+        let v9: R = x0[i] * v8;
+        let v10: R = x1[i] * v8;
+        let v11: R = x2[i] * v8;
+        let v12: R = x3[i] * v8;
+        let v13: R = x4[i] - v7;
+        let v14: R = x4[i] * R::from_f64(0.6931471805599453);
         let v15: R = R::log_r(v6);
         let v16: R = v15 * R::from_f64(0.5);
         let v17: R = v14 + v16;
-        let v18: R = R::max_r(x[6][i], v17);
-        let v19: R = v17 - x[5][i];
-        let v20: R = x[9][i] * v19;
-        let v21: R = x[7][i] + v20;
+        let v18: R = R::max_r(x6[i], v17);
+        let v19: R = v17 - x5[i];
+        let v20: R = x9[i] * v19;
+        let v21: R = x7[i] + v20;
         let v22: R = v21 * R::from_f64(2.0);
-        let v23: R = x[10][i] * v22;
-        let v24: R = v23 - x[8][i];
-        let v25: R = x[10][i] * v24;
-        let v26: R = x[8][i] + v25;
+        let v23: R = x10[i] * v22;
+        let v24: R = v23 - x8[i];
+        let v25: R = x10[i] * v24;
+        let v26: R = x8[i] + v25;
         let o0: R = v9;
         let o1: R = v10;
         let o2: R = v11;
@@ -1135,14 +1398,14 @@ pub fn chaos_4<R: Real>(x: &mut [[R; LANES]]) {
         let o6: R = v18;
         let o7: R = v21;
         let o8: R = v26;
-        x[0][i] = o0;
-        x[1][i] = o1;
-        x[2][i] = o2;
-        x[3][i] = o3;
-        x[4][i] = o4;
-        x[5][i] = o5;
-        x[6][i] = o6;
-        x[7][i] = o7;
-        x[8][i] = o8;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
     }
 }
