@@ -198,7 +198,7 @@ pub fn compiled_columns(
             *v.field_mut(var).expect("a lane") = [unit; LANES];
         }
     }
-    c.run(&mut scratch, n);
+    c.run(&mut scratch.x, &mut scratch.d, n);
     let column = |v: &Lanes<f64>| {
         space
             .iter()

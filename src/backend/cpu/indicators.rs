@@ -331,7 +331,7 @@ impl<R: Real> IndicatorTapes<R> {
         running: u64,
     ) {
         self.load_vectors(c, s, real, running);
-        c.run(s, n);
+        c.run(&mut s.x, &mut s.d, n);
         self.store_vectors(c, s, real, running);
     }
 
@@ -535,7 +535,7 @@ fn run_steps<R: Real>(
 ) -> RunOutcome {
     let locs = ind.runs.as_ref().expect("compiled samples");
     for j in 0..run.k {
-        c.run(s, run.n + j);
+        c.run(&mut s.x, &mut s.d, run.n + j);
         if check && super::any_nonfinite(&s.x, &ind.var_lanes) {
             return RunOutcome {
                 done: j + 1,

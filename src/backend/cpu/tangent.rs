@@ -24,15 +24,13 @@ use crate::plan::Plan;
 /// passes of at most this many, each from the step's start.
 pub const MAX_VECTORS: usize = 2;
 
-/// One step's tangent over a block: `(x, d, stages, shared, n, time,
-/// time_terms)`. `x` holds the state at the step's start and the lanes'
-/// inputs, `d[k]` vector k's components at the tangent space's lanes; the
-/// step `n` runs on both (`x` ends at the step's end, a scratch copy);
-/// `shared` has room for each stage's time terms where the ensemble shares
-/// them. Unsafe to call: the AVX2/FMA and AVX-512 variants need those
-/// features.
+/// One step's tangent over a block: `(x, d, stages, n, time, time_terms)`.
+/// `x` holds the state at the step's start and the lanes' inputs, `d[k]`
+/// vector k's components at the tangent space's lanes; the step `n` runs
+/// on both (`x` ends at the step's end, a scratch copy). Unsafe to call:
+/// the AVX2/FMA and AVX-512 variants need those features.
 pub type TangentFn<R> =
-    unsafe fn(&mut Lanes<R>, &mut [Box<Lanes<R>>], &[Weights<R>], &mut [Lane<R>], u64, u8, bool);
+    unsafe fn(&mut Lanes<R>, &mut [Box<Lanes<R>>], &[Weights<R>], u64, u8, bool);
 
 /// The step on `x` and `d` (see [`TangentFn`]), its stages in the piece
 /// order every model takes by default, `CBABC`.
@@ -41,28 +39,18 @@ fn tangent_step<R: Real, P: Pieces<R>, const K: usize>(
     x: &mut Lanes<R>,
     d: &mut [Box<Lanes<R>>],
     stages: &[Weights<R>],
-    shared: &mut [Lane<R>],
     n: u64,
     time_mode: u8,
     time_terms: bool,
 ) {
     let d: &mut [Box<Lanes<R>>; K] = d.try_into().expect("K deviation vectors");
     let nf = R::from_f64(n as f64);
-    // Time terms the ensemble shares, once per stage for every chunk.
-    if time_mode == time::SHARED {
-        for (&(_, _, c), at) in stages.iter().zip(shared.iter_mut()) {
-            *at = shared_time::<R, P>(x, c, nf, time_terms);
-        }
-    }
     let chunk = const { chunk(K) };
     for first in (0..LANES).step_by(chunk) {
         let lanes = first..first + chunk;
-        for (j, &(half, full, c)) in stages.iter().enumerate() {
-            if time_mode == time::PER_LANE {
-                time_per_lane::<R, P>(x, c, nf, lanes.clone());
-            }
-            let shared = (time_mode == time::SHARED).then(|| &shared[j]);
-            stage_pass::<R, P, 'C', 'B', 'A', K>(x, d, half, full, shared, lanes.clone());
+        for &(half, full, c) in stages {
+            let shared = time_pass::<R, P>(x, c, nf, time_mode, time_terms, lanes.clone());
+            stage_pass::<R, P, 'C', 'B', 'A', K>(x, d, half, full, shared.as_ref(), lanes.clone());
         }
     }
 }
@@ -74,7 +62,9 @@ fn tangent_step<R: Real, P: Pieces<R>, const K: usize>(
 /// Zen 4): AVX-512 f32 2.38× (the whole block 2.71×, 16 lanes 2.98×),
 /// AVX2 f32 2.48× (2.54×, 16 lanes 2.81×), f64 within 5 % either way.
 /// With two vectors, the whole block (AVX-512 f32: 3.2×, 32 lanes 3.4×,
-/// 16 lanes 4.4×).
+/// 16 lanes 4.4×). Time terms the ensemble shares are evaluated for each
+/// chunk, as values: kept in a buffer for the chunks to read, they cost
+/// the registers (the kernel ran 2× slower).
 const fn chunk(k: usize) -> usize {
     if k == 1 {
         LANES / 2
@@ -83,33 +73,35 @@ const fn chunk(k: usize) -> usize {
     }
 }
 
-/// A stage's time terms at `t0 + (n + c) dt` for every lane to take, as
-/// the fused stage evaluates them where the ensemble shares them: once, on
-/// the block's first lane.
+/// A stage's time terms at `t0 + (n + c) dt`, as the fused stage evaluates
+/// them: once for the block's `lanes` (returned, for every lane to take),
+/// or per lane into `x`.
 #[inline(always)]
-fn shared_time<R: Real, P: Pieces<R>>(x: &Lanes<R>, c: R, nf: R, time_terms: bool) -> Lane<R> {
-    let mut shared = Lane::gather(x, 0);
-    shared.t = shared.t0 + nf * shared.dt + c * shared.dt;
-    if time_terms {
-        P::time(&mut shared);
-    }
-    shared
-}
-
-/// A stage's time terms at `t0 + (n + c) dt`, each of the `lanes` its own.
-#[inline(always)]
-fn time_per_lane<R: Real, P: Pieces<R>>(
+fn time_pass<R: Real, P: Pieces<R>>(
     x: &mut Lanes<R>,
     c: R,
     nf: R,
+    time_mode: u8,
+    time_terms: bool,
     lanes: std::ops::Range<usize>,
-) {
-    for i in lanes {
-        let mut xi = Lane::gather(x, i);
-        xi.t = xi.t0 + nf * xi.dt + c * xi.dt;
-        P::time(&mut xi);
-        xi.scatter_time(x, i);
+) -> Option<Lane<R>> {
+    if time_mode == time::SHARED {
+        let mut shared = Lane::gather(x, 0);
+        shared.t = shared.t0 + nf * shared.dt + c * shared.dt;
+        if time_terms {
+            P::time(&mut shared);
+        }
+        return Some(shared);
     }
+    if time_mode == time::PER_LANE {
+        for i in lanes {
+            let mut xi = Lane::gather(x, i);
+            xi.t = xi.t0 + nf * xi.dt + c * xi.dt;
+            P::time(&mut xi);
+            xi.scatter_time(x, i);
+        }
+    }
+    None
 }
 
 /// One stage `P1½ P2½ P3 P2½ P1½` (weights `half`, `full` times dt) on
@@ -162,12 +154,11 @@ macro_rules! tangent_variant {
             x: &mut Lanes<R>,
             d: &mut [Box<Lanes<R>>],
             stages: &[Weights<R>],
-            shared: &mut [Lane<R>],
             n: u64,
             time_mode: u8,
             time_terms: bool,
         ) {
-            tangent_step::<R, P, K>(x, d, stages, shared, n, time_mode, time_terms)
+            tangent_step::<R, P, K>(x, d, stages, n, time_mode, time_terms)
         }
     };
 }
@@ -221,12 +212,10 @@ impl<R: Real> PiecesVisitor<R> for Builder {
 
 /// The lanes the compiled tangent step runs on for one block: a copy of
 /// the block's lanes (its parameters; the state is set before each step)
-/// and each deviation vector's lanes; room for each stage's shared time
-/// terms.
+/// and each deviation vector's lanes.
 pub struct TangentScratch<R> {
     pub x: Box<Lanes<R>>,
     pub d: Vec<Box<Lanes<R>>>,
-    shared: Vec<Lane<R>>,
 }
 
 impl<R: Real> TangentScratch<R> {
@@ -236,7 +225,6 @@ impl<R: Real> TangentScratch<R> {
         TangentScratch {
             x,
             d: (0..vectors).map(|_| Lanes::boxed()).collect(),
-            shared: vec![],
         }
     }
 }
@@ -319,9 +307,7 @@ impl<R: Real> CompiledTangent<R> {
     /// Step `n` on the scratch lanes `x` and the vectors `d` (see
     /// [`TangentFn`]), in passes of at most [`MAX_VECTORS`] vectors, each
     /// from the step's start.
-    pub fn run(&self, s: &mut TangentScratch<R>, n: u64) {
-        s.shared.resize(self.stages.len(), Lane::default());
-        let (x, d) = (&mut s.x, &mut s.d);
+    pub fn run(&self, x: &mut Lanes<R>, d: &mut [Box<Lanes<R>>], n: u64) {
         let start: Vec<[R; LANES]> = if d.len() > MAX_VECTORS {
             self.vars.iter().map(|&v| *x.at(v)).collect()
         } else {
@@ -336,17 +322,7 @@ impl<R: Real> CompiledTangent<R> {
             let kernel = self.kernels[pass.len() - 1];
             // SAFETY: the kernels were picked for `isa`, which
             // `kernels::isa` only names where the CPU has its features.
-            unsafe {
-                kernel(
-                    x,
-                    pass,
-                    &self.stages,
-                    &mut s.shared,
-                    n,
-                    self.time_mode,
-                    self.time_terms,
-                )
-            }
+            unsafe { kernel(x, pass, &self.stages, n, self.time_mode, self.time_terms) }
         }
     }
 }
