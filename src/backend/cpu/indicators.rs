@@ -299,7 +299,7 @@ impl<R: Real> IndicatorTapes<R> {
             }
             _ => run(&self.tangent, l, prev, real, regs, scalars, at),
         }
-        for s in self.samples.iter().filter(|s| n1.is_multiple_of(s.every)) {
+        for s in self.samples.iter().filter(|s| sampled_after(s.every, n1)) {
             run(s, l, prev, real, regs, self.sample_scalars(s.every, n1), at);
         }
         let real: &[[R; LANES]] = real;
@@ -311,10 +311,11 @@ impl<R: Real> IndicatorTapes<R> {
     /// The one-value inputs of a sample taken every `every` steps, after
     /// step `n1`: its number, one over it, whether it is the skip step's.
     fn sample_scalars(&self, every: u64, n1: u64) -> Scalars<R> {
+        let count = sample_number(every, n1);
         Scalars {
             step: R::from_f64((n1 - 1) as f64),
-            count: R::from_f64((n1 / every) as f64),
-            inv_count: inv_count::<R>(n1 / every),
+            count: R::from_f64(count as f64),
+            inv_count: inv_count::<R>(count),
             at_skip: R::from_f64(f64::from(u8::from(n1 == self.skip_step))),
         }
     }
@@ -545,7 +546,7 @@ fn run_steps<R: Real>(
         }
         let n1 = run.n + j + 1;
         for ((p, loc), buf) in ind.samples.iter().zip(locs).zip(bufs.iter_mut()) {
-            if n1.is_multiple_of(p.every) {
+            if sampled_after(p.every, n1) {
                 ind.sample_in_run(p, loc, s, buf, n1);
             }
         }
@@ -702,6 +703,23 @@ struct Scalars<R> {
     count: R,
     inv_count: R,
     at_skip: R,
+}
+
+/// Whether a sample taken every `every` steps is due after step `n1`:
+/// every step without a division for `every = 1` (the default), which a
+/// run of steps asks after each step.
+#[inline(always)]
+fn sampled_after(every: u64, n1: u64) -> bool {
+    every == 1 || n1.is_multiple_of(every)
+}
+
+/// The number of the sample taken every `every` steps after step `n1`.
+#[inline(always)]
+fn sample_number(every: u64, n1: u64) -> u64 {
+    match every {
+        1 => n1,
+        _ => n1 / every,
+    }
 }
 
 /// 1/n in precision `R`, as the GPU computes it.
