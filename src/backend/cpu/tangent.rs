@@ -45,7 +45,7 @@ fn tangent_step<R: Real, P: Pieces<R>, const K: usize>(
 ) {
     let d: &mut [Box<Lanes<R>>; K] = d.try_into().expect("K deviation vectors");
     let nf = R::from_f64(n as f64);
-    let chunk = const { chunk(K) };
+    let chunk = const { chunk::<R>(K) };
     for first in (0..LANES).step_by(chunk) {
         let lanes = first..first + chunk;
         for &(half, full, c) in stages {
@@ -55,18 +55,18 @@ fn tangent_step<R: Real, P: Pieces<R>, const K: usize>(
     }
 }
 
-/// Lanes taken through every stage of the step at once, for `k` vectors:
-/// the compiler keeps a chunk's state and deviations in registers from
-/// stage to stage. With one vector, half the block: van der Pol,
-/// `triple_jump4`, one exponent, against the plain run (medians of 5,
-/// Zen 4): AVX-512 f32 2.38× (the whole block 2.71×, 16 lanes 2.98×),
-/// AVX2 f32 2.48× (2.54×, 16 lanes 2.81×), f64 within 5 % either way.
-/// With two vectors, the whole block (AVX-512 f32: 3.2×, 32 lanes 3.4×,
-/// 16 lanes 4.4×). Time terms the ensemble shares are evaluated for each
-/// chunk, as values: kept in a buffer for the chunks to read, they cost
-/// the registers (the kernel ran 2× slower).
-const fn chunk(k: usize) -> usize {
-    if k == 1 {
+/// Lanes taken through every stage of the step at once, for `k` vectors
+/// in precision `R`: the compiler keeps a chunk's state and deviations in
+/// registers from stage to stage. With one vector in f32, half the block:
+/// van der Pol, `triple_jump4`, one exponent, against the plain run
+/// (medians of 5, Zen 4): AVX-512 2.38× (the whole block 2.71×, 16 lanes
+/// 2.98×), AVX2 2.48× (2.54×, 16 lanes 2.81×). Otherwise the whole block:
+/// f64 one exponent 1.98× (half the block 2.13×), f32 two vectors 3.2×
+/// (32 lanes 3.4×, 16 lanes 4.4×). Time terms the ensemble shares are
+/// evaluated for each chunk, as values: kept in a buffer for the chunks to
+/// read, they cost the registers (the one-exponent run 2× slower).
+const fn chunk<R>(k: usize) -> usize {
+    if k == 1 && std::mem::size_of::<R>() == 4 {
         LANES / 2
     } else {
         LANES
