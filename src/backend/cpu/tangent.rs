@@ -1,7 +1,8 @@
 //! The tangent step of a built-in model, compiled: the step's S2 stages
 //! run again from the state at the step's start over a block, each op's
 //! generated tangent (`models/tangent_ops.rs`) carrying the deviation
-//! vectors along, one lane loop per stage as in the fused stages. The
+//! vectors along, one lane loop per stage as in the fused stages, over a
+//! chunk of the block at a time (see [`chunk`]). The
 //! stages' weights are values, so a model has one kernel per precision,
 //! level (AVX2, AVX-512) and number of vectors per pass (1, 2), whatever
 //! its scheme; only the piece order every model takes by default (`CBABC`)
