@@ -441,6 +441,13 @@ crate::shared_fns! {
         let a: R = R::select(R::select(none, up, n2 < 9.094947017729282e-13), down, n2 > 1099511627776.0);
         return R::select(nan, a, n2 > 0.0);
     }
+    /// Whether a vector of squared norm n2 is inside [2⁻³⁹, 2³⁹]: there
+    /// [`octave_r`] is 0, with a margin for how n2 was rounded, so the
+    /// sample of one Lyapunov vector changes nothing but ‖u‖² and may wait
+    /// (false for NaN).
+    fn in_band_r(n2: R) -> bool {
+        return n2 >= 1.8189894035458565e-12 && n2 <= 549755813888.0;
+    }
     /// 2^a for a of [`octave_r`]: −20, 0 or 20 (NaN stays NaN).
     fn rescale_r(a: R) -> R {
         let one: R = 1.0;

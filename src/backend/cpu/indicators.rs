@@ -575,18 +575,18 @@ fn run_steps<R: Real>(
     }
 }
 
-/// Whether the vector at `vectors` (`(array, vector, lane)`) has ‖u‖² in
-/// [2⁻³⁹, 2³⁹] in every lane, where a sample of one Lyapunov vector would
-/// leave everything as it is: its octave is 0 inside [2⁻⁴⁰, 2⁴⁰] (the
-/// margin covers this sum's rounding against the program's), so it scales
-/// by 1, adds 0 octaves and keeps the start slots; only ‖u‖² changes, and
-/// the next sample computes it from the same u. A run of steps takes that
-/// sample only where the vector leaves the band, at the skip step and at
-/// the run's end, with the same bits as every step (a fifth of the
-/// one-exponent run's time, AVX-512 f32). NaN is out of the band.
+/// Whether the vector at `vectors` (`(array, vector, lane)`) is in the
+/// band of `in_band_r` in every lane, where a sample of one Lyapunov
+/// vector would leave everything as it is but ‖u‖²: its octave is 0, so
+/// it scales by 1, adds 0 octaves and keeps the start slots, and the next
+/// sample computes ‖u‖² from the same u. A run of steps takes that sample
+/// only where the vector leaves the band, at the skip step and at the
+/// run's end, with the same bits as every step (a sixth of the
+/// one-exponent run's time, AVX-512 f32). The GPU kernel samples every
+/// step: there the samples cost little beside the tangent program, which
+/// recomputes the step (lavapipe: the one-exponent run the same).
 #[inline(always)]
 fn in_band<R: Real>(s: &TangentScratch<R>, vectors: &[(usize, usize, usize)]) -> bool {
-    let (lo, hi) = (R::from_f64(2f64.powi(-39)), R::from_f64(2f64.powi(39)));
     let mut n2 = [R::from_f64(0.0); LANES];
     for &(_, k, lane) in vectors {
         let x = s.d[k].at(lane);
@@ -596,7 +596,7 @@ fn in_band<R: Real>(s: &TangentScratch<R>, vectors: &[(usize, usize, usize)]) ->
     }
     let mut out = false;
     for i in 0..LANES {
-        out |= !(n2[i] >= lo && n2[i] <= hi);
+        out |= !R::in_band_r(n2[i]);
     }
     !out
 }
