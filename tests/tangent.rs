@@ -491,11 +491,15 @@ fn same<R: reeb::models::Flows + Into<f64>>(name: &str, runs: &Plan, steps: &Pla
     a.nonfinite_step.iter().filter(|s| **s != 0).count()
 }
 
-/// `p` with indicators (`k` exponents) taken by runs of steps, and the
-/// same forced step by step by a time average (an observer of every step).
-fn runs_and_steps(p: Problem, k: usize, steps: u64, dt: f64) -> (Plan, Plan) {
+/// `p` with indicators (`k` exponents, the FLI, MEGNO if `megno`) taken
+/// by runs of steps, and the same forced step by step by a time average
+/// (an observer of every step).
+fn runs_and_steps(p: Problem, k: usize, megno: bool, steps: u64, dt: f64) -> (Plan, Plan) {
     let var = p.model.spec().vars[0];
-    let runs = with_indicators(p, k, 1, 0.1, steps, dt);
+    let mut runs = with_indicators(p, k, 1, 0.1, steps, dt);
+    if !megno {
+        runs.observers.megno = None;
+    }
     let mut by_step = runs.clone();
     by_step.observers.average = Some(AverageObs {
         vars: vec![var.to_string()],
@@ -542,9 +546,10 @@ fn runs_of_steps_are_the_steps_one_by_one() {
             every: 60,
             vars: vec![var.to_string()],
         });
-        // One exponent: its samples wait while the vector stays in the band.
-        for k in [1, 2] {
-            let (runs, steps) = runs_and_steps(p.clone(), k, 400, 0.01);
+        // One exponent, and the FLI without MEGNO: their samples wait while
+        // the vectors stay in the band.
+        for (k, megno) in [(1, false), (2, true)] {
+            let (runs, steps) = runs_and_steps(p.clone(), k, megno, 400, 0.01);
             let avx2 = cpu::isa() != cpu::Isa::Baseline;
             assert_eq!(takes_runs(&runs), avx2, "{name} takes runs of steps");
             assert!(!takes_runs(&steps), "{name}");
@@ -555,10 +560,10 @@ fn runs_of_steps_are_the_steps_one_by_one() {
     assert!(diverged > 0, "some trajectory diverges");
 }
 
-/// A damped oscillator's vectors shrink like e^{−αt/2}: over t = 300 one
-/// Lyapunov vector leaves the band where its samples may wait (‖u‖² in
-/// [2⁻³⁹, 2³⁹]) a few times and is brought back; the bits are still those
-/// of sampling every step.
+/// A damped oscillator's vectors shrink like e^{−αt/2}: over t = 300 the
+/// Lyapunov and FLI vectors leave the band where their samples may wait
+/// (‖u‖² in [2⁻³⁹, 2³⁹]) a few times and are brought back; the bits are
+/// still those of sampling every step.
 #[test]
 fn deferred_samples_are_taken_where_the_vector_leaves_the_band() {
     let p = Problem::new(
@@ -568,7 +573,7 @@ fn deferred_samples_are_taken_where_the_vector_leaves_the_band() {
     .unwrap()
     .param("alpha", C(1.0))
     .initial("q", C(1.0));
-    let (runs, steps) = runs_and_steps(p, 1, 3000, 0.1);
+    let (runs, steps) = runs_and_steps(p, 1, false, 3000, 0.1);
     same::<f64>("damped_oscillator", &runs, &steps);
     same::<f32>("damped_oscillator", &runs, &steps);
     let o = cpu::run::<f64>(&runs, None);

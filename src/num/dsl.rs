@@ -34,7 +34,7 @@ macro_rules! shared_fns {
         $(
             $(#[$fmeta])*
             #[inline(always)]
-            #[allow(unused_mut, unused_variables, clippy::needless_return, clippy::excessive_precision, clippy::too_many_arguments, clippy::approx_constant, clippy::assign_op_pattern)]
+            #[allow(unused_mut, unused_variables, clippy::needless_return, clippy::excessive_precision, clippy::too_many_arguments, clippy::approx_constant, clippy::assign_op_pattern, clippy::manual_range_contains)]
             pub fn $name($($arg: $aty),*) $(-> $ret)? $body
         )*
         /// Rust text of the shared functions; [`crate::num::dsl::to_wgsl`] makes it WGSL.
@@ -57,7 +57,7 @@ macro_rules! shared_fns {
             impl $tr for f32 {
                 $(
                     #[inline(always)]
-                    #[allow(unused_mut, unused_variables, clippy::needless_return, clippy::excessive_precision, clippy::too_many_arguments, clippy::approx_constant, clippy::assign_op_pattern)]
+                    #[allow(unused_mut, unused_variables, clippy::needless_return, clippy::excessive_precision, clippy::too_many_arguments, clippy::approx_constant, clippy::assign_op_pattern, clippy::manual_range_contains)]
                     fn $name($($arg: $aty),*) $(-> $ret)? $body
                 )*
             }
@@ -67,7 +67,7 @@ macro_rules! shared_fns {
             impl $tr for f64 {
                 $(
                     #[inline(always)]
-                    #[allow(unused_mut, unused_variables, clippy::needless_return, clippy::excessive_precision, clippy::too_many_arguments, clippy::approx_constant, clippy::assign_op_pattern)]
+                    #[allow(unused_mut, unused_variables, clippy::needless_return, clippy::excessive_precision, clippy::too_many_arguments, clippy::approx_constant, clippy::assign_op_pattern, clippy::manual_range_contains)]
                     fn $name($($arg: $aty),*) $(-> $ret)? $body
                 )*
             }

@@ -352,6 +352,12 @@ pub fn chaos_program(d: usize) -> Lowered {
     lower(&g, &roots)
 }
 
+/// Where [`chaos_program`] of dimension `d` reads `fli_oct` (E) and
+/// `fli_max` among its inputs.
+pub fn chaos_fli_inputs(d: usize) -> (usize, usize) {
+    (d, d + 2)
+}
+
 /// `v` times the power of two s = 2^a that keeps it in range (`n2` its
 /// squared norm), exactly, its octaves E − a, and s: NaN where `n2` is
 /// not positive, so that a collapsed vector is flagged like a diverged
