@@ -100,7 +100,8 @@ enum Waits {
     /// One Lyapunov vector: the sample would change nothing but ‖u‖².
     Lyapunov,
     /// The FLI without MEGNO: the sample would change nothing but
-    /// `fli_max` (and the sums no one reads); the vector at the largest
+    /// `fli_max` (and `fli_log` and the sums, which only MEGNO reads);
+    /// the vector at the largest
     /// ‖u‖² of the steps it waited has their largest ln‖w‖ ([`Peak`]).
     /// `d`: the tangent dimension.
     Fli {
@@ -555,8 +556,8 @@ fn run_steps<R: Real>(
     check: bool,
 ) -> RunOutcome {
     let locs = ind.runs.as_ref().expect("compiled samples");
-    let mut peaks = [Peak::new(), Peak::new()];
-    debug_assert!(ind.samples.len() <= peaks.len());
+    let fli = |loc: &RunLocs| matches!(loc.waits, Waits::Fli { .. });
+    let mut peaks: Vec<Option<Peak<R>>> = locs.iter().map(|l| fli(l).then(Peak::new)).collect();
     for j in 0..run.k {
         c.run(&mut s.x, &mut s.d, run.n + j);
         if check && super::any_nonfinite(&s.x, &ind.var_lanes) {
@@ -581,10 +582,10 @@ fn run_steps<R: Real>(
             match (loc.waits, norms) {
                 (Waits::Lyapunov, Some(_)) => continue,
                 (Waits::Fli { .. }, Some(n2)) => {
-                    peak.keep(&n2, s, &loc.vectors);
+                    peak.as_mut().expect("a peak").keep(&n2, s, &loc.vectors);
                     continue;
                 }
-                (Waits::Fli { d }, None) => peak.fold(p, loc, buf, d),
+                (Waits::Fli { d }, None) => peak.as_mut().expect("a peak").fold(p, loc, buf, d),
                 _ => {}
             }
             ind.sample_in_run(p, loc, s, buf, n1);
@@ -608,9 +609,10 @@ fn run_steps<R: Real>(
     }
 }
 
-/// ‖u‖² of the vector at `vectors` (`(array, vector, lane)`) per lane,
-/// computed as the sample programs do, if it is in the band of
-/// `in_band_r` in every lane; there a sample of one Lyapunov vector
+/// ‖u‖² of the vector at `vectors` (`(array, vector, lane)`) per lane
+/// (the compiler may fuse its sum otherwise than a sample program's: the
+/// band's margin covers that), if it is in the band of `in_band_r` in
+/// every lane; there a sample of one Lyapunov vector
 /// would leave everything as it is but ‖u‖² (its octave is 0: it scales
 /// by 1, adds 0 octaves and keeps the start slots; the next sample
 /// computes ‖u‖² from the same u), and so would the FLI's but `fli_max`.
@@ -640,14 +642,17 @@ fn band_norms<R: Real>(
 }
 
 /// The FLI vector at its largest ‖u‖² over the steps its sample waited
-/// (‖u‖² 0: none yet), per lane: in `u[now]` and `n2[now]`, each step's
-/// choice written into the other half. Selected into other arrays than
-/// they read: a lane loop that writes back where it read, under a
-/// condition, compiles to stores under a mask, which AVX2 makes slow (the
-/// FLI run 3.13× the plain run against 2.45×, Zen 4).
+/// (‖u‖² 0: none yet), per lane: in the half `now` of `n2` and `u`
+/// (component j at `now`·[`MAX_DIMENSION`] + j), each step's choice
+/// written into the other half. Selected into other arrays than they
+/// read: a lane loop that writes back where it read, under a condition,
+/// compiles to stores under a mask, which AVX2 makes slow (the FLI run
+/// 3.13× the plain run against 2.45×, Zen 4). On the heap: kilobytes on
+/// the stack of a run of steps moved the compiled tangent's spills (two
+/// vectors 12 % slower, AVX2 and f64).
 struct Peak<R> {
-    n2: [[R; LANES]; 2],
-    u: [[[R; LANES]; MAX_DIMENSION]; 2],
+    n2: Vec<[R; LANES]>,
+    u: Vec<[R; LANES]>,
     now: usize,
 }
 
@@ -657,8 +662,8 @@ const MAX_DIMENSION: usize = 4;
 impl<R: Real> Peak<R> {
     fn new() -> Peak<R> {
         Peak {
-            n2: [[R::from_f64(0.0); LANES]; 2],
-            u: [[[R::from_f64(0.0); LANES]; MAX_DIMENSION]; 2],
+            n2: vec![[R::from_f64(0.0); LANES]; 2],
+            u: vec![[R::from_f64(0.0); LANES]; 2 * MAX_DIMENSION],
             now: 0,
         }
     }
@@ -666,14 +671,18 @@ impl<R: Real> Peak<R> {
     /// The vector at `vectors` in `s` where its ‖u‖² `n2` is the largest.
     #[inline(always)]
     fn keep(&mut self, n2: &[R; LANES], s: &TangentScratch<R>, vectors: &[(usize, usize, usize)]) {
-        let [a, b] = &mut self.u;
+        let (a, b) = self.u.split_at_mut(MAX_DIMENSION);
         let (from, to) = if self.now == 0 { (a, b) } else { (b, a) };
-        let [m, n] = &mut self.n2;
-        let (was, is) = if self.now == 0 { (m, n) } else { (n, m) };
+        let (m, n) = self.n2.split_at_mut(1);
+        let (was, is) = if self.now == 0 {
+            (&m[0], &mut n[0])
+        } else {
+            (&n[0], &mut m[0])
+        };
         for (j, &(_, k, lane)) in vectors.iter().enumerate() {
-            let x = s.d[k].at(lane);
+            let (x, from, to) = (s.d[k].at(lane), &from[j], &mut to[j]);
             for i in 0..LANES {
-                to[j][i] = R::select(from[j][i], x[i], n2[i] > was[i]);
+                to[i] = R::select(from[i], x[i], n2[i] > was[i]);
             }
         }
         for i in 0..LANES {
@@ -692,7 +701,8 @@ impl<R: Real> Peak<R> {
     #[inline(always)]
     fn fold(&mut self, p: &Program<R>, loc: &RunLocs, buf: &mut [[R; LANES]], d: usize) {
         let zero = R::from_f64(0.0);
-        let (n2, u) = (&mut self.n2[self.now], &self.u[self.now]);
+        let u = &self.u[self.now * MAX_DIMENSION..];
+        let n2 = &mut self.n2[self.now];
         if n2.iter().all(|n2| *n2 == zero) {
             return;
         }
