@@ -352,10 +352,10 @@ pub fn chaos_program(d: usize) -> Lowered {
     lower(&g, &roots)
 }
 
-/// Where [`chaos_program`] of dimension `d` reads `fli_oct` (E) and
-/// `fli_max` among its inputs.
-pub fn chaos_fli_inputs(d: usize) -> (usize, usize) {
-    (d, d + 2)
+/// Where [`chaos_program`] of dimension `d` reads and writes `fli_max`
+/// among its inputs and outputs (the vector, `fli_oct`, `fli_log`, then it).
+pub fn chaos_fli_max(d: usize) -> usize {
+    d + 2
 }
 
 /// `v` times the power of two s = 2^a that keeps it in range (`n2` its

@@ -15,7 +15,7 @@ use crate::models::lanes::{index_of, Lanes, LANES};
 use crate::num::formula::tape::{Inputs, Tape};
 use crate::num::isa::Isa;
 use crate::num::precision::Real;
-use crate::plan::indicators::{chaos_fli_inputs, Indicators, SampleInput, SampleShape, Sampler};
+use crate::plan::indicators::{chaos_fli_max, Indicators, SampleInput, SampleShape, Sampler};
 use crate::plan::slots;
 use crate::plan::tangent::TangentInput;
 use crate::plan::Plan;
@@ -100,12 +100,11 @@ enum Waits {
     /// One Lyapunov vector: the sample would change nothing but ‖u‖².
     Lyapunov,
     /// The FLI without MEGNO: the sample would change nothing but
-    /// `fli_max` (and `fli_log` and the sums, which only MEGNO reads);
-    /// the vector at the largest
-    /// ‖u‖² of the steps it waited has their largest ln‖w‖ ([`Peak`]).
-    /// `d`: the tangent dimension.
+    /// `fli_max` (its array `max`; and `fli_log` and the sums, which only
+    /// MEGNO reads); the vector at the largest ‖u‖² of the steps it waited
+    /// has their largest ln‖w‖ ([`Peak`]).
     Fli {
-        d: usize,
+        max: usize,
     },
 }
 
@@ -556,8 +555,9 @@ fn run_steps<R: Real>(
     check: bool,
 ) -> RunOutcome {
     let locs = ind.runs.as_ref().expect("compiled samples");
+    // At most one FLI sample; its peak only where it waits.
     let fli = |loc: &RunLocs| matches!(loc.waits, Waits::Fli { .. });
-    let mut peaks: Vec<Option<Peak<R>>> = locs.iter().map(|l| fli(l).then(Peak::new)).collect();
+    let mut peak = locs.iter().any(fli).then(Peak::new);
     for j in 0..run.k {
         c.run(&mut s.x, &mut s.d, run.n + j);
         if check && super::any_nonfinite(&s.x, &ind.var_lanes) {
@@ -570,7 +570,7 @@ fn run_steps<R: Real>(
         let n1 = run.n + j + 1;
         let may_wait = !check && j + 1 < run.k && n1 != ind.skip_step;
         let all = ind.samples.iter().zip(locs).zip(bufs.iter_mut());
-        for (((p, loc), buf), peak) in all.zip(peaks.iter_mut()) {
+        for ((p, loc), buf) in all {
             if !sampled_after(p.every, n1) {
                 continue;
             }
@@ -585,7 +585,7 @@ fn run_steps<R: Real>(
                     peak.as_mut().expect("a peak").keep(&n2, s, &loc.vectors);
                     continue;
                 }
-                (Waits::Fli { d }, None) => peak.as_mut().expect("a peak").fold(p, loc, buf, d),
+                (Waits::Fli { max }, None) => peak.as_mut().expect("a peak").fold(p, loc, buf, max),
                 _ => {}
             }
             ind.sample_in_run(p, loc, s, buf, n1);
@@ -618,8 +618,8 @@ fn run_steps<R: Real>(
 /// computes ‖u‖² from the same u), and so would the FLI's but `fli_max`.
 /// A run of steps takes those samples only where the vector leaves the
 /// band, at the skip step and at the run's end, with the same bits as
-/// every step: the one-exponent run 2.44× → 2.01× the plain run, the FLI
-/// 2.94× → 2.29× (AVX-512 f32). The GPU kernel samples every step: there
+/// every step: the one-exponent run 2.39× → 1.99× the plain run, the FLI
+/// 2.91× → 2.34× (AVX-512 f32). The GPU kernel samples every step: there
 /// the samples cost little beside the tangent program, which recomputes
 /// the step (lavapipe: the one-exponent run the same).
 #[inline(always)]
@@ -691,7 +691,7 @@ impl<R: Real> Peak<R> {
         self.now = 1 - self.now;
     }
 
-    /// Before the FLI sample `p` (arrays `buf` at `loc`, dimension `d`)
+    /// Before the FLI sample `p` (arrays `buf` at `loc`, `fli_max` at `max`)
     /// after steps it waited: its program on the kept vector, which puts
     /// their largest ln‖w‖ into `fli_max` with the bits of the sample at
     /// that step (the same code on the same vector and E: E changes only
@@ -699,7 +699,7 @@ impl<R: Real> Peak<R> {
     /// compiler may contract into FMAs otherwise than in the program: two
     /// steps within an ulp or two of ‖u‖² may be told apart otherwise.
     #[inline(always)]
-    fn fold(&mut self, p: &Program<R>, loc: &RunLocs, buf: &mut [[R; LANES]], d: usize) {
+    fn fold(&mut self, p: &Program<R>, loc: &RunLocs, buf: &mut [[R; LANES]], max: usize) {
         let zero = R::from_f64(0.0);
         let u = &self.u[self.now * MAX_DIMENSION..];
         let n2 = &mut self.n2[self.now];
@@ -713,7 +713,6 @@ impl<R: Real> Peak<R> {
         }
         // SAFETY: as in `sample_in_run`.
         unsafe { f(shape, &mut x) };
-        let (_, max) = chaos_fli_inputs(d);
         for i in 0..LANES {
             if n2[i] > zero {
                 buf[max][i] = x[max][i];
@@ -792,7 +791,9 @@ fn run_locs<R: Real>(
             let waits = match p.compiled.map(|(shape, _)| shape) {
                 _ if p.every != 1 => Waits::Never,
                 Some(SampleShape::Lyapunov { k: 1, .. }) => Waits::Lyapunov,
-                Some(SampleShape::Chaos { d }) if !megno => Waits::Fli { d },
+                Some(SampleShape::Chaos { d }) if !megno => Waits::Fli {
+                    max: chaos_fli_max(d),
+                },
                 _ => Waits::Never,
             };
             Some(RunLocs::new(inputs.collect::<Option<_>>()?, waits))
