@@ -198,7 +198,10 @@ pub fn run(opts: &BenchOptions, mut each: impl FnMut(&Row)) -> Result<(), String
                     match (b, &gpu) {
                         ("gpu", Some(g @ Engine::Gpu(c))) => {
                             match gpu_rate(g, &plan, p, opts.repeats) {
-                                Ok(Some(r)) => each(&row(format!("gpu: {}", c.info.name), 0, r)),
+                                Ok(Some((r, steps))) => each(&Row {
+                                    steps,
+                                    ..row(format!("gpu: {}", c.info.name), 0, r)
+                                }),
                                 Ok(None) => {}
                                 Err(e) => return Err(format!("gpu {}: {e}", s.label())),
                             }
@@ -244,19 +247,48 @@ pub fn cpu_rate(plan: &Plan, precision: Precision, threads: usize, repeats: usiz
     })
 }
 
-/// Median trajectory-steps/s of `plan` on the GPU `engine`; `None` for f64
-/// on an adapter without SHADER_F64.
+/// Kernel seconds a timed GPU run lasts at least on a hardware adapter. A
+/// GPU raises its clocks only while busy (an H200 idles at 345 MHz, runs at
+/// 1980 and drops within a quarter second): a run of milliseconds between
+/// the host's set-up and read-back of 10⁷ trajectories is timed at idle
+/// clocks, up to 6× slow.
+pub const GPU_RUN_SECONDS: f64 = 0.25;
+/// The most a GPU run is lengthened by, as a multiple of its steps.
+const MOST_LENGTHENED: u64 = 1000;
+
+/// Median trajectory-steps/s of `plan` on the GPU `engine`, and the steps
+/// per run it was measured at: `plan`'s, lengthened on a hardware adapter
+/// until a run takes [`GPU_RUN_SECONDS`] (the rate is per trajectory-step;
+/// every step of a benchmark plan costs the same). `None` for f64 on an
+/// adapter without SHADER_F64.
 pub fn gpu_rate(
     engine: &Engine,
     plan: &Plan,
     precision: Precision,
     repeats: usize,
-) -> Result<Option<f64>, BackendError> {
+) -> Result<Option<(f64, u64)>, BackendError> {
+    let Engine::Gpu(ctx) = engine else {
+        return Ok(None);
+    };
     if !engine.runs(precision) {
         return Ok(None);
     }
+    let mut plan = plan.clone();
+    let most = plan.steps.saturating_mul(MOST_LENGTHENED);
+    if !crate::backend::gpu::is_software(&ctx.info) {
+        // Each run both warms the GPU and times it; the runs that follow a
+        // cold first one are shorter, so a few rounds settle the length.
+        for _ in 0..4 {
+            let t = seconds(engine, &plan, precision)?;
+            if t >= GPU_RUN_SECONDS || plan.steps >= most {
+                break;
+            }
+            let k = (GPU_RUN_SECONDS / t.max(1e-6)).ceil() as u64;
+            plan.steps = plan.steps.saturating_mul(k.max(2)).min(most);
+        }
+    }
     let mut err = None;
-    let r = rate(plan, repeats, |pl| {
+    let r = rate(&plan, repeats, |pl| {
         seconds(engine, pl, precision).unwrap_or_else(|e| {
             err = Some(e);
             f64::NAN
@@ -264,7 +296,7 @@ pub fn gpu_rate(
     });
     match err {
         Some(e) => Err(e),
-        None => Ok(Some(r)),
+        None => Ok(Some((r, plan.steps))),
     }
 }
 

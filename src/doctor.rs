@@ -314,8 +314,8 @@ fn difference(gpu: &Engine, p: &Problem, precision: Precision) -> Result<f64, St
     Ok(largest_difference(&c, &g, false))
 }
 
-/// [`BENCH_SCENARIOS`] × both precisions × `sizes` on the GPU (1000 steps)
-/// and the CPU (every thread; steps capped at 2·10⁹ trajectory-steps per run,
+/// [`BENCH_SCENARIOS`] × both precisions × `sizes` on the GPU (1000 steps,
+/// more on a hardware adapter: [`bench::gpu_rate`]) and the CPU (every thread; steps capped at 2·10⁹ trajectory-steps per run,
 /// at least 100: the rate per trajectory-step is what counts).
 fn throughput(
     gpu: Option<&Engine>,
@@ -332,7 +332,7 @@ fn throughput(
                 progress(&format!("bench {} {p} n = {n}", s.label()));
                 if let Some(g) = gpu {
                     match bench::gpu_rate(g, &s.plan(n, STEPS), p, REPEATS) {
-                        Ok(Some(r)) => rows.push(row("gpu", s, p, (n, STEPS, 0), r)),
+                        Ok(Some((r, steps))) => rows.push(row("gpu", s, p, (n, steps, 0), r)),
                         Ok(None) => {}
                         Err(e) => problems.push(format!("gpu {} {p} n = {n}: {e}", s.label())),
                     }

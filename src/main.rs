@@ -470,12 +470,13 @@ fn bench(
         .collect::<Result<Vec<_>>>()?;
     let mut out = json.map(std::fs::File::create).transpose()?;
     println!(
-        "reeb {} bench: {steps} steps per run, median of {repeats}",
-        env!("CARGO_PKG_VERSION")
+        "reeb {} bench: {steps} steps per run (a hardware GPU's runs lengthened to {} s, so that its clocks rise), median of {repeats}",
+        env!("CARGO_PKG_VERSION"),
+        reeb::bench::GPU_RUN_SECONDS
     );
     println!(
-        "{:<40} {:<24} {:>9} {:>10} {:>8} {:>16}",
-        "backend", "scenario", "precision", "n", "threads", "traj-steps/s"
+        "{:<40} {:<24} {:>9} {:>10} {:>8} {:>8} {:>16}",
+        "backend", "scenario", "precision", "n", "steps", "threads", "traj-steps/s"
     );
     let opts = BenchOptions {
         backends,
@@ -604,8 +605,8 @@ fn print_bench_row(r: &reeb::bench::Row, json: Option<&mut std::fs::File>) -> Re
         t => t.to_string(),
     };
     println!(
-        "{:<40} {:<24} {:>9} {:>10} {:>8} {:>16.4e}",
-        r.backend, r.scenario, r.precision, r.n, th, r.traj_steps_per_s
+        "{:<40} {:<24} {:>9} {:>10} {:>8} {:>8} {:>16.4e}",
+        r.backend, r.scenario, r.precision, r.n, r.steps, th, r.traj_steps_per_s
     );
     if let Some(f) = json {
         writeln!(
@@ -647,7 +648,7 @@ fn info() -> Result<ExitCode> {
     );
     let adapters = list_adapters();
     if adapters.is_empty() {
-        println!("no GPU adapter (install a Vulkan driver; mesa-vulkan-drivers gives the software one, lavapipe)");
+        println!("no GPU adapter (what to do: the `--backend gpu` line below)");
     }
     for (k, a) in adapters.iter().enumerate() {
         println!("adapter: {}", a.name);

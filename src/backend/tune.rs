@@ -101,6 +101,12 @@ fn probe<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<Tuned, BackendError>
     let started = Instant::now();
     let m = probe_size(ctx, plan);
     let steps = calibrate(m, |s| gpu_rate::<R>(ctx, plan, m, s, &Launch::default()))?;
+    if !gpu::is_software(&ctx.info) {
+        // A GPU raises its clocks only while busy (an H200 idled at a sixth
+        // of its clock): a longer run first, so the candidates are timed at
+        // a run's clocks, not the idle ones.
+        gpu_rate::<R>(ctx, plan, m, 5 * steps, &Launch::default())?;
+    }
     let mut best = (Launch::default(), 0.0);
     let consider = |l: Launch, best: &mut (Launch, f64)| -> Result<(), BackendError> {
         if l.check(&ctx.limits).is_err() || started.elapsed().as_secs_f64() > PROBE_SECONDS {

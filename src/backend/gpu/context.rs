@@ -9,8 +9,8 @@ use super::tuning::Tuned;
 /// Why the GPU backend cannot run.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
-    #[error("no GPU adapter found (wgpu backends: {0}); install a Vulkan driver, e.g. `apt-get install mesa-vulkan-drivers libvulkan1` for the software one")]
-    NoAdapter(String),
+    #[error("no GPU adapter found (wgpu backends: {0}); {1}")]
+    NoAdapter(String, String),
     #[error("WGPU_ADAPTER_NAME={0:?} matches none of the adapters: {1}")]
     NoMatchingAdapter(String, String),
     #[error(
@@ -156,11 +156,66 @@ fn choose_adapter(
         .min_by_key(|(_, a)| rank(a))
         .map(|(k, a)| (k, a.clone()))
         .ok_or_else(|| {
-            GpuError::NoAdapter(format!(
-                "{:?}",
-                wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all())
-            ))
+            GpuError::NoAdapter(
+                format!(
+                    "{:?}",
+                    wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all())
+                ),
+                no_adapter_hint(),
+            )
         })
+}
+
+/// What to do when no adapter opened: install a driver, or, where a Vulkan
+/// driver's manifest is there already, find out why it did not load (seen
+/// on an H200 machine: NVIDIA's manifest names libGLX_nvidia.so.0, which
+/// needs the glvnd libraries that image lacked).
+fn no_adapter_hint() -> String {
+    let drivers = vulkan_manifests();
+    if drivers.is_empty() {
+        return "install a Vulkan driver, e.g. `apt-get install mesa-vulkan-drivers libvulkan1` for the software one".into();
+    }
+    format!(
+        "Vulkan drivers are installed ({}) but none opened: `VK_LOADER_DEBUG=error,warn reeb info` says why; the loader libvulkan.so.1 must be there (`ldconfig -p | grep libvulkan`), and NVIDIA's driver also needs the glvnd libraries libGLdispatch.so.0 and libGLX.so.0 (Debian/Ubuntu: libglvnd0 libglx0)",
+        drivers.join(", ")
+    )
+}
+
+/// The Vulkan driver manifests the loader reads on Linux, as `file →
+/// library`: those named by VK_DRIVER_FILES or VK_ICD_FILENAMES, else
+/// those of the usual folders.
+fn vulkan_manifests() -> Vec<String> {
+    let named: Vec<std::path::PathBuf> = ["VK_DRIVER_FILES", "VK_ICD_FILENAMES"]
+        .iter()
+        .filter_map(|v| std::env::var_os(v))
+        .flat_map(|v| std::env::split_paths(&v).collect::<Vec<_>>())
+        .collect();
+    let files = match named.is_empty() {
+        false => named,
+        true => [
+            "/etc/vulkan/icd.d",
+            "/usr/local/share/vulkan/icd.d",
+            "/usr/share/vulkan/icd.d",
+        ]
+        .iter()
+        .filter_map(|d| std::fs::read_dir(d).ok())
+        .flatten()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "json"))
+        .collect(),
+    };
+    files
+        .iter()
+        .filter(|f| f.is_file())
+        .map(|f| {
+            let library = std::fs::read_to_string(f)
+                .ok()
+                .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+                .and_then(|j| j["ICD"]["library_path"].as_str().map(String::from))
+                .unwrap_or_else(|| "unreadable".into());
+            format!("{} → {library}", f.display())
+        })
+        .collect()
 }
 
 /// Is the adapter a software rasteriser (lavapipe, llvmpipe, WARP)?
