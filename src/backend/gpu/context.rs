@@ -187,7 +187,7 @@ fn no_adapter_hint() -> String {
 fn vulkan_manifests() -> Vec<String> {
     let named: Vec<std::path::PathBuf> = ["VK_DRIVER_FILES", "VK_ICD_FILENAMES"]
         .iter()
-        .filter_map(|v| std::env::var_os(v))
+        .filter_map(std::env::var_os)
         .flat_map(|v| std::env::split_paths(&v).collect::<Vec<_>>())
         .collect();
     let files = match named.is_empty() {
