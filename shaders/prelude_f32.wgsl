@@ -12,10 +12,12 @@ fn rint(x: f32) -> f32 {
     return round(x);
 }
 
-// 2^n for an integer-valued n in [-127, 128]: +0 at -127, +inf at 128 (the
-// CPU's twin puts n + 127 in the low bits of n + 1.5·2^23 + 127 and shifts).
+// 2^n for an integer-valued n in [-127, 128]: +0 at -127, +inf at 128. As
+// the CPU's twin: n + 127 lands in the low bits of n + 1.5·2^23 + 127, and
+// the shift moves it into the exponent field. An add and a shift, where a
+// float-to-integer conversion runs at a quarter of the FMA rate on NVIDIA.
 fn pow2(n: f32) -> f32 {
-    return bitcast<f32>(u32(i32(n) + 127) << 23u);
+    return bitcast<f32>(bitcast<u32>(n + 12583039.0) << 23u);
 }
 
 fn from_i32(n: i32) -> f32 {

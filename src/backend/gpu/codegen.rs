@@ -300,7 +300,13 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
     let shared = shared_text(plan, precision, formula.as_ref())?;
     let sigs = signatures(&shared);
     let names = bound_names(plan, &sigs)?;
-    let mut table: Vec<f64> = vec![];
+    // Room for every axis at once: growing by doubling would copy a table
+    // of 10⁷ initial values a few times over.
+    let room = plan.bindings.iter().map(|(_, src)| match src {
+        Source::Axis { values, .. } => values.len(),
+        Source::Const(_) => 1,
+    });
+    let mut table: Vec<f64> = Vec::with_capacity(room.sum());
     let time_table = match formula {
         Some(f) => f.table,
         None => TimeTable::of(plan),
