@@ -10,8 +10,6 @@ use std::io::Read;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use wgpu::util::DeviceExt;
-
 use super::codegen::{frame_width, generate, LOOP_ITERATIONS};
 use super::context::{GpuContext, GpuError};
 use super::time_table::{self, TimeTable};
@@ -93,6 +91,36 @@ fn storage(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
             | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     })
+}
+
+/// The kernel's input table in the working precision, converted from the
+/// f64 values piece by piece into the buffer's mapped memory: no
+/// intermediate array (10⁷ initial values are 40–80 MB).
+fn table_buffer<R: Flows>(ctx: &GpuContext, values: &[f64]) -> Result<wgpu::Buffer, BackendError> {
+    const PIECE: usize = 1 << 14;
+    let size = std::mem::size_of::<R>();
+    let buf = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("table"),
+        size: ((values.len() * size) as u64).max(16).next_multiple_of(4),
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: true,
+    });
+    {
+        let mut view = buf
+            .slice(..)
+            .get_mapped_range_mut()
+            .map_err(|e| GpuError::Runtime(format!("{e:?}")))?;
+        let mut piece: Vec<R> = Vec::with_capacity(PIECE);
+        for (k, v) in values.chunks(PIECE).enumerate() {
+            piece.clear();
+            piece.extend(v.iter().map(|x| R::from_f64(*x)));
+            let at = k * PIECE * size;
+            view.slice(at..at + v.len() * size)
+                .copy_from_slice(bytemuck::cast_slice(&piece));
+        }
+    }
+    buf.unmap();
+    Ok(buf)
 }
 
 /// Reads `bytes` from the start of `src` through `staging`.
@@ -191,11 +219,10 @@ pub fn run_resumable<R: Flows>(
     if let Some(tt) = &kernel.time_table {
         sizes.max_window = sizes.max_window.min(tt.max_steps(sizes.b));
     }
-    let table: Vec<R> = kernel.table.iter().map(|v| R::from_f64(*v)).collect();
     let bufs = Buffers::new(
         ctx,
         &sizes,
-        bytemuck::cast_slice(&table),
+        table_buffer::<R>(ctx, &kernel.table)?,
         kernel.time_table.is_some(),
     );
     let run = Dispatcher {
@@ -413,7 +440,7 @@ impl Sizes {
 }
 
 impl Buffers {
-    fn new(ctx: &GpuContext, s: &Sizes, table: &[u8], time_table: bool) -> Buffers {
+    fn new(ctx: &GpuContext, s: &Sizes, table: wgpu::Buffer, time_table: bool) -> Buffers {
         let (b, cap) = (s.b, s.cap);
         let staging_per_trajectory = [
             s.nv * b,
@@ -435,16 +462,7 @@ impl Buffers {
                 mapped_at_creation: false,
             }),
             state: storage(ctx, "state", s.nv * cap * b),
-            table: if table.is_empty() {
-                storage(ctx, "table", 16)
-            } else {
-                ctx.device
-                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some("table"),
-                        contents: table,
-                        usage: wgpu::BufferUsages::STORAGE,
-                    })
-            },
+            table,
             status: storage(ctx, "status", 4 * cap),
             tterms: ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("time terms"),
