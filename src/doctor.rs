@@ -315,8 +315,9 @@ fn difference(gpu: &Engine, p: &Problem, precision: Precision) -> Result<f64, St
 }
 
 /// [`BENCH_SCENARIOS`] × both precisions × `sizes` on the GPU (1000 steps,
-/// more on a hardware adapter: [`bench::gpu_rate`]) and the CPU (every thread; steps capped at 2·10⁹ trajectory-steps per run,
-/// at least 100: the rate per trajectory-step is what counts).
+/// more on a hardware adapter: [`bench::gpu_rate`]) and the CPU (every
+/// thread; steps capped at 2·10⁹ trajectory-steps per run, at least 100:
+/// the rate per trajectory-step is what counts).
 fn throughput(
     gpu: Option<&Engine>,
     sizes: &[usize],
