@@ -324,12 +324,14 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
     g.state(precision, &mut table)?;
     g.formula_fixed();
     let step = g.step();
+    // `&`, not `&&`: naga lowers a short-circuit `&&` to an `if` that
+    // stores into a local, once per step; the tests have no side effects.
     let finite = plan
         .vars
         .iter()
         .map(|v| format!("finite({v})"))
         .collect::<Vec<_>>()
-        .join(" && ");
+        .join(" & ");
     let strobe_exact = g.exact_section();
     let max_window = max_window(g.section.as_ref());
     let (begin, observe) = g.observers();
@@ -857,7 +859,7 @@ impl Gen<'_> {
         writeln!(
             s,
             "        if !({}) {{\n            st = n + 1u;\n            break;\n        }}",
-            finite.join(" && ")
+            finite.join(" & ")
         )
         .unwrap();
         for (name, sampler) in [
