@@ -241,7 +241,7 @@ pub fn cpu_rate(plan: &Plan, precision: Precision, threads: usize, repeats: usiz
         .build()
         .expect("thread pool");
     pool.install(|| {
-        rate(plan, repeats, |pl| {
+        rate(plan, repeats, true, |pl| {
             seconds(&Engine::Cpu, pl, precision).unwrap_or(f64::NAN)
         })
     })
@@ -275,20 +275,24 @@ pub fn gpu_rate(
     }
     let mut plan = plan.clone();
     let most = plan.steps.saturating_mul(MOST_LENGTHENED);
+    // Whether the last run was at the final length: then it was the warm-up.
+    let mut warmed = false;
     if !crate::backend::gpu::is_software(&ctx.info) {
         // Each run both warms the GPU and times it; the runs that follow a
         // cold first one are shorter, so a few rounds settle the length.
         for _ in 0..4 {
             let t = seconds(engine, &plan, precision)?;
+            warmed = true;
             if t >= GPU_RUN_SECONDS || plan.steps >= most {
                 break;
             }
             let k = (GPU_RUN_SECONDS / t.max(1e-6)).ceil() as u64;
             plan.steps = plan.steps.saturating_mul(k.max(2)).min(most);
+            warmed = false;
         }
     }
     let mut err = None;
-    let r = rate(&plan, repeats, |pl| {
+    let r = rate(&plan, repeats, !warmed, |pl| {
         seconds(engine, pl, precision).unwrap_or_else(|e| {
             err = Some(e);
             f64::NAN
@@ -322,9 +326,12 @@ pub fn seconds(engine: &Engine, plan: &Plan, precision: Precision) -> Result<f64
     })
 }
 
-/// Median trajectory-steps per second over `repeats` runs (after one warm-up).
-pub fn rate(plan: &Plan, repeats: usize, mut once: impl FnMut(&Plan) -> f64) -> f64 {
-    once(plan);
+/// Median trajectory-steps per second over `repeats` runs, after one
+/// warm-up run if `warm` (the first run compiles and caches the kernel).
+pub fn rate(plan: &Plan, repeats: usize, warm: bool, mut once: impl FnMut(&Plan) -> f64) -> f64 {
+    if warm {
+        once(plan);
+    }
     let times: Vec<f64> = (0..repeats.max(1)).map(|_| once(plan)).collect();
     plan.traj_steps() as f64 / median(times)
 }
