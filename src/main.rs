@@ -657,8 +657,9 @@ fn info() -> Result<ExitCode> {
             a.backend, a.device_type, a.driver
         );
         println!(
-            "  f64 shaders: {}, timestamp queries: {}",
+            "  f64 shaders: {}, 64-bit integers: {}, timestamp queries: {}",
             if a.shader_f64 { "yes" } else { "no" },
+            if a.shader_int64 { "yes" } else { "no" },
             if a.timestamps { "yes" } else { "no" }
         );
         println!(

@@ -577,3 +577,27 @@ fn every_launch_gives_the_same_bits() {
         .unwrap();
     assert!(e.to_string().contains("this adapter allows"), "{e}");
 }
+
+/// The f64 kernels' `pow2` from 64-bit integers (adapters with
+/// SHADER_INT64) and from f32 powers of two (those without) give the same
+/// bits: the same plans on a second device told it has no 64-bit integers.
+#[test]
+fn f64_pow2_with_and_without_int64_gives_the_same_bits() {
+    let Some(ctx) = gpu() else { return };
+    if !ctx.shader_f64 {
+        return;
+    }
+    assert!(ctx.shader_int64, "lavapipe and NVIDIA have SHADER_INT64");
+    let mut portable = gpu::GpuContext::on(Some(ctx.index)).unwrap();
+    portable.shader_int64 = false;
+    let plans = [
+        Plan::new(&ensemble("van_der_pol", "s2").unwrap()).unwrap(),
+        Plan::new(&shared_ensemble("spin_orbit", "yoshida6a").unwrap()).unwrap(),
+        Plan::new(&ensemble("damped_oscillator", "triple_jump4").unwrap()).unwrap(),
+    ];
+    for plan in &plans {
+        let a = gpu::run::<f64>(ctx, plan, None).unwrap().observations;
+        let b = gpu::run::<f64>(&portable, plan, None).unwrap().observations;
+        assert!(format!("{a:?}") == format!("{b:?}"), "{:?}", plan.model);
+    }
+}

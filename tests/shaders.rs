@@ -1,6 +1,7 @@
 //! Every model × scheme × precision kernel, with every observer, is valid
 //! WGSL (naga, no GPU needed); and the kernels are specialised.
 
+use reeb::backend::gpu::tuning::Launch;
 use reeb::backend::gpu::{codegen::generate, validate};
 use reeb::models::{Model, MODEL_NAMES};
 use reeb::num::precision::Precision;
@@ -73,6 +74,11 @@ fn every_kernel_validates() {
                         .unwrap_or_else(|e| panic!("{model} {scheme} {precision}: {e}"));
                     if let Err(e) = validate(&k.source, precision == Precision::F64) {
                         panic!("{model} {scheme} {precision}:\n{e}");
+                    }
+                    // The source for adapters with 64-bit integers.
+                    let int64 = k.source_for(&Launch::default(), true);
+                    if let Err(e) = validate(&int64, precision == Precision::F64) {
+                        panic!("{model} {scheme} {precision} (SHADER_INT64):\n{e}");
                     }
                     count += 1;
                 }

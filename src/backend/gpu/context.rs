@@ -37,6 +37,8 @@ pub struct AdapterSummary {
     pub device_type: String,
     pub driver: String,
     pub shader_f64: bool,
+    /// SHADER_INT64: the f64 kernels' `pow2` from the bits (faster on NVIDIA).
+    pub shader_int64: bool,
     pub timestamps: bool,
     pub max_storage_buffer_binding_size: u64,
     pub max_buffer_size: u64,
@@ -61,6 +63,7 @@ fn summary(a: &wgpu::Adapter) -> AdapterSummary {
             .trim()
             .to_string(),
         shader_f64: f.contains(wgpu::Features::SHADER_F64),
+        shader_int64: f.contains(wgpu::Features::SHADER_INT64),
         timestamps: f.contains(wgpu::Features::TIMESTAMP_QUERY),
         max_storage_buffer_binding_size: l.max_storage_buffer_binding_size,
         max_buffer_size: l.max_buffer_size,
@@ -232,6 +235,8 @@ pub struct GpuContext {
     pub info: wgpu::AdapterInfo,
     pub limits: wgpu::Limits,
     pub shader_f64: bool,
+    /// 64-bit integers in shaders: the f64 kernels' `pow2` from the bits.
+    pub shader_int64: bool,
     pub timestamps: bool,
     layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
@@ -254,8 +259,10 @@ impl GpuContext {
         let inst = instance();
         let (index, adapter) = choose_adapter(&inst, index)?;
         let info = adapter.get_info();
-        let features =
-            adapter.features() & (wgpu::Features::SHADER_F64 | wgpu::Features::TIMESTAMP_QUERY);
+        let features = adapter.features()
+            & (wgpu::Features::SHADER_F64
+                | wgpu::Features::SHADER_INT64
+                | wgpu::Features::TIMESTAMP_QUERY);
         let limits = adapter.limits();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("reeb"),
@@ -306,6 +313,7 @@ impl GpuContext {
             device,
             queue,
             shader_f64: features.contains(wgpu::Features::SHADER_F64),
+            shader_int64: features.contains(wgpu::Features::SHADER_INT64),
             timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
             info,
             limits,
@@ -394,8 +402,9 @@ impl GpuContext {
 /// without the f64 capability. Returns naga's report on failure.
 pub fn validate(source: &str, f64: bool) -> Result<(), String> {
     let module = naga::front::wgsl::parse_str(source).map_err(|e| e.emit_to_string(source))?;
+    // 64-bit integers come with f64 (the f64 `pow2` on adapters with them).
     let caps = if f64 {
-        naga::valid::Capabilities::FLOAT64
+        naga::valid::Capabilities::FLOAT64 | naga::valid::Capabilities::SHADER_INT64
     } else {
         naga::valid::Capabilities::empty()
     };
