@@ -66,6 +66,7 @@ fn trajectory(i: u32) {
     var st: u32 = 0u;
 {{BEGIN}}
     var n: u32 = u.step0;
+{{BLOCKS}}
     loop {
         if n >= u.step0 + u.nsteps {
             break;

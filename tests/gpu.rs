@@ -509,9 +509,10 @@ fn long_windows_lose_no_step() {
 
 /// The launch changes the speed, never the bits (issue 35, point 2): every
 /// workgroup size, trajectories per invocation and window tried against
-/// the default launch, for a plan with every observer, one whose time
-/// terms come from a table (spin–orbit), and a formula model; and a launch
-/// beyond the adapter's limits is refused before it is tried.
+/// the default launch, with a finite test every step or every 4, for a plan
+/// with every observer, one whose time terms come from a table
+/// (spin–orbit), and a formula model; and a launch beyond the adapter's
+/// limits is refused before it is tried.
 #[test]
 fn every_launch_gives_the_same_bits() {
     use reeb::backend::gpu::tuning::Launch;
@@ -525,11 +526,30 @@ fn every_launch_gives_the_same_bits() {
             "spin_orbit yoshida6a",
             Plan::new(&shared_ensemble("spin_orbit", "yoshida6a").unwrap()).unwrap(),
         ),
+        ("spin_orbit yoshida6a, final values only", {
+            let mut p = shared_ensemble("spin_orbit", "yoshida6a").unwrap();
+            let final_vars = p.observers.final_vars.clone();
+            p.observers = Default::default();
+            p.observers.final_vars = final_vars;
+            Plan::new(&p).unwrap()
+        }),
         (
             "lienard formula",
             reeb::bench::Scenario::LienardFormulaS2.plan(300, 40),
         ),
     ];
+    let blocked: Vec<&str> = plans
+        .iter()
+        .filter(|(_, p)| {
+            let k = gpu::codegen::generate(p, reeb::num::precision::Precision::F32).unwrap();
+            k.has_blocks()
+        })
+        .map(|(label, _)| *label)
+        .collect();
+    assert_eq!(
+        blocked,
+        ["spin_orbit yoshida6a, final values only", "lienard formula"]
+    );
     let bits = |o: &dyn std::fmt::Debug| format!("{o:?}");
     let mut tried = 0;
     for (label, plan) in &plans {
@@ -546,6 +566,7 @@ fn every_launch_gives_the_same_bits() {
                             per_thread,
                             dispatch_seconds: 0.01,
                             window,
+                            finite_block: [1, 4][(workgroup / 32 + per_thread) as usize % 2],
                         }),
                         max_chunk: Some(256),
                         ..Default::default()
@@ -564,7 +585,7 @@ fn every_launch_gives_the_same_bits() {
             }
         }
     }
-    assert_eq!(tried, 3 * 32);
+    assert_eq!(tried, 4 * 32);
     let too_wide = gpu::GpuOptions {
         launch: Some(Launch {
             workgroup: ctx.limits.max_compute_invocations_per_workgroup * 2,
@@ -599,5 +620,81 @@ fn f64_pow2_with_and_without_int64_gives_the_same_bits() {
         let a = gpu::run::<f64>(ctx, plan, None).unwrap().observations;
         let b = gpu::run::<f64>(&portable, plan, None).unwrap().observations;
         assert!(format!("{a:?}") == format!("{b:?}"), "{:?}", plan.model);
+    }
+}
+
+/// Without observers the GPU may test finiteness once per block of steps
+/// and replay a block that ends non-finite step by step (`codegen::blocks`,
+/// `Launch::finite_block`): the status is still the first non-finite step,
+/// as on the CPU, whatever the block and the window (blocks cut short at a
+/// window's end, windows shorter than a block), and the bits are the same
+/// for every block and window.
+#[test]
+fn divergence_without_observers_stops_at_the_same_step() {
+    let Some(ctx) = gpu() else { return };
+    // Negative damping: growing as e^{|α|t/2}, overflowing at steps 10 to
+    // 77 in f32 (so blocks end non-finite at every offset) and 80 to 370
+    // in f64; positive α stays finite.
+    let mut p = Problem::new(Model::DampedOscillator, "s2")
+        .unwrap()
+        .initial("q", Source::Const(1.0));
+    let alpha = p.axis(
+        "alpha",
+        vec![
+            -100.0, -90.0, -80.0, -60.0, -45.0, -30.0, -20.0, -12.0, 0.5, 1.0,
+        ],
+    );
+    p = p.param("alpha", alpha);
+    p.dt = Source::Const(0.1);
+    p.steps = 400;
+    let plan = Plan::new(&p).unwrap();
+    fn runs<R: reeb::models::Flows>(ctx: &gpu::GpuContext, plan: &Plan) -> Vec<Observations<R>> {
+        use reeb::backend::gpu::tuning::Launch;
+        let mut runs = Vec::new();
+        for finite_block in [1, 3, 4] {
+            for window in [None, Some(1), Some(3), Some(6), Some(13)] {
+                let opts = gpu::GpuOptions {
+                    max_chunk: None,
+                    max_steps_per_dispatch: window,
+                    launch: Some(Launch {
+                        finite_block,
+                        ..Launch::default()
+                    }),
+                };
+                let g = gpu::run_with::<R>(ctx, plan, None, &opts)
+                    .unwrap_or_else(|e| panic!("block {finite_block}, window {window:?}: {e}"));
+                runs.push(g.observations);
+            }
+        }
+        runs
+    }
+    let c = cpu::run::<f32>(&plan, None);
+    let offsets: std::collections::BTreeSet<u32> = c
+        .nonfinite_step
+        .iter()
+        .filter(|s| **s > 0)
+        .map(|s| s % 4)
+        .collect();
+    assert_eq!(offsets.len(), 4, "diverging at {:?}", c.nonfinite_step);
+    let g = runs::<f32>(ctx, &plan);
+    for o in &g {
+        assert_eq!(o.nonfinite_step, c.nonfinite_step);
+        assert!(
+            format!("{o:?}") == format!("{:?}", g[0]),
+            "a window changed the bits"
+        );
+    }
+    compare("divergence", &g[0], &c, 2e-4);
+    if ctx.shader_f64 {
+        let c = cpu::run::<f64>(&plan, None);
+        let g = runs::<f64>(ctx, &plan);
+        for o in &g {
+            assert_eq!(o.nonfinite_step, c.nonfinite_step);
+            assert!(
+                format!("{o:?}") == format!("{:?}", g[0]),
+                "a window changed the bits"
+            );
+        }
+        compare("divergence f64", &g[0], &c, 1e-10);
     }
 }

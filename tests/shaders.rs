@@ -75,10 +75,15 @@ fn every_kernel_validates() {
                     if let Err(e) = validate(&k.source, precision == Precision::F64) {
                         panic!("{model} {scheme} {precision}:\n{e}");
                     }
-                    // The source for adapters with 64-bit integers.
-                    let int64 = k.source_for(&Launch::default(), true);
-                    if let Err(e) = validate(&int64, precision == Precision::F64) {
-                        panic!("{model} {scheme} {precision} (SHADER_INT64):\n{e}");
+                    // The source for adapters with 64-bit integers, with
+                    // blocks of steps where the kernel has no observers.
+                    let launch = Launch {
+                        finite_block: 4,
+                        ..Launch::default()
+                    };
+                    let other = k.source_for(&launch, true);
+                    if let Err(e) = validate(&other, precision == Precision::F64) {
+                        panic!("{model} {scheme} {precision} (SHADER_INT64, blocks):\n{e}");
                     }
                     count += 1;
                 }

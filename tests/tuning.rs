@@ -116,6 +116,7 @@ fn the_environment_overrides_the_launch_and_bad_values_are_refused() {
         ("REEB_GPU_PER_THREAD", "3"),
         ("REEB_GPU_DISPATCH_SECONDS", "0.01"),
         ("REEB_GPU_WINDOW", "7"),
+        ("REEB_GPU_FINITE_BLOCK", "3"),
     ];
     succeeds(reeb_in(
         &cache,
@@ -128,6 +129,7 @@ fn the_environment_overrides_the_launch_and_bad_values_are_refused() {
         ("REEB_GPU_PER_THREAD", "0", "per invocation"),
         ("REEB_GPU_WINDOW", "abc", "REEB_GPU_WINDOW"),
         ("REEB_GPU_DISPATCH_SECONDS", "-1", "per dispatch"),
+        ("REEB_GPU_FINITE_BLOCK", "9", "finite test every 9 steps"),
     ] {
         let out = d.join(format!("bad-{var}"));
         let e = fails(reeb_in(

@@ -27,6 +27,14 @@ pub struct Launch {
     /// Most steps per dispatch (`REEB_GPU_WINDOW`), if fixed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub window: Option<u64>,
+    /// Steps per finite test in a kernel without observers (1: every
+    /// step; `codegen::blocks`).
+    #[serde(default = "every_step")]
+    pub finite_block: u32,
+}
+
+fn every_step() -> u32 {
+    1
 }
 
 impl Default for Launch {
@@ -36,6 +44,7 @@ impl Default for Launch {
             per_thread: 1,
             dispatch_seconds: 0.1,
             window: None,
+            finite_block: 1,
         }
     }
 }
@@ -58,6 +67,12 @@ impl Launch {
                 self.per_thread
             ));
         }
+        if !(1..=8).contains(&self.finite_block) {
+            return Err(format!(
+                "a finite test every {} steps: 1 to 8",
+                self.finite_block
+            ));
+        }
         if !(0.001..=10.0).contains(&self.dispatch_seconds) {
             return Err(format!(
                 "{} s per dispatch: 0.001 to 10",
@@ -72,8 +87,12 @@ impl Launch {
         let window = self.window.map_or(String::new(), |w| {
             format!(", at most {w} steps per dispatch")
         });
+        let block = match self.finite_block {
+            1 => String::new(),
+            b => format!(", finite test every {b} steps"),
+        };
         format!(
-            "workgroup {}, {} per invocation, {} s per dispatch{window}",
+            "workgroup {}, {} per invocation, {} s per dispatch{window}{block}",
             self.workgroup, self.per_thread, self.dispatch_seconds
         )
     }
@@ -86,14 +105,16 @@ pub struct Overrides {
     pub per_thread: Option<u32>,
     pub dispatch_seconds: Option<f64>,
     pub window: Option<u64>,
+    pub finite_block: Option<u32>,
 }
 
 /// The environment variables of [`Overrides`], as the README names them.
-pub const ENV: [&str; 4] = [
+pub const ENV: [&str; 5] = [
     "REEB_GPU_WORKGROUP",
     "REEB_GPU_PER_THREAD",
     "REEB_GPU_DISPATCH_SECONDS",
     "REEB_GPU_WINDOW",
+    "REEB_GPU_FINITE_BLOCK",
 ];
 
 impl Overrides {
@@ -115,6 +136,7 @@ impl Overrides {
             per_thread: var(ENV[1])?,
             dispatch_seconds: var(ENV[2])?,
             window: var(ENV[3])?,
+            finite_block: var(ENV[4])?,
         };
         if o.window == Some(0) {
             return Err(format!("{}=0: at least 1 step per dispatch", ENV[3]));
@@ -129,6 +151,7 @@ impl Overrides {
             self.per_thread.map(|v| v.to_string()),
             self.dispatch_seconds.map(|v| v.to_string()),
             self.window.map(|v| v.to_string()),
+            self.finite_block.map(|v| v.to_string()),
         ];
         let set: Vec<String> = ENV
             .iter()
@@ -150,6 +173,7 @@ impl Overrides {
             per_thread: self.per_thread.unwrap_or(launch.per_thread),
             dispatch_seconds: self.dispatch_seconds.unwrap_or(launch.dispatch_seconds),
             window: self.window.or(launch.window),
+            finite_block: self.finite_block.unwrap_or(launch.finite_block),
         };
         l.check(limits)
             .map_err(|e| format!("{} ({})", e, ENV.join(", ")))?;
