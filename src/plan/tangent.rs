@@ -135,7 +135,25 @@ impl TangentStep {
     /// The tangent map of `plan`'s step for `vectors` deviation vectors
     /// (at most the tangent dimension).
     pub fn new(plan: &StepSpec, vectors: usize) -> Result<TangentStep, PlanError> {
+        TangentStep::build(plan, vectors, false)
+    }
+
+    /// As [`TangentStep::new`], with the state after the step as more
+    /// outputs (after the vectors', in the plan's variable order): one
+    /// program that moves the state and the vectors (the GPU's, where the
+    /// step and the tangent would otherwise compute the step twice).
+    pub fn with_state(plan: &StepSpec, vectors: usize) -> Result<TangentStep, PlanError> {
+        TangentStep::build(plan, vectors, true)
+    }
+
+    fn build(plan: &StepSpec, vectors: usize, state: bool) -> Result<TangentStep, PlanError> {
         let mut f = step_formulas(plan)?;
+        // Read before the deviations' variables are numbered: a lane no op
+        // touches becomes a variable here.
+        let state_after: Vec<Id> = match state {
+            true => plan.vars.iter().map(|v| f.read(v)).collect(),
+            false => Vec::new(),
+        };
         let space = tangent_space(plan, &mut f);
         let after: Vec<Id> = space.iter().map(|v| f.read(v)).collect();
         let before: Vec<Option<u32>> = space.iter().map(|v| f.variable(v)).collect();
@@ -149,6 +167,7 @@ impl TangentStep {
             };
             roots.extend(f.dag.directional(&after, &mut seed));
         }
+        roots.extend(state_after);
         let mut inputs: Vec<TangentInput> = f
             .variables
             .iter()

@@ -23,7 +23,7 @@ use crate::num::precision::Precision;
 use crate::plan::indicators::{Indicators, SampleInput};
 use crate::plan::section::{Recorded, SectionKind, SectionStep};
 use crate::plan::slots;
-use crate::plan::tangent::TangentInput;
+use crate::plan::tangent::{TangentInput, TangentStep};
 use crate::plan::{ObsVar, Op, Plan, Source, StopPlan};
 
 use super::time_table::TimeTable;
@@ -33,10 +33,11 @@ const PRELUDE_F32: &str = include_str!("../../../shaders/prelude_f32.wgsl");
 const PRELUDE_F64: &str = include_str!("../../../shaders/prelude_f64.wgsl");
 
 /// The f64 prelude's `pow2` where the adapter has SHADER_INT64: the sum
-/// n + 1.5·2⁵² + 1023 holds n + 1023 in its low bits, and the shift by 52 moves them into
-/// the exponent field (the CPU's twin, `Prims::pow2`). No conversions, which
-/// NVIDIA runs at a quarter of the f64 FMA rate: van der Pol S2 in f64 went
-/// from 3.08·10¹¹ to 4.37·10¹¹ trajectory-steps/s on an H200 with it.
+/// n + 1.5·2⁵² + 1023 holds n + 1023 in its low bits, and the shift by 52
+/// moves them into the exponent field (the CPU's twin, `Prims::pow2`). No
+/// conversions, which NVIDIA runs at a quarter of the f64 FMA rate: van der
+/// Pol S2 in f64 went from 3.08·10¹¹ to 4.37·10¹¹ trajectory-steps/s on an
+/// H200 with it.
 const POW2_F64_INT64: &str = "fn pow2(n: f64) -> f64 {
     return bitcast<f64>(bitcast<u64>(n + 6755399441056767.0) << 52u);
 }";
@@ -100,15 +101,15 @@ fn max_window(section: Option<&SectionStep>) -> u64 {
     }
 }
 
-/// The window's steps in blocks of `b` ([`Launch::finite_block`]) with
-/// one finite test each, ahead of the loop that tests every step: a block that ends
-/// non-finite puts the state back as it was at the block's start and leaves
-/// it to that loop, which finds the step (the steps are the same
-/// operations, so the same bits) and sets the status. A test per step cost
-/// 21 % of the f32 van der Pol S2 step on an H200 (16 % in f64); the
-/// steps after a non-finite one within a block only compute NaNs and
-/// infinities. Observers see every step, so kernels with any keep the loop
-/// alone.
+/// The window's steps in blocks of `b` ([`Launch::finite_block`]) with one
+/// finite test each, ahead of the loop that tests every step: a block that
+/// ends non-finite puts the state back as it was at the block's start and
+/// leaves it to that loop, which finds the step (the steps are the same
+/// operations, so the same bits) and sets the status. Without the test per
+/// step the f32 van der Pol S2 step ran 23 % faster on an H200 (16 % in
+/// f64); the steps after a non-finite one within a block only compute NaNs
+/// and infinities. Observers see every step, so kernels with any keep the
+/// loop alone.
 fn blocks(parts: &BlockParts, b: u32) -> String {
     let BlockParts { vars, step, finite } = parts;
     let keep: String = vars
@@ -259,6 +260,7 @@ fn shared_text(
     plan: &Plan,
     precision: Precision,
     formula: Option<&FormulaKernel>,
+    moves_state: bool,
 ) -> Result<String, CodegenError> {
     let mut text = String::new();
     let (math, log_atan) = match precision {
@@ -275,7 +277,7 @@ fn shared_text(
         text.push_str(&stop_function(stop));
     }
     if let Some(ind) = &plan.indicators {
-        text.push_str(&indicator_functions(plan, ind));
+        text.push_str(&indicator_functions(plan, ind, moves_state)?);
     }
     // A formula model's ops are emitted as WGSL directly (num/formula/wgsl.rs).
     if let Some(m) = plan.model.formula() {
@@ -298,7 +300,11 @@ pub(super) fn frame_width(plan: &Plan) -> usize {
 /// the step number `nf`, the deviation vectors the slots `w<k>_<j>`), and
 /// `lyapunov_sample`, `chaos_sample` over the slots and the locals
 /// `count`, `inv_count`, `at_skip`.
-fn indicator_functions(plan: &Plan, ind: &Indicators) -> String {
+fn indicator_functions(
+    plan: &Plan,
+    ind: &Indicators,
+    moves_state: bool,
+) -> Result<String, CodegenError> {
     // The indicators' slots are real slots from `first` on.
     let first = slots::indicator_first(plan);
     let slot_names: Vec<String> = slots::real(plan)
@@ -306,8 +312,16 @@ fn indicator_functions(plan: &Plan, ind: &Indicators) -> String {
         .skip(first)
         .map(|(n, _)| n)
         .collect();
-    let tangent_inputs: Vec<String> = ind
-        .tangent
+    let with_state;
+    let tangent = match moves_state {
+        true => {
+            with_state = TangentStep::with_state(&plan.step_spec(), ind.tangent.vectors)
+                .map_err(|e| CodegenError::Plan(e.message))?;
+            &with_state
+        }
+        false => &ind.tangent,
+    };
+    let tangent_inputs: Vec<String> = tangent
         .inputs
         .iter()
         .map(|i| match *i {
@@ -319,11 +333,15 @@ fn indicator_functions(plan: &Plan, ind: &Indicators) -> String {
         .collect();
     let outputs =
         |slots: &[usize]| -> Vec<String> { slots.iter().map(|k| slot_names[*k].clone()).collect() };
+    let mut tangent_outputs = outputs(&ind.deviation_slots);
+    if moves_state {
+        tangent_outputs.extend(plan.vars.iter().map(|v| v.to_string()));
+    }
     let mut text = function_text(
         "tangent_step",
-        &ind.tangent.program,
+        &tangent.program,
         &strs(&tangent_inputs),
-        &strs(&outputs(&ind.deviation_slots)),
+        &strs(&tangent_outputs),
     );
     for (name, sampler) in [
         ("lyapunov_sample", &ind.lyapunov),
@@ -347,7 +365,7 @@ fn indicator_functions(plan: &Plan, ind: &Indicators) -> String {
             &strs(&outputs(&s.outputs)),
         ));
     }
-    text
+    Ok(text)
 }
 
 fn strs(v: &[String]) -> Vec<&str> {
@@ -368,7 +386,16 @@ fn stop_function(stop: &StopPlan) -> String {
 /// Generates the kernel of `plan` in `precision`.
 pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenError> {
     let formula = FormulaKernel::of(plan);
-    let shared = shared_text(plan, precision, formula.as_ref())?;
+    let time_table = match &formula {
+        Some(f) => f.table.clone(),
+        None => TimeTable::of(plan),
+    };
+    // With chaos indicators, the tangent program moves the state too (it
+    // computes the step anyway), where the step is a built-in model's and
+    // computes its time terms itself.
+    let moves_state =
+        plan.indicators.is_some() && plan.model.formula().is_none() && time_table.is_none();
+    let shared = shared_text(plan, precision, formula.as_ref(), moves_state)?;
     let sigs = signatures(&shared);
     let names = bound_names(plan, &sigs)?;
     // Room for every axis at once: growing by doubling would copy a table
@@ -378,12 +405,9 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
         Source::Const(_) => 1,
     });
     let mut table: Vec<f64> = Vec::with_capacity(room.sum());
-    let time_table = match formula {
-        Some(f) => f.table,
-        None => TimeTable::of(plan),
-    };
     let mut g = Gen {
         plan,
+        moves_state,
         section: plan.section(),
         sigs: &sigs,
         names: &names,
@@ -523,6 +547,9 @@ fn indent(text: &str, n: usize) -> String {
 /// The pieces of one kernel as they are generated.
 struct Gen<'a> {
     plan: &'a Plan,
+    /// Does the tangent program move the state (and the step compute
+    /// only the time)?
+    moves_state: bool,
     /// The plan's Poincaré section (`Plan::section`).
     section: Option<SectionStep>,
     sigs: &'a BTreeMap<String, Vec<(String, bool)>>,
@@ -651,6 +678,16 @@ impl Gen<'_> {
         if let Some(tt) = self.time_table {
             let stride = tt.row_stride();
             writeln!(step, "        let trow = (n - u.step0) * {stride}u;").unwrap();
+        }
+        if self.moves_state {
+            // `t` as the ops leave it, for the observers.
+            for op in &self.plan.ops {
+                if let Op::Time(c) = op {
+                    writeln!(step, "        t = t0 + nf * dt + {} * dt;", lit(*c)).unwrap();
+                }
+            }
+            step.push_str(&self.call("tangent_step"));
+            return step;
         }
         // A formula model's whole step is one function (`shared_text`),
         // its shared values arguments.
@@ -951,7 +988,10 @@ impl Gen<'_> {
             .iter()
             .map(|k| format!("finite({})", ind.slots[*k].0))
             .collect();
-        let mut s = self.call("tangent_step");
+        let mut s = match self.moves_state {
+            true => String::new(),
+            false => self.call("tangent_step"),
+        };
         writeln!(
             s,
             "        if !({}) {{\n            st = n + 1u;\n            break;\n        }}",
