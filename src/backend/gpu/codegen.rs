@@ -297,9 +297,10 @@ pub(super) fn frame_width(plan: &Plan) -> usize {
 
 /// The chaos indicators' programs as WGSL functions over the kernel's
 /// locals: `tangent_step` (the state at the step's start is `prev_<v>`,
-/// the step number `nf`, the deviation vectors the slots `w<k>_<j>`), and
-/// `lyapunov_sample`, `chaos_sample` over the slots and the locals
-/// `count`, `inv_count`, `at_skip`.
+/// the step number `nf`, the deviation vectors the slots `w<k>_<j>`; with
+/// `moves_state` it writes the state after the step into the variables
+/// too, and is the step), and `lyapunov_sample`, `chaos_sample` over the
+/// slots and the locals `count`, `inv_count`, `at_skip`.
 fn indicator_functions(
     plan: &Plan,
     ind: &Indicators,
