@@ -139,7 +139,7 @@ fn probe<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<Tuned, BackendError>
     // Blocks of steps with one finite test each: on an H200 the test per
     // step cost a fifth of the van der Pol S2 step; on lavapipe the blocks
     // are 5 % slower. Only kernels without observers have blocks.
-    if gpu::codegen::generate(plan, Precision::of::<R>())?.has_blocks() {
+    if gpu::codegen::generate(&sample(plan, m, 1), Precision::of::<R>())?.has_blocks() {
         consider(
             Launch {
                 finite_block: 4,

@@ -680,16 +680,6 @@ impl Gen<'_> {
             let stride = tt.row_stride();
             writeln!(step, "        let trow = (n - u.step0) * {stride}u;").unwrap();
         }
-        if self.moves_state {
-            // `t` as the ops leave it, for the observers.
-            for op in &self.plan.ops {
-                if let Op::Time(c) = op {
-                    writeln!(step, "        t = t0 + nf * dt + {} * dt;", lit(*c)).unwrap();
-                }
-            }
-            step.push_str(&self.call("tangent_step"));
-            return step;
-        }
         // A formula model's whole step is one function (`shared_text`),
         // its shared values arguments.
         if self.sigs.contains_key("formula_step") {
@@ -702,6 +692,9 @@ impl Gen<'_> {
         let mut stage = 0;
         for op in &self.plan.ops {
             match op {
+                // The tangent program moves the state (below); `t` as the
+                // ops leave it is for the observers.
+                Op::Tau(_) | Op::Call(_) if self.moves_state => {}
                 Op::Tau(c) => writeln!(step, "        tau = {} * dt;", lit(*c)).unwrap(),
                 Op::Time(c) => {
                     writeln!(step, "        t = t0 + nf * dt + {} * dt;", lit(*c)).unwrap();
@@ -714,6 +707,9 @@ impl Gen<'_> {
                 Op::Call(name) if self.time_table.is_some_and(|tt| tt.ops().contains(name)) => {}
                 Op::Call(name) => step.push_str(&self.call(name)),
             }
+        }
+        if self.moves_state {
+            step.push_str(&self.call("tangent_step"));
         }
         step
     }
