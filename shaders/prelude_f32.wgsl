@@ -33,9 +33,9 @@ fn finite(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
 }
 
-fn exp_r(x: f32) -> f32 {
-    return exp_f32(x);
-}
+// exp: reeb's polynomial (the CPU's function) or the adapter's exp2 on a split
+// argument, as the device opened (src/backend/gpu/codegen.rs, ExpForm).
+{{EXP_F32}}
 
 // ln x with x = 2^e·m read from the bits rather than found by log_f32's
 // ladder of scalings: the same m and e, hence the same result (the CPU's

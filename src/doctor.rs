@@ -2,14 +2,17 @@
 //! machine it runs on — in the binary, since a GPU machine may have neither
 //! network nor a Rust toolchain. It lists the adapters, runs `reeb verify` on
 //! the GPU in f32 and f64 (where the adapter has SHADER_F64), compares the
-//! GPU with the CPU on every model × a few schemes × both precisions, and
-//! measures both backends' throughput; the whole as one JSON report.
+//! GPU with the CPU on every model × a few schemes × both precisions,
+//! measures both forms of the f32 exp on the adapter, and measures both
+//! backends' throughput; the whole as one JSON report.
 
 use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::backend::gpu::{is_software, list_adapters, AdapterSummary};
+use crate::backend::gpu::accuracy::{exp_f32_accuracy, ExpAccuracy, HARDWARE_EXP_ULP};
+use crate::backend::gpu::codegen::ExpForm;
+use crate::backend::gpu::{is_software, list_adapters, AdapterSummary, GpuContext};
 use crate::backend::Engine;
 use crate::bench::{self, Row, Scenario};
 use crate::models::MODEL_NAMES;
@@ -55,6 +58,8 @@ pub struct Report {
     pub software_adapter: bool,
     pub verify: Vec<VerifyRun>,
     pub agreement: Vec<Agreement>,
+    /// Both forms of the f32 `exp` measured on the adapter.
+    pub exp: Vec<ExpCheck>,
     pub bench: Vec<Row>,
     /// The launch `reeb tune` chooses for each scenario's model, with the
     /// GPU's and the CPU's rates the probe measured (what `auto` weighs).
@@ -90,6 +95,19 @@ pub struct VerifyRun {
     /// The failed rows: name, expected, measured.
     pub failures: Vec<String>,
     pub seconds: f64,
+}
+
+/// One form of the f32 `exp` on the adapter (`gpu::accuracy`).
+#[derive(Debug, Serialize)]
+pub struct ExpCheck {
+    #[serde(flatten)]
+    pub accuracy: ExpAccuracy,
+    /// The most ULPs it may be off: 2 for reeb's polynomial (as on the
+    /// CPU), [`HARDWARE_EXP_ULP`] for the adapter's exp2.
+    pub bound: f64,
+    pub pass: bool,
+    /// Is it the form the checked device's kernels use?
+    pub in_use: bool,
 }
 
 /// The largest CPU–GPU difference of one model × scheme × precision.
@@ -155,6 +173,13 @@ pub fn run(opts: &DoctorOptions, mut progress: impl FnMut(&str)) -> Report {
     } else {
         vec![1_000_000, 10_000_000]
     });
+    let exp = match ctx_of(engine.as_ref()) {
+        Some(c) => {
+            progress("f32 exp on the adapter: reeb's polynomial and the adapter's exp2");
+            exp_checks(c, &mut problems)
+        }
+        None => vec![],
+    };
     let tuning = tune(engine.as_ref(), &precisions, &mut progress, &mut problems);
     let bench = throughput(engine.as_ref(), &sizes, &mut progress, &mut problems);
     Report {
@@ -165,11 +190,39 @@ pub fn run(opts: &DoctorOptions, mut progress: impl FnMut(&str)) -> Report {
         software_adapter: software,
         verify,
         agreement,
+        exp,
         bench,
         tuning,
         problems,
         seconds: start.elapsed().as_secs_f64(),
     }
+}
+
+fn ctx_of(engine: Option<&Engine>) -> Option<&GpuContext> {
+    match engine {
+        Some(Engine::Gpu(c)) => Some(c),
+        _ => None,
+    }
+}
+
+/// Both forms of the f32 `exp` over 2²⁰ arguments.
+fn exp_checks(ctx: &GpuContext, problems: &mut Vec<String>) -> Vec<ExpCheck> {
+    let mut rows = vec![];
+    for (form, bound) in [(ExpForm::Exact, 2.0), (ExpForm::Hardware, HARDWARE_EXP_ULP)] {
+        match exp_f32_accuracy(ctx, form, 1 << 20) {
+            Ok(accuracy) => rows.push(ExpCheck {
+                pass: accuracy.max_ulp <= bound,
+                in_use: ctx.exp_f32 == form,
+                accuracy,
+                bound,
+            }),
+            Err(e) => problems.push(format!(
+                "the {} f32 exp could not be measured: {e}",
+                form.name()
+            )),
+        }
+    }
+    rows
 }
 
 /// The GPU launch of each scenario's model, probed again (and cached).
@@ -442,6 +495,21 @@ impl Report {
                 "", "scenario", "precision", "n", "steps", "traj-steps/s"
             ),
         );
+        for e in &self.exp {
+            line(
+                &mut t,
+                format!(
+                    "f32 exp, {}{}: within {:.2} ULP over {} arguments (worst at x = {}; bound {}){}",
+                    e.accuracy.form.name(),
+                    if e.in_use { " (in use)" } else { "" },
+                    e.accuracy.max_ulp,
+                    e.accuracy.points,
+                    e.accuracy.at,
+                    e.bound,
+                    if e.pass { "" } else { " FAIL" }
+                ),
+            );
+        }
         for b in &self.bench {
             line(
                 &mut t,
@@ -472,5 +540,6 @@ impl Report {
         self.adapter.is_some()
             && self.verify.iter().all(|v| v.failed == 0)
             && self.agreement.iter().all(|a| a.pass)
+            && self.exp.iter().all(|e| e.pass || !e.in_use)
     }
 }

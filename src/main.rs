@@ -663,6 +663,15 @@ fn info() -> Result<ExitCode> {
             if a.timestamps { "yes" } else { "no" }
         );
         println!(
+            "  f32 exp: {} (REEB_GPU_EXP=exact or hardware to choose)",
+            match a.exp_f32 {
+                reeb::backend::gpu::codegen::ExpForm::Exact =>
+                    "reeb's polynomial, the CPU's function",
+                reeb::backend::gpu::codegen::ExpForm::Hardware =>
+                    "the adapter's exp2 on a split argument",
+            }
+        );
+        println!(
             "  limits: storage binding {} MiB, buffer {} MiB, {} workgroups per dimension, {} storage buffers per stage",
             a.max_storage_buffer_binding_size >> 20,
             a.max_buffer_size >> 20,

@@ -46,6 +46,16 @@ fn doctor_checks_and_measures_both_backends() {
     for a in agreement {
         assert_eq!(a["pass"], true, "{a}");
     }
+    // Both forms of the f32 exp measured; the one in use within its bound.
+    let exp = report["exp"].as_array().unwrap();
+    assert_eq!(exp.len(), 2, "{exp:?}");
+    let in_use: Vec<_> = exp.iter().filter(|e| e["in_use"] == true).collect();
+    assert_eq!(in_use.len(), 1, "{exp:?}");
+    assert_eq!(in_use[0]["pass"], true, "{exp:?}");
+    assert!(exp
+        .iter()
+        .all(|e| e["points"] == 1 << 20 && e["max_ulp"].as_f64().unwrap() > 0.0));
+    assert!(text.contains("f32 exp, exact (in use): within"), "{text}");
     // Four scenarios × two precisions × one size on each backend.
     let bench = report["bench"].as_array().unwrap();
     for backend in ["cpu", "gpu"] {

@@ -9,8 +9,13 @@
 //! tol = 2·10⁻⁴ in f32 and 10⁻¹⁰ in f64 (60 steps), and identical status,
 //! Poincaré counts and crossings.
 
+use reeb::backend::gpu::accuracy;
+use reeb::backend::gpu::codegen::{generate, ExpForm};
+use reeb::backend::gpu::tuning::Launch;
 use reeb::backend::{cpu, gpu};
 use reeb::models::{Model, MODEL_NAMES};
+use reeb::num::math::exp_f32;
+use reeb::num::precision::Precision;
 use reeb::num::precision::Real;
 use reeb::plan::observations::Observations;
 use reeb::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
@@ -515,7 +520,6 @@ fn long_windows_lose_no_step() {
 /// limits is refused before it is tried.
 #[test]
 fn every_launch_gives_the_same_bits() {
-    use reeb::backend::gpu::tuning::Launch;
     let Some(ctx) = gpu() else { return };
     let plans = [
         (
@@ -694,4 +698,85 @@ fn divergence_without_observers_stops_at_the_same_step() {
     if ctx.shader_f64 {
         against::<f64>(ctx, &plan, &cpu::run::<f64>(&plan, None), 1e-10);
     }
+}
+
+/// The f32 exp's two forms evaluated on the adapter (`gpu::accuracy`):
+/// reeb's polynomial is the CPU's function (within 2 ULP of its bits,
+/// a third of them 1 or 2 apart: lavapipe contracts a·b + c into fma) and
+/// within 2 ULP of exp; the adapter's exp2 form is
+/// measured, and a device that took it by default keeps it only where it
+/// is within `HARDWARE_EXP_ULP`. Lavapipe's exp2 is not: its error grows
+/// with the argument, 3.6 ULP on [−1, 1] and 63 near ±85, as WGSL allows
+/// (3 + 2|x| ULP), so there the device falls back to the polynomial.
+#[test]
+fn f32_exp_forms_on_the_adapter() {
+    let Some(ctx) = gpu() else { return };
+    let xs = accuracy::arguments(1 << 16);
+    let exact = accuracy::exp_f32_on(ctx, ExpForm::Exact, &xs).unwrap();
+    // Where the CPU's result is normal: the adapter may flush subnormals.
+    for (&x, y) in xs
+        .iter()
+        .zip(&exact)
+        .filter(|(&x, _)| exp_f32(x).is_normal())
+    {
+        let bits = |v: f32| v.to_bits() as i64;
+        assert!((bits(*y) - bits(exp_f32(x))).abs() <= 2, "exp({x}): {y}");
+    }
+    let exact = accuracy::exp_f32_accuracy(ctx, ExpForm::Exact, 1 << 16).unwrap();
+    assert!(exact.max_ulp <= 2.0, "{exact:?}");
+    let hw = accuracy::exp_f32_accuracy(ctx, ExpForm::Hardware, 1 << 16).unwrap();
+    eprintln!("hardware exp on {}: {hw:?}", ctx.describe());
+    assert!(hw.max_ulp < 1e3, "{hw:?}");
+    let mut device = gpu::GpuContext::on(Some(ctx.index)).unwrap();
+    device.exp_f32 = ExpForm::Hardware;
+    accuracy::settle_exp(&mut device);
+    let kept = hw.max_ulp <= accuracy::HARDWARE_EXP_ULP;
+    assert_eq!(device.exp_f32 == ExpForm::Hardware, kept, "{hw:?}");
+}
+
+/// Kernels with the adapter's exp2 form agree with the CPU, every model ×
+/// s2 and kahanli8, and give the same bits for every launch (blocks of
+/// steps included). Within 10⁻³, not the f32 tolerance 2·10⁻⁴: lavapipe's
+/// exp2 is tens of ULP off for large arguments (see above); Kepler's
+/// kahanli8 differs by 3.7·10⁻⁴ with it.
+#[test]
+fn hardware_exp_agrees_with_the_cpu() {
+    let Some(ctx) = gpu() else { return };
+    let mut device = gpu::GpuContext::on(Some(ctx.index)).unwrap();
+    device.exp_f32 = ExpForm::Hardware;
+    let blocks = gpu::GpuOptions {
+        launch: Some(Launch {
+            finite_block: 4,
+            per_thread: 2,
+            ..Launch::default()
+        }),
+        ..Default::default()
+    };
+    let mut checked = 0;
+    for model in MODEL_NAMES {
+        for scheme in ["s2", "kahanli8"] {
+            let Some(p) = ensemble(model, scheme) else {
+                continue;
+            };
+            let plan = Plan::new(&p).unwrap();
+            let label = format!("{model} {scheme} hardware exp");
+            let g = gpu::run::<f32>(&device, &plan, None).unwrap();
+            let c = cpu::run::<f32>(&plan, None);
+            compare(&label, &g.observations, &c, 1e-3);
+            let mut q = p.clone();
+            let final_vars = q.observers.final_vars.clone();
+            q.observers = Default::default();
+            q.observers.final_vars = final_vars;
+            let final_only = Plan::new(&q).unwrap();
+            assert!(generate(&final_only, Precision::F32).unwrap().has_blocks());
+            let a = gpu::run::<f32>(&device, &final_only, None).unwrap();
+            let b = gpu::run_with::<f32>(&device, &final_only, None, &blocks).unwrap();
+            assert!(
+                format!("{:?}", a.observations) == format!("{:?}", b.observations),
+                "{label}: launches"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked >= 10, "{checked}");
 }

@@ -1,8 +1,9 @@
 //! Every model × scheme × precision kernel, with every observer, is valid
 //! WGSL (naga, no GPU needed); and the kernels are specialised.
 
+use reeb::backend::gpu::codegen::{generate, ExpForm, Forms};
 use reeb::backend::gpu::tuning::Launch;
-use reeb::backend::gpu::{codegen::generate, validate};
+use reeb::backend::gpu::validate;
 use reeb::models::{Model, MODEL_NAMES};
 use reeb::num::precision::Precision;
 use reeb::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
@@ -75,15 +76,20 @@ fn every_kernel_validates() {
                     if let Err(e) = validate(&k.source, precision == Precision::F64) {
                         panic!("{model} {scheme} {precision}:\n{e}");
                     }
-                    // The source for adapters with 64-bit integers, with
-                    // blocks of steps where the kernel has no observers.
+                    // The source for adapters with 64-bit integers and the
+                    // hardware exp, with blocks of steps where the kernel
+                    // has no observers.
                     let launch = Launch {
                         finite_block: 4,
                         ..Launch::default()
                     };
-                    let other = k.source_for(&launch, true);
+                    let forms = Forms {
+                        int64: true,
+                        exp: ExpForm::Hardware,
+                    };
+                    let other = k.source_for(&launch, forms);
                     if let Err(e) = validate(&other, precision == Precision::F64) {
-                        panic!("{model} {scheme} {precision} (SHADER_INT64, blocks):\n{e}");
+                        panic!("{model} {scheme} {precision} (SHADER_INT64, hardware exp, blocks):\n{e}");
                     }
                     count += 1;
                 }

@@ -124,12 +124,41 @@ fn the_environment_overrides_the_launch_and_bad_values_are_refused() {
         &["run", s(&scene), "--out", s(&fixed)],
     ));
     same_arrays(&one, &fixed);
+    // The exp: lavapipe's default is reeb's polynomial; its exp2 form is
+    // another function, and the summary says so.
+    let exact = d.join("exact");
+    let exp = |form| [("REEB_GPU_EXP", form)];
+    succeeds(reeb_in(
+        &cache,
+        &exp("exact"),
+        &["run", s(&scene), "--out", s(&exact)],
+    ));
+    same_arrays(&one, &exact);
+    let hardware = d.join("hardware");
+    succeeds(reeb_in(
+        &cache,
+        &exp("hardware"),
+        &["run", s(&scene), "--out", s(&hardware)],
+    ));
+    let adapter = json(&hardware.join("summary.json"))["adapter"].to_string();
+    assert!(
+        adapter.contains("f32 exp from the adapter's exp2"),
+        "{adapter}"
+    );
+    assert!(!json(&one.join("summary.json"))["adapter"]
+        .to_string()
+        .contains("exp2"));
     for (var, value, says) in [
         ("REEB_GPU_WORKGROUP", "100000", "this adapter allows"),
         ("REEB_GPU_PER_THREAD", "0", "per invocation"),
         ("REEB_GPU_WINDOW", "abc", "REEB_GPU_WINDOW"),
         ("REEB_GPU_DISPATCH_SECONDS", "-1", "per dispatch"),
         ("REEB_GPU_FINITE_BLOCK", "9", "finite test every 9 steps"),
+        (
+            "REEB_GPU_EXP",
+            "fast",
+            "REEB_GPU_EXP=\"fast\": expected `exact`",
+        ),
     ] {
         let out = d.join(format!("bad-{var}"));
         let e = fails(reeb_in(

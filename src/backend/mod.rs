@@ -107,6 +107,14 @@ pub struct Integration<R> {
     pub timing: &'static str,
 }
 
+/// A device on adapter `index` (or the one `--backend gpu` takes), its
+/// hardware exp kept only where it measures accurate (`gpu::accuracy`).
+fn open(index: Option<usize>) -> Result<GpuContext, GpuError> {
+    let mut ctx = GpuContext::on(index)?;
+    gpu::accuracy::settle_exp(&mut ctx);
+    Ok(ctx)
+}
+
 impl Engine {
     /// Chooses the backend. `auto` takes a hardware GPU adapter when there is
     /// one (and it has f64 if asked for), and otherwise the CPU, returning
@@ -131,7 +139,7 @@ impl Engine {
         plan: Option<&Plan>,
     ) -> Result<(Engine, Option<String>), BackendError> {
         let f64_missing = |ctx: &GpuContext| precision == Precision::F64 && !ctx.shader_f64;
-        let ctx = match (choice, GpuContext::on(index)) {
+        let ctx = match (choice, open(index)) {
             (BackendChoice::Cpu, _) => return Ok((Engine::Cpu, None)),
             (BackendChoice::Gpu, ctx) => {
                 let ctx = ctx?;
@@ -201,7 +209,7 @@ impl Engine {
         };
         let mut engines = vec![];
         for k in indices {
-            let ctx = GpuContext::on(Some(k))?;
+            let ctx = open(Some(k))?;
             tune::check_env(&ctx)?;
             if precision == Precision::F64 && !ctx.shader_f64 {
                 return Err(GpuError::NoF64(ctx.describe()).into());
@@ -228,7 +236,7 @@ impl Engine {
     /// The GPU backend on adapter `index` of `reeb info`'s list, or on the
     /// one `--backend gpu` takes: the one way a GPU engine is built.
     pub fn gpu(index: Option<usize>) -> Result<Engine, BackendError> {
-        Ok(Engine::Gpu(Box::new(GpuContext::on(index)?)))
+        Ok(Engine::Gpu(Box::new(open(index)?)))
     }
 
     /// Does this engine run `precision`? A GPU without SHADER_F64 runs f32 only.

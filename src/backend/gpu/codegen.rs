@@ -50,13 +50,71 @@ const POW2_F64_PORTABLE: &str = "fn pow2(n: f64) -> f64 {
 }";
 const DRIVER: &str = include_str!("../../../shaders/driver.wgsl");
 
+/// The f32 prelude's `exp` as reeb's polynomial (`Math::exp_f32`): the
+/// CPU's function (within 2 ULP of its bits on lavapipe, which contracts
+/// a·b + c into fma where the CPU rounds twice).
+const EXP_F32_EXACT: &str = "fn exp_r(x: f32) -> f32 {
+    return exp_f32(x);
+}";
+
+/// The f32 prelude's `exp` from the adapter's `exp2`: x·log₂e split into
+/// t (rounded) and e (its error, exact by fma, plus x times log₂e's own
+/// error), then 2ᵗ·(1 + e·ln 2). Within 1 ULP of exp with a correctly
+/// rounded exp2; the driver's exp2 adds its own error (measured by
+/// `gpu::accuracy` and `reeb doctor`). Clamped by select, so that NaN
+/// passes, to where 2ᵗ is +0 or +∞ (exp2 of ±∞ would meet e = NaN).
+/// Seven operations and the exp2, where the polynomial takes about twenty:
+/// on an H200, van der Pol S2 in f32 went from 9.9·10¹¹ to 1.36·10¹²
+/// trajectory-steps/s with exp2 on reeb's reduced argument (this form,
+/// with no reduction, is not measured there yet).
+const EXP_F32_HARDWARE: &str = "fn exp_r(x: f32) -> f32 {
+    let lo = select(x, -88.0, x < -88.0);
+    let xc = select(lo, 89.0, lo > 89.0);
+    let t = xc * 1.44269502;
+    let e = fma(xc, 1.925963e-8, fma(xc, 1.44269502, -t));
+    let y = exp2(t);
+    return fma(y, e * 0.693147182, y);
+}";
+
+/// How a kernel computes what the adapter may compute its own way: the
+/// device's choice (`GpuContext::forms`), not the launch's, since the exp
+/// form changes the results (the launch never does).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Forms {
+    /// SHADER_INT64: the f64 `pow2` from the bits (the same values).
+    pub int64: bool,
+    /// The f32 `exp` (f64 kernels have no hardware exp).
+    pub exp: ExpForm,
+}
+
+/// The f32 `exp` of a kernel.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ExpForm {
+    /// reeb's polynomial, the CPU's function.
+    #[default]
+    Exact,
+    /// The adapter's exp2 on a split argument (a few ULP).
+    Hardware,
+}
+
+impl ExpForm {
+    pub fn name(self) -> &'static str {
+        match self {
+            ExpForm::Exact => "exact",
+            ExpForm::Hardware => "hardware",
+        }
+    }
+}
+
 /// A generated kernel and what the host needs to drive it.
 #[derive(Debug, Clone)]
 pub struct Kernel {
     /// The kernel with the default launch ([`Launch::default`]).
     pub source: String,
     /// The kernel with the launch's markers (`{{WORKGROUP}}`, …) and the
-    /// adapter's (`{{POW2_F64}}`) left to fill ([`Kernel::source_for`]).
+    /// adapter's (`{{POW2_F64}}`, `{{EXP_F32}}`) left to fill
+    /// ([`Kernel::source_for`]).
     template: String,
     /// What blocks of steps are written from, in a kernel without observers.
     blocks: Option<BlockParts>,
@@ -262,14 +320,7 @@ fn shared_text(
     formula: Option<&FormulaKernel>,
     moves_state: bool,
 ) -> Result<String, CodegenError> {
-    let mut text = String::new();
-    let (math, log_atan) = match precision {
-        Precision::F32 => (MATH_F32_WGSL, LOG_ATAN_F32_WGSL),
-        Precision::F64 => (MATH_F64_WGSL, LOG_ATAN_F64_WGSL),
-    };
-    for t in [math, log_atan, ELEMENTARY_WGSL] {
-        text.push_str(&to_wgsl(t)?);
-    }
+    let mut text = math_text(precision)?;
     for t in COMMON_WGSL.iter().chain(plan.model.spec().wgsl) {
         text.push_str(&to_wgsl(t)?);
     }
@@ -463,7 +514,7 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
         .replace("{{CUT}}", &slots::CUT.to_string());
     let template = format!("{prelude}\n// ---- shared functions (generated from src/**/*.rs) ----\n{shared}\n// ---- driver ----\n{driver}");
     Ok(Kernel {
-        source: launched(&template, None, &Launch::default(), false),
+        source: launched(&template, None, &Launch::default(), Forms::default()),
         template,
         blocks,
         table,
@@ -475,10 +526,9 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
 
 impl Kernel {
     /// The kernel's source for `launch` (its workgroup size, and the
-    /// trajectories each invocation integrates) on an adapter with or
-    /// without SHADER_INT64 (`int64`): the same values either way.
-    pub fn source_for(&self, launch: &Launch, int64: bool) -> String {
-        launched(&self.template, self.blocks.as_ref(), launch, int64)
+    /// trajectories each invocation integrates) in the device's `forms`.
+    pub fn source_for(&self, launch: &Launch, forms: Forms) -> String {
+        launched(&self.template, self.blocks.as_ref(), launch, forms)
     }
 
     /// Can its steps run in blocks ([`Launch::finite_block`])?
@@ -487,20 +537,55 @@ impl Kernel {
     }
 }
 
-fn launched(template: &str, parts: Option<&BlockParts>, launch: &Launch, int64: bool) -> String {
+fn launched(template: &str, parts: Option<&BlockParts>, launch: &Launch, forms: Forms) -> String {
     let blocks = match (parts, launch.finite_block) {
         (Some(parts), b) if b > 1 => blocks(parts, b),
         _ => String::new(),
     };
-    let pow2 = match int64 {
+    fill_forms(template, forms)
+        .replace("{{WORKGROUP}}", &launch.workgroup.to_string())
+        .replace("{{PER_THREAD}}", &launch.per_thread.to_string())
+        .replace("{{BLOCKS}}", &blocks)
+}
+
+/// `text` with the adapter's forms of `pow2` (f64) and `exp` (f32).
+fn fill_forms(text: &str, forms: Forms) -> String {
+    let pow2 = match forms.int64 {
         true => POW2_F64_INT64,
         false => POW2_F64_PORTABLE,
     };
-    template
-        .replace("{{WORKGROUP}}", &launch.workgroup.to_string())
-        .replace("{{PER_THREAD}}", &launch.per_thread.to_string())
-        .replace("{{POW2_F64}}", pow2)
-        .replace("{{BLOCKS}}", &blocks)
+    let exp = match forms.exp {
+        ExpForm::Exact => EXP_F32_EXACT,
+        ExpForm::Hardware => EXP_F32_HARDWARE,
+    };
+    text.replace("{{POW2_F64}}", pow2)
+        .replace("{{EXP_F32}}", exp)
+}
+
+/// The prelude and the math functions of `precision` in `forms`, without a
+/// driver: for kernels that evaluate the primitives (`gpu::accuracy`).
+pub fn math_source(precision: Precision, forms: Forms) -> Result<String, CodegenError> {
+    let prelude = match precision {
+        Precision::F32 => PRELUDE_F32,
+        Precision::F64 => PRELUDE_F64,
+    };
+    Ok(fill_forms(
+        &format!("{prelude}\n{}", math_text(precision)?),
+        forms,
+    ))
+}
+
+/// The math functions every kernel of `precision` includes, translated.
+fn math_text(precision: Precision) -> Result<String, CodegenError> {
+    let (math, log_atan) = match precision {
+        Precision::F32 => (MATH_F32_WGSL, LOG_ATAN_F32_WGSL),
+        Precision::F64 => (MATH_F64_WGSL, LOG_ATAN_F64_WGSL),
+    };
+    let mut text = String::new();
+    for t in [math, log_atan, ELEMENTARY_WGSL] {
+        text.push_str(&to_wgsl(t)?);
+    }
+    Ok(text)
 }
 
 /// Every name the plan's ops bind (their shared functions' arguments), plus

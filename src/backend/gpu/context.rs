@@ -4,6 +4,7 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
+use super::codegen::{ExpForm, Forms};
 use super::tuning::Tuned;
 
 /// Why the GPU backend cannot run.
@@ -27,6 +28,8 @@ pub enum GpuError {
     Codegen(#[from] super::codegen::CodegenError),
     #[error("the GPU reported an error: {0}")]
     Runtime(String),
+    #[error("{0}")]
+    Setting(String),
 }
 
 /// What `reeb info` shows about an adapter.
@@ -40,6 +43,8 @@ pub struct AdapterSummary {
     /// SHADER_INT64: the f64 kernels' `pow2` from the bits (faster on NVIDIA).
     pub shader_int64: bool,
     pub timestamps: bool,
+    /// The f32 `exp` its devices use ([`exp_form`]).
+    pub exp_f32: ExpForm,
     pub max_storage_buffer_binding_size: u64,
     pub max_buffer_size: u64,
     pub max_compute_workgroups_per_dimension: u32,
@@ -65,6 +70,7 @@ fn summary(a: &wgpu::Adapter) -> AdapterSummary {
         shader_f64: f.contains(wgpu::Features::SHADER_F64),
         shader_int64: f.contains(wgpu::Features::SHADER_INT64),
         timestamps: f.contains(wgpu::Features::TIMESTAMP_QUERY),
+        exp_f32: exp_form(&info).unwrap_or(default_exp(&info)),
         max_storage_buffer_binding_size: l.max_storage_buffer_binding_size,
         max_buffer_size: l.max_buffer_size,
         max_compute_workgroups_per_dimension: l.max_compute_workgroups_per_dimension,
@@ -226,6 +232,37 @@ pub fn is_software(info: &wgpu::AdapterInfo) -> bool {
     info.device_type == wgpu::DeviceType::Cpu
 }
 
+/// The f32 `exp` of a device on this adapter: `REEB_GPU_EXP` (`exact` or
+/// `hardware`) where set, else [`default_exp`].
+pub fn exp_form(info: &wgpu::AdapterInfo) -> Result<ExpForm, GpuError> {
+    match std::env::var(EXP_ENV).unwrap_or_default().as_str() {
+        "" => Ok(default_exp(info)),
+        "exact" => Ok(ExpForm::Exact),
+        "hardware" => Ok(ExpForm::Hardware),
+        other => Err(GpuError::Setting(format!(
+            "REEB_GPU_EXP={other:?}: expected `exact` (reeb's polynomial, the CPU's function) or `hardware` (the adapter's exp2, a few ULP)"
+        ))),
+    }
+}
+
+/// Has the environment chosen the f32 `exp` ([`exp_form`])?
+pub fn exp_chosen() -> bool {
+    std::env::var(EXP_ENV).is_ok_and(|v| !v.is_empty())
+}
+
+const EXP_ENV: &str = "REEB_GPU_EXP";
+
+/// The adapter's exp2 on a GPU (reeb's polynomial cost a third of van der
+/// Pol S2's f32 rate on an H200, and a GPU's results already differ from
+/// the CPU's by its contractions into fma); reeb's polynomial on a software
+/// adapter, whose exp2 is not much use (lavapipe's: 63 ULP off near ±85).
+pub fn default_exp(info: &wgpu::AdapterInfo) -> ExpForm {
+    match is_software(info) {
+        true => ExpForm::Exact,
+        false => ExpForm::Hardware,
+    }
+}
+
 /// A device ready to run reeb kernels.
 pub struct GpuContext {
     /// The adapter's index in `reeb info`'s list.
@@ -237,6 +274,8 @@ pub struct GpuContext {
     pub shader_f64: bool,
     /// 64-bit integers in shaders: the f64 kernels' `pow2` from the bits.
     pub shader_int64: bool,
+    /// The f32 kernels' `exp` ([`exp_form`]).
+    pub exp_f32: ExpForm,
     pub timestamps: bool,
     layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
@@ -259,6 +298,7 @@ impl GpuContext {
         let inst = instance();
         let (index, adapter) = choose_adapter(&inst, index)?;
         let info = adapter.get_info();
+        let exp_f32 = exp_form(&info)?;
         let features = adapter.features()
             & (wgpu::Features::SHADER_F64
                 | wgpu::Features::SHADER_INT64
@@ -314,6 +354,7 @@ impl GpuContext {
             queue,
             shader_f64: features.contains(wgpu::Features::SHADER_F64),
             shader_int64: features.contains(wgpu::Features::SHADER_INT64),
+            exp_f32,
             timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
             info,
             limits,
@@ -325,12 +366,24 @@ impl GpuContext {
         })
     }
 
-    /// One line naming the adapter.
+    /// One line naming the adapter (and its exp, where not reeb's).
     pub fn describe(&self) -> String {
+        let exp = match self.exp_f32 {
+            ExpForm::Exact => "",
+            ExpForm::Hardware => "; f32 exp from the adapter's exp2",
+        };
         format!(
-            "{} ({:?}, {:?})",
+            "{} ({:?}, {:?}{exp})",
             self.info.name, self.info.backend, self.info.device_type
         )
+    }
+
+    /// How this device's kernels compute what it may compute its own way.
+    pub fn forms(&self) -> Forms {
+        Forms {
+            int64: self.shader_int64,
+            exp: self.exp_f32,
+        }
     }
 
     pub fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {

@@ -2,6 +2,7 @@
 //! [`codegen`]), run by [`run`]. One [`GpuContext`] (instance, adapter, device,
 //! queue, pipeline cache) is created once and reused.
 
+pub mod accuracy;
 pub mod codegen;
 pub mod context;
 pub mod run;

@@ -210,7 +210,7 @@ pub fn run_resumable<R: Flows>(
     }
     let mut sizes = Sizes::new::<R>(ctx, plan, opts)?;
     let kernel = generate(plan, precision)?;
-    let pipeline = ctx.pipeline(&kernel.source_for(&sizes.launch, ctx.shader_int64))?;
+    let pipeline = ctx.pipeline(&kernel.source_for(&sizes.launch, ctx.forms()))?;
     // llvmpipe's loop limit counts an invocation's trajectories together.
     sizes.max_window = sizes.max_window.min(match sizes.launch.per_thread as u64 {
         1 => kernel.max_window,
@@ -833,7 +833,7 @@ fn lane_dt<R: Flows>(plan: &Plan, g: usize) -> R {
 }
 
 /// Maps a small MAP_READ buffer and returns its contents.
-fn read_mapped<T: bytemuck::Pod>(
+pub(super) fn read_mapped<T: bytemuck::Pod>(
     ctx: &GpuContext,
     buf: &wgpu::Buffer,
     bytes: u64,

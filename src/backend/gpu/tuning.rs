@@ -13,6 +13,9 @@ use std::path::PathBuf;
 pub const WORKGROUPS: [u32; 3] = [64, 128, 256];
 /// Trajectories per invocation the probe tries.
 pub const PER_THREAD: [u32; 3] = [1, 2, 4];
+/// Steps per finite test the probe tries beside 1 (where the kernel has
+/// blocks).
+pub const FINITE_BLOCKS: [u32; 2] = [4, 8];
 
 /// A kernel launch.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
