@@ -15,7 +15,7 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict};
 
-use reeb::backend::gpu::{list_adapters, GpuContext};
+use reeb::backend::gpu::list_adapters;
 use reeb::backend::Engine;
 use reeb::num::precision::Precision;
 use reeb::output::run::{gates, run_scene, RunOptions};
@@ -253,9 +253,11 @@ fn verify(py: Python, backend: &str, precision: &str) -> PyResult<String> {
 fn info() -> String {
     let isa = format!("{:?}", reeb::backend::cpu::isa());
     let adapters = list_adapters();
-    let gpu = GpuContext::new()
-        .map(|c| c.describe())
-        .map_err(|e| e.to_string());
+    let gpu = match Engine::gpu(None) {
+        Ok(Engine::Gpu(ctx)) => Ok(ctx.describe()),
+        Ok(Engine::Cpu) => Err("no GPU engine".to_string()),
+        Err(e) => Err(e.to_string()),
+    };
     serde_json::json!({
         "version": env!("CARGO_PKG_VERSION"),
         "cpu": {"threads": reeb::backend::cpu::threads(), "kernels": isa},
