@@ -91,7 +91,17 @@ fn a_corrupt_or_foreign_cache_is_measured_again() {
     let cache = d.join("cache");
     let scene = grid_scene(&d, 0.5, 10, "gpu");
     std::fs::create_dir_all(cache.join("reeb")).unwrap();
-    for bad in ["{not json", r#"{"reeb_version": "0.0.1", "tuned": {}}"#] {
+    // Corrupt; another version; this version from an earlier probe (no
+    // `probe`: before blocks of 8 steps were tried).
+    let earlier = format!(
+        r#"{{"reeb_version": "{}", "tuned": {{}}}}"#,
+        env!("CARGO_PKG_VERSION")
+    );
+    for bad in [
+        "{not json",
+        r#"{"reeb_version": "0.0.1", "tuned": {}}"#,
+        &earlier,
+    ] {
         std::fs::write(cache_file(&cache), bad).unwrap();
         succeeds(reeb_in(
             &cache,
@@ -100,6 +110,7 @@ fn a_corrupt_or_foreign_cache_is_measured_again() {
         ));
         let json: serde_json::Value = json(&cache_file(&cache));
         assert_eq!(json["reeb_version"], env!("CARGO_PKG_VERSION"), "{bad}");
+        assert_eq!(json["probe"], reeb::backend::gpu::tuning::PROBE, "{bad}");
     }
 }
 

@@ -125,7 +125,7 @@ fn probe<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<Tuned, BackendError>
     // Blocks of steps with one finite test each, first: they matter most
     // (van der Pol S2 on an H200: +46 % in f32 at 4 steps, +58 % at 8;
     // the launch, within 1.5 %), and the probe's time may run out before
-    // the last candidate. On lavapipe they are 5 % slower. Only kernels
+    // the last candidate. On lavapipe van der Pol's are 5 % slower. Only kernels
     // without observers have blocks.
     if gpu::codegen::generate(&sample(plan, m, 1), Precision::of::<R>())?.has_blocks() {
         for b in FINITE_BLOCKS {

@@ -202,8 +202,15 @@ pub struct Tuned {
 #[derive(Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Cache {
     pub reeb_version: String,
+    /// The probe that measured it ([`PROBE`]; 0 in files from before).
+    #[serde(default)]
+    pub probe: u32,
     pub tuned: BTreeMap<String, BTreeMap<String, Tuned>>,
 }
+
+/// The probe's generation: a cache from an earlier one is measured again
+/// (2: blocks of 4 and 8 steps tried first).
+pub const PROBE: u32 = 2;
 
 /// The file name of the cache in reeb's cache directory.
 pub const CACHE_FILE: &str = "gpu-tuning.json";
@@ -228,10 +235,11 @@ pub fn adapter_key(i: &wgpu::AdapterInfo) -> String {
 
 impl Cache {
     /// The cache file's contents; a missing, unreadable, corrupt file or
-    /// one of another reeb version is an empty cache (re-measured).
+    /// one of another reeb version or probe is an empty cache (re-measured).
     pub fn load() -> Cache {
         let empty = Cache {
             reeb_version: env!("CARGO_PKG_VERSION").into(),
+            probe: PROBE,
             ..Default::default()
         };
         let Some(path) = cache_dir().map(|d| d.join(CACHE_FILE)) else {
@@ -240,7 +248,7 @@ impl Cache {
         std::fs::read_to_string(path)
             .ok()
             .and_then(|s| serde_json::from_str::<Cache>(&s).ok())
-            .filter(|c| c.reeb_version == env!("CARGO_PKG_VERSION"))
+            .filter(|c| c.reeb_version == env!("CARGO_PKG_VERSION") && c.probe == PROBE)
             .unwrap_or(empty)
     }
 
