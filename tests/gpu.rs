@@ -724,6 +724,29 @@ fn f32_exp_forms_on_the_adapter() {
     }
     let exact = accuracy::exp_f32_accuracy(ctx, ExpForm::Exact, 1 << 16).unwrap();
     assert!(exact.max_ulp <= 2.0, "{exact:?}");
+    // The edges, in both forms: overflow to +∞ past 88.73 (at every
+    // argument: ∞·(1 + e·ln 2) would be NaN for half of them), 0 far
+    // below, NaN through.
+    let mut edges: Vec<f32> = (0..2000).map(|i| 88.73 + 0.3 * i as f32 / 2000.0).collect();
+    edges.extend([
+        100.0,
+        f32::INFINITY,
+        -110.0,
+        -1e30,
+        f32::NEG_INFINITY,
+        f32::NAN,
+    ]);
+    for form in [ExpForm::Exact, ExpForm::Hardware] {
+        let ys = accuracy::exp_f32_on(ctx, form, &edges).unwrap();
+        for (x, y) in edges.iter().zip(&ys) {
+            let right = match *x {
+                x if x.is_nan() => y.is_nan(),
+                x if x > 0.0 => *y == f32::INFINITY,
+                _ => y.to_bits() == 0,
+            };
+            assert!(right, "{form:?} exp({x}) = {y}");
+        }
+    }
     let hw = accuracy::exp_f32_accuracy(ctx, ExpForm::Hardware, 1 << 16).unwrap();
     eprintln!("hardware exp on {}: {hw:?}", ctx.describe());
     assert!(hw.max_ulp < 1e3, "{hw:?}");

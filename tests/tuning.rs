@@ -156,6 +156,20 @@ fn the_environment_overrides_the_launch_and_bad_values_are_refused() {
         adapter.contains("f32 exp from the adapter's exp2"),
         "{adapter}"
     );
+    // A bad exp setting is an error under `auto` too, not a missing GPU.
+    let e = fails(reeb_in(
+        &cache,
+        &exp("fast"),
+        &[
+            "run",
+            s(&scene),
+            "--out",
+            s(&d.join("auto")),
+            "--backend",
+            "auto",
+        ],
+    ));
+    assert!(e.contains("REEB_GPU_EXP=\"fast\""), "{e}");
     assert!(!json(&one.join("summary.json"))["adapter"]
         .to_string()
         .contains("exp2"));

@@ -139,8 +139,13 @@ impl Engine {
         plan: Option<&Plan>,
     ) -> Result<(Engine, Option<String>), BackendError> {
         let f64_missing = |ctx: &GpuContext| precision == Precision::F64 && !ctx.shader_f64;
+        if choice == BackendChoice::Cpu {
+            return Ok((Engine::Cpu, None));
+        }
         let ctx = match (choice, open(index)) {
             (BackendChoice::Cpu, _) => return Ok((Engine::Cpu, None)),
+            // A setting the user got wrong is an error, not a missing GPU.
+            (_, Err(e @ GpuError::Setting(_))) => return Err(e.into()),
             (BackendChoice::Gpu, ctx) => {
                 let ctx = ctx?;
                 tune::check_env(&ctx)?;

@@ -24,18 +24,24 @@ pub struct ExpAccuracy {
 
 /// The arguments: evenly over [−87.3, 88.37] (exp's normal range, to where
 /// reeb's polynomial's scale 2¹²⁸ overflows), and over
-/// [−1, 1], where the integrators' damping factors e^{τ…} mostly lie.
+/// [−1, 1], where the integrators' damping factors e^{τ…} mostly lie, and
+/// a few past overflow, in (88.73, 100], where exp is +∞.
 pub fn arguments(n: usize) -> Vec<f32> {
     let even =
         |lo: f64, hi: f64, k: usize| (0..k).map(move |i| lo + (hi - lo) * i as f64 / k as f64);
+    let over = 64.min(n / 4);
     even(-87.3, 88.37, n / 2)
-        .chain(even(-1.0, 1.0, n - n / 2))
+        .chain(even(-1.0, 1.0, n - n / 2 - over))
+        .chain(even(100.0, 88.73, over))
         .map(|x| x as f32)
         .collect()
 }
 
 /// `exp_r` in `form` of each of `xs`, on `ctx`.
 pub fn exp_f32_on(ctx: &GpuContext, form: ExpForm, xs: &[f32]) -> Result<Vec<f32>, BackendError> {
+    if xs.is_empty() {
+        return Ok(vec![]);
+    }
     let forms = Forms {
         int64: ctx.shader_int64,
         exp: form,
@@ -143,6 +149,10 @@ pub fn exp_f32_accuracy(
     for (&x, &y) in xs.iter().zip(&ys) {
         let exact = (x as f64).exp();
         let rounded = exact as f32;
+        // Past overflow only +∞ is right.
+        if rounded.is_infinite() && y != f32::INFINITY {
+            (worst.max_ulp, worst.at) = (f64::INFINITY, x);
+        }
         if !rounded.is_normal() {
             continue;
         }

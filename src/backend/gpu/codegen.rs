@@ -62,18 +62,20 @@ const EXP_F32_EXACT: &str = "fn exp_r(x: f32) -> f32 {
 /// error), then 2ᵗ·(1 + e·ln 2). Within 1 ULP of exp with a correctly
 /// rounded exp2; the driver's exp2 adds its own error (measured by
 /// `gpu::accuracy` and `reeb doctor`). Clamped by select, so that NaN
-/// passes, to where 2ᵗ is +0 or +∞ (exp2 of ±∞ would meet e = NaN).
-/// Seven operations and the exp2, where the polynomial takes about twenty:
+/// passes, to [−104, 89], where 2ᵗ is +0 below (t < −150) and +∞ above
+/// (exp2 of ±∞ would meet e = NaN); where 2ᵗ is +∞ it is the result
+/// itself, since ∞·(1 + e·ln 2) is NaN for e < 0.
+/// Eight operations and the exp2, where the polynomial takes about twenty:
 /// on an H200, van der Pol S2 in f32 went from 9.9·10¹¹ to 1.36·10¹²
 /// trajectory-steps/s with exp2 on reeb's reduced argument (this form,
 /// with no reduction, is not measured there yet).
 const EXP_F32_HARDWARE: &str = "fn exp_r(x: f32) -> f32 {
-    let lo = select(x, -88.0, x < -88.0);
+    let lo = select(x, -104.0, x < -104.0);
     let xc = select(lo, 89.0, lo > 89.0);
     let t = xc * 1.44269502;
     let e = fma(xc, 1.925963e-8, fma(xc, 1.44269502, -t));
     let y = exp2(t);
-    return fma(y, e * 0.693147182, y);
+    return select(fma(y, e * 0.693147182, y), y, t >= 128.0);
 }";
 
 /// How a kernel computes what the adapter may compute its own way: the
