@@ -5,7 +5,7 @@
 
 use super::codegen::{math_source, ExpForm, Forms};
 use super::context::{GpuContext, GpuError};
-use super::run::read_mapped;
+use super::run::{check, read_mapped};
 use crate::backend::error::BackendError;
 use crate::num::precision::Precision;
 
@@ -59,7 +59,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) n
     }
 }"
     );
-    let pipeline = evaluator(ctx, &source)?;
+    super::validate(&source, false).map_err(GpuError::Shader)?;
+    let pipeline = ctx.compile(&source, None, "reeb exp check")?;
     let bytes = std::mem::size_of_val(xs) as u64;
     let buffer = |usage: wgpu::BufferUsages| {
         ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -100,36 +101,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) n
     enc.copy_buffer_to_buffer(&output, 0, &staging, 0, bytes);
     ctx.queue.submit([enc.finish()]);
     let ys = read_mapped(ctx, &staging, bytes)?;
-    match ctx.take_errors() {
-        e if e.is_empty() => Ok(ys),
-        e => Err(GpuError::Runtime(e.join("; ")).into()),
-    }
-}
-
-/// A pipeline for an evaluation kernel, with the layout its bindings imply.
-fn evaluator(ctx: &GpuContext, source: &str) -> Result<wgpu::ComputePipeline, GpuError> {
-    super::validate(source, false).map_err(GpuError::Shader)?;
-    let scope = ctx.device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let module = ctx
-        .device
-        .create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("reeb exp check"),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
-    let pipeline = ctx
-        .device
-        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("reeb exp check"),
-            layout: None,
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-    match pollster::block_on(scope.pop()) {
-        Some(e) => Err(GpuError::Shader(e.to_string())),
-        None => Ok(pipeline),
-    }
+    check(ctx)?;
+    Ok(ys)
 }
 
 /// The largest error of `form` on `ctx` over `n` arguments ([`arguments`]).

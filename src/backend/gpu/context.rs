@@ -402,6 +402,38 @@ impl GpuContext {
         }
     }
 
+    /// The compute pipeline of `source`'s `main` (validated already), with
+    /// `layout` or the one its bindings imply; the device's complaints as
+    /// an error.
+    pub fn compile(
+        &self,
+        source: &str,
+        layout: Option<&wgpu::PipelineLayout>,
+        label: &str,
+    ) -> Result<wgpu::ComputePipeline, GpuError> {
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = self
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            });
+        let pipeline = self
+            .device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout,
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+        match pollster::block_on(scope.pop()) {
+            Some(e) => Err(GpuError::Shader(e.to_string())),
+            None => Ok(pipeline),
+        }
+    }
+
     /// The compute pipeline for `source`, compiled once per context.
     pub fn pipeline(&self, source: &str) -> Result<Arc<wgpu::ComputePipeline>, GpuError> {
         if let Some(p) = self
@@ -414,27 +446,7 @@ impl GpuContext {
         }
         // Validate with naga first: its messages point into the source.
         validate(source, true).map_err(GpuError::Shader)?;
-        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let module = self
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("reeb kernel"),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
-            });
-        let pipeline = self
-            .device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("reeb kernel"),
-                layout: Some(&self.pipeline_layout),
-                module: &module,
-                entry_point: Some("main"),
-                compilation_options: Default::default(),
-                cache: None,
-            });
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(GpuError::Shader(e.to_string()));
-        }
-        let p = Arc::new(pipeline);
+        let p = Arc::new(self.compile(source, Some(&self.pipeline_layout), "reeb kernel")?);
         self.pipelines
             .lock()
             .map_err(|e| GpuError::Runtime(e.to_string()))?

@@ -139,7 +139,8 @@ fn read<T: bytemuck::Pod>(
     read_mapped(ctx, staging, bytes)
 }
 
-fn check(ctx: &GpuContext) -> Result<(), BackendError> {
+/// The errors the device reported since the last call, as one.
+pub(super) fn check(ctx: &GpuContext) -> Result<(), BackendError> {
     let errors = ctx.take_errors();
     if errors.is_empty() {
         Ok(())
