@@ -204,10 +204,9 @@ crate::shared_fns! {
         return log_kernel_f32(x, m, e);
     }
 
-    /// ln x from x = 2^e·m, m in [1, 2) (m = x, e = 0 where x is not
-    /// positive and finite): fdlibm's logf kernel on f = m − 1 after m is
-    /// brought into [√½, √2).
-    fn log_kernel_f32(x: f32, m0: f32, e0: f32) -> f32 {
+    /// ln(2^e·m) for m in [1, 2): fdlibm's logf kernel on f = m − 1 after
+    /// m is brought into [√½, √2).
+    fn log_core_f32(m0: f32, e0: f32) -> f32 {
         let mut m: f32 = m0;
         let mut e: f32 = e0;
         let hi: bool = m > 1.41421356;
@@ -221,7 +220,13 @@ crate::shared_fns! {
         let t2: f32 = z * f32::fma(w, 0.28498786688, 0.66666662693);
         let r: f32 = t2 + t1;
         let hfsq: f32 = 0.5 * f * f;
-        let res: f32 = e * 0.693138123 - ((hfsq - (s * (hfsq + r) + e * 0.00000905525081)) - f);
+        return e * 0.693138123 - ((hfsq - (s * (hfsq + r) + e * 0.00000905525081)) - f);
+    }
+
+    /// ln x from x = 2^e·m, m in [1, 2) (m = x, e = 0 where x is not
+    /// positive and finite): `log_core_f32`, then the cases of 0, < 0, ∞.
+    fn log_kernel_f32(x: f32, m0: f32, e0: f32) -> f32 {
+        let res: f32 = log_core_f32(m0, e0);
         // ln 0 = −∞, ln x = NaN below 0 (∞·0 at run time), ln ∞ = ∞, NaN stays.
         let neg: f32 = f32::inf() * 0.0;
         let r1: f32 = f32::select(res, x, x > 3.40282347e38);
@@ -328,9 +333,9 @@ crate::shared_fns! {
         return log_kernel_f64(x, m, e);
     }
 
-    /// ln x from x = 2^e·m, as `log_kernel_f32`, with fdlibm's log
+    /// ln(2^e·m) for m in [1, 2), as `log_core_f32`, with fdlibm's log
     /// kernel (degree 14 in s).
-    fn log_kernel_f64(x: f64, m0: f64, e0: f64) -> f64 {
+    fn log_core_f64(m0: f64, e0: f64) -> f64 {
         let mut m: f64 = m0;
         let mut e: f64 = e0;
         let hi: bool = m > 1.4142135623730951;
@@ -344,7 +349,12 @@ crate::shared_fns! {
         let t2: f64 = z * f64::fma(w, f64::fma(w, f64::fma(w, 1.479819860511658591e-01, 1.818357216161805012e-01), 2.857142874366239149e-01), 6.666666666666735130e-01);
         let r: f64 = t2 + t1;
         let hfsq: f64 = 0.5 * f * f;
-        let res: f64 = e * 6.93147180369123816490e-01 - ((hfsq - (s * (hfsq + r) + e * 1.90821492927058770002e-10)) - f);
+        return e * 6.93147180369123816490e-01 - ((hfsq - (s * (hfsq + r) + e * 1.90821492927058770002e-10)) - f);
+    }
+
+    /// ln x from x = 2^e·m, as `log_kernel_f32`.
+    fn log_kernel_f64(x: f64, m0: f64, e0: f64) -> f64 {
+        let res: f64 = log_core_f64(m0, e0);
         let neg: f64 = f64::inf() * 0.0;
         let r1: f64 = f64::select(res, x, x > 1.7976931348623157e308);
         let r2: f64 = f64::select(r1, -f64::inf(), x == 0.0);
@@ -469,6 +479,8 @@ crate::shared_fns! {
 pub trait Math: Sized {
     fn exp_r(x: Self) -> Self;
     fn log_r(x: Self) -> Self;
+    /// ln x where x is known positive, normal and finite: `log_r`'s bits.
+    fn log_normal_r(x: Self) -> Self;
     fn atan_r(x: Self) -> Self;
     fn sincos_r(x: Self, s: &mut Self, c: &mut Self);
     #[inline(always)]
@@ -527,6 +539,27 @@ pub fn log_f64_bits(x: f64) -> f64 {
     log_kernel_f64(x, f64::select(x, m, normal), f64::select(0.0, e, normal))
 }
 
+/// ln x for a positive normal finite x (the FLI/MEGNO sample of a vector
+/// in the band of `in_band_r`): [`log_f32_bits`] without the cases it
+/// would not take there, so the same bits.
+#[inline(always)]
+pub fn log_normal_f32(x: f32) -> f32 {
+    let bits = x.to_bits();
+    let e = ((bits >> 23) & 0xff) as i32 - 127;
+    let m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
+    log_core_f32(m, e as f32)
+}
+
+/// ln x for a positive normal finite x, as [`log_normal_f32`]: the bits
+/// of [`log_f64_bits`].
+#[inline(always)]
+pub fn log_normal_f64(x: f64) -> f64 {
+    let bits = x.to_bits();
+    let biased = f64::from_bits((bits >> 52 & 0x7ff) | 0x4330_0000_0000_0000) - 4503599627370496.0;
+    let m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
+    log_core_f64(m, biased - 1023.0)
+}
+
 impl Math for f32 {
     #[inline(always)]
     fn exp_r(x: f32) -> f32 {
@@ -535,6 +568,10 @@ impl Math for f32 {
     #[inline(always)]
     fn log_r(x: f32) -> f32 {
         log_f32_bits(x)
+    }
+    #[inline(always)]
+    fn log_normal_r(x: f32) -> f32 {
+        log_normal_f32(x)
     }
     #[inline(always)]
     fn atan_r(x: f32) -> f32 {
@@ -554,6 +591,10 @@ impl Math for f64 {
     #[inline(always)]
     fn log_r(x: f64) -> f64 {
         log_f64_bits(x)
+    }
+    #[inline(always)]
+    fn log_normal_r(x: f64) -> f64 {
+        log_normal_f64(x)
     }
     #[inline(always)]
     fn atan_r(x: f64) -> f64 {
@@ -682,6 +723,42 @@ mod tests {
             x ^= x >> 7;
             x ^= x << 17;
             run(2f64.powf((x % 80_000) as f64 / 1000.0 - 40.0), 10_000);
+        }
+    }
+
+    /// `log_normal_r` is `log_r` bit for bit on positive normal numbers:
+    /// every f32 of the band [2⁻⁴⁰, 2⁴⁰] (where the samples call it) and
+    /// 10⁶ at each end of the normal range; in f64 10⁴ neighbours of each
+    /// power of two from 2⁻¹⁰²² to 2¹⁰²³ and of its √2 multiple (the
+    /// kernel's switch).
+    #[test]
+    fn log_normal_is_log_on_normal_numbers() {
+        let (lo, hi) = (f32::MIN_POSITIVE.to_bits(), f32::MAX.to_bits());
+        let band = 2f32.powi(-40).to_bits()..=2f32.powi(40).to_bits();
+        for b in band.chain(lo..lo + 1_000_000).chain(hi - 1_000_000..=hi) {
+            let x = f32::from_bits(b);
+            assert_eq!(
+                log_normal_f32(x).to_bits(),
+                log_f32_bits(x).to_bits(),
+                "ln {x:e}"
+            );
+        }
+        for e in -1022..=1023 {
+            for p in [2f64.powi(e), 2f64.powi(e) * std::f64::consts::SQRT_2] {
+                let start = p
+                    .to_bits()
+                    .saturating_sub(5_000)
+                    .max(f64::MIN_POSITIVE.to_bits());
+                let end = (start + 10_000).min(f64::MAX.to_bits());
+                for b in start..=end {
+                    let x = f64::from_bits(b);
+                    assert_eq!(
+                        log_normal_f64(x).to_bits(),
+                        log_f64_bits(x).to_bits(),
+                        "ln {x:e}"
+                    );
+                }
+            }
         }
     }
 

@@ -257,8 +257,23 @@ impl SampleShape {
     pub fn program(self) -> Lowered {
         match self {
             SampleShape::Lyapunov { d, k } => lyapunov_program(d, k),
-            SampleShape::Chaos { d } => chaos_program(d),
+            SampleShape::Chaos { d } => chaos_program(d, false),
         }
+    }
+
+    /// The program where the vector is known to be in the band of
+    /// `in_band_r` (see [`chaos_program`]); `None` for a Lyapunov shape,
+    /// whose later vectors are projected before their norm is read.
+    pub fn program_in_band(self) -> Option<Lowered> {
+        match self {
+            SampleShape::Lyapunov { .. } => None,
+            SampleShape::Chaos { d } => Some(chaos_program(d, true)),
+        }
+    }
+
+    /// Whether [`SampleShape::program_in_band`] has a program.
+    pub fn has_program_in_band(self) -> bool {
+        matches!(self, SampleShape::Chaos { .. })
     }
 }
 
@@ -322,7 +337,13 @@ pub fn lyapunov_program(d: usize, k: usize) -> Lowered {
 /// updated. Inputs: its components, `fli_oct`, `fli_log`, `fli_max`,
 /// `megno_sum`, `megno_mean`, the sample's number, one over it; outputs:
 /// the vector brought near norm 1, then the five in the inputs' order.
-pub fn chaos_program(d: usize) -> Lowered {
+///
+/// `in_band`: the program for a vector whose ‖u‖² is known to lie in the
+/// band of `in_band_r`, where the octave is 0: the DAG folds the rescaling
+/// away (u·1, E − 0), leaving the same operations on the same values as
+/// the full program, so the same bits, without a third of its work. Its
+/// logarithm reads a positive normal number (the CPU's `log_normal_r`).
+pub fn chaos_program(d: usize, in_band: bool) -> Lowered {
     let mut g = Dag::new();
     let x: Vec<Id> = (0..d + 7).map(|i| g.var(i as u32)).collect();
     let [octave, log0, max0, sum0, mean0, count, inv_count] = x[d..] else {
@@ -347,7 +368,13 @@ pub fn chaos_program(d: usize) -> Lowered {
     let dev = g.sub(y, mean0);
     let step = g.mul(dev, inv_count);
     let mean = g.add(mean0, step);
-    let (mut roots, e, _) = rescale(&mut g, u, octave, n2);
+    let (mut roots, e) = match in_band {
+        false => {
+            let (scaled, e, _) = rescale(&mut g, u, octave, n2);
+            (scaled, e)
+        }
+        true => (u.to_vec(), octave),
+    };
     roots.extend([e, ln, max, sum, mean]);
     lower(&g, &roots)
 }

@@ -9,7 +9,7 @@
 // Lane loops index several arrays by lane; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
-use super::samples::{sample_fn, SampleFn};
+use super::samples::{in_band_fn, sample_fn, SampleFn};
 use super::tangent::{CompiledTangent, TangentScratch};
 use crate::models::lanes::{index_of, Lanes, LANES};
 use crate::num::formula::tape::{Inputs, Tape};
@@ -47,6 +47,9 @@ pub struct Program<R> {
     every: u64,
     /// A sample program compiled (`samples.rs`), run instead of the tape.
     compiled: Option<(SampleShape, SampleFn<R>)>,
+    /// Its in-band program compiled, where it has one: the same bits where
+    /// the vector is in the band of `in_band_r` (a run of steps checks).
+    in_band: Option<SampleFn<R>>,
 }
 
 /// The indicators' programs for a plan.
@@ -179,6 +182,7 @@ impl<R: Real> IndicatorTapes<R> {
             outputs: ind.deviation_slots.iter().map(|k| first + k).collect(),
             every: 1,
             compiled: None,
+            in_band: None,
         };
         let samples: Vec<Program<R>> = [&ind.lyapunov, &ind.chaos]
             .into_iter()
@@ -389,7 +393,10 @@ impl<R: Real> IndicatorTapes<R> {
 
     /// Sample `p` after step `n1` inside a run of steps, on its arrays
     /// `buf` (at `loc`): the vectors from the scratch lanes and back, the
-    /// one-value inputs filled.
+    /// one-value inputs filled. `in_band`: its vector is in the band of
+    /// `in_band_r` in every lane, so its in-band program runs (the same
+    /// bits, and the vector stays as it is: MEGNO's sample costs 0.6 plain
+    /// steps against 0.8, Xeon AVX-512 f32).
     #[inline(always)]
     fn sample_in_run(
         &self,
@@ -398,8 +405,13 @@ impl<R: Real> IndicatorTapes<R> {
         s: &mut TangentScratch<R>,
         buf: &mut [[R; LANES]],
         n1: u64,
+        in_band: bool,
     ) {
-        let (shape, f) = p.compiled.expect("a compiled sample");
+        let (shape, compiled) = p.compiled.expect("a compiled sample");
+        let f = match in_band {
+            true => p.in_band.expect("an in-band program"),
+            false => compiled,
+        };
         let v = self.sample_scalars(p.every, n1);
         for &(a, k, lane) in &loc.vectors {
             buf[a] = *s.d[k].at(lane);
@@ -414,6 +426,9 @@ impl<R: Real> IndicatorTapes<R> {
         // SAFETY: `sample_fn` compiled it for the block's level, which
         // `kernels::isa` names only where the CPU has its features.
         unsafe { f(shape, buf) };
+        if in_band {
+            return;
+        }
         for &(a, k, lane) in &loc.vectors {
             *s.d[k].at_mut(lane) = buf[a];
         }
@@ -588,7 +603,8 @@ fn run_steps<R: Real>(
                 (Waits::Fli { max }, None) => peak.as_mut().expect("a peak").fold(p, loc, buf, max),
                 _ => {}
             }
-            ind.sample_in_run(p, loc, s, buf, n1);
+            let in_band = p.in_band.is_some() && band_norms(s, &loc.vectors).is_some();
+            ind.sample_in_run(p, loc, s, buf, n1, in_band);
         }
         let bad = match check {
             true => nonfinite_vectors(c, s),
@@ -834,6 +850,7 @@ fn sampler<R: Real>(s: &Sampler, first: usize, isa: Isa) -> Program<R> {
         outputs: s.outputs.iter().map(|k| first + k).collect(),
         every: s.every,
         compiled: sample_fn::<R>(s.shape, isa).map(|f| (s.shape, f)),
+        in_band: in_band_fn::<R>(s.shape, isa),
     }
 }
 

@@ -7,6 +7,7 @@
 use std::fmt::Write;
 
 use crate::models::tangent_gen::{rust_lets, rust_operand};
+use crate::num::formula::lower::Lowered;
 use crate::plan::indicators::SampleShape;
 
 /// The shapes compiled: tangent dimensions 2 to 4 (every built-in model,
@@ -42,31 +43,41 @@ fn pattern(s: SampleShape) -> String {
 /// pair for overlap at run time before each call: a hundred instructions,
 /// about the loop's own cost).
 fn lane_loop(s: SampleShape) -> String {
-    let l = s.program();
-    let inputs = s.inputs();
+    lane_loop_of(&name(s), &s.program(), s.inputs(), false)
+}
+
+/// [`lane_loop`] of the program `l` named `name` reading `inputs` arrays;
+/// `in_band`: its logarithm reads a positive normal number (the program of
+/// [`SampleShape::program_in_band`]), so it calls `log_normal_r`, the
+/// same bits without the cases of 0, ∞ and NaN.
+fn lane_loop_of(name: &str, l: &Lowered, inputs: usize, in_band: bool) -> String {
     let input = |k: u32| format!("x{k}[i]");
     let names = (0..inputs).map(|k| format!("x{k}")).collect::<Vec<_>>();
     let written = l.outputs.len();
     let mut t = String::new();
     writeln!(t, "#[inline(always)]").unwrap();
-    writeln!(t, "pub fn {}<R: Real>(x: &mut [[R; LANES]]) {{", name(s)).unwrap();
+    writeln!(t, "pub fn {name}<R: Real>(x: &mut [[R; LANES]]) {{").unwrap();
     writeln!(
         t,
         "    let x: &mut [[R; LANES]; {inputs}] = x.try_into().expect(\"{inputs} arrays\");"
     )
     .unwrap();
     writeln!(t, "    let [{}] = x.each_mut();", names.join(", ")).unwrap();
-    writeln!(t, "    {}_lanes({});", name(s), names.join(", ")).unwrap();
+    writeln!(t, "    {name}_lanes({});", names.join(", ")).unwrap();
     t.push_str("}\n\n");
     writeln!(t, "#[inline(always)]").unwrap();
-    writeln!(t, "fn {}_lanes<R: Real>(", name(s)).unwrap();
+    writeln!(t, "fn {name}_lanes<R: Real>(").unwrap();
     for (k, n) in names.iter().enumerate() {
         let m = if k < written { "&mut " } else { "&" };
         writeln!(t, "    {n}: {m}[R; LANES],").unwrap();
     }
     writeln!(t, ") {{").unwrap();
     writeln!(t, "    for i in 0..LANES {{").unwrap();
-    t.push_str(&rust_lets(&l, &input, "        "));
+    let lets = rust_lets(l, &input, "        ");
+    match in_band {
+        true => t.push_str(&lets.replace("R::log_r(", "R::log_normal_r(")),
+        false => t.push_str(&lets),
+    }
     // Every read before any write.
     for (k, o) in l.outputs.iter().enumerate() {
         writeln!(t, "        let o{k}: R = {};", rust_operand(*o, &input)).unwrap();
@@ -120,8 +131,35 @@ pub fn generate() -> String {
         "        _ => unreachable!(\"{{shape:?}} is not compiled\"),\n    }}\n}}\n"
     )
     .unwrap();
+    writeln!(
+        s,
+        "/// Runs the in-band program of `shape` ([`SampleShape::program_in_band`]),\n\
+         /// one of [`SHAPES`] that has one.\n#[inline(always)]"
+    )
+    .unwrap();
+    writeln!(
+        s,
+        "pub fn run_in_band<R: Real>(shape: SampleShape, x: &mut [[R; LANES]]) {{"
+    )
+    .unwrap();
+    writeln!(s, "    match shape {{").unwrap();
+    let banded = || shapes.iter().filter(|sh| sh.program_in_band().is_some());
+    for sh in banded() {
+        writeln!(s, "        {} => {}_in_band(x),", pattern(*sh), name(*sh)).unwrap();
+    }
+    writeln!(
+        s,
+        "        _ => unreachable!(\"{{shape:?}} has no in-band program\"),\n    }}\n}}\n"
+    )
+    .unwrap();
     for sh in &shapes {
         s.push_str(&lane_loop(*sh));
+        s.push('\n');
+    }
+    for sh in banded() {
+        let l = sh.program_in_band().expect("an in-band program");
+        let n = format!("{}_in_band", name(*sh));
+        s.push_str(&lane_loop_of(&n, &l, sh.inputs(), true));
         s.push('\n');
     }
     s.pop();
