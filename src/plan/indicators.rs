@@ -351,12 +351,7 @@ pub fn chaos_program(d: usize, in_band: bool) -> Lowered {
     };
     let u = &x[..d];
     let n2 = dot(&mut g, u, u);
-    let ln2 = g.num(std::f64::consts::LN_2);
-    let whole = g.mul(octave, ln2);
-    let log = g.call(Func::Log, n2);
-    let half = g.num(0.5);
-    let part = g.mul(half, log);
-    let ln = g.add(whole, part);
+    let ln = ln_norm(&mut g, octave, n2);
     let max = g.call2(Func2::Max, max0, ln);
     let delta = g.sub(ln, log0);
     let weighted = g.mul(count, delta);
@@ -377,6 +372,41 @@ pub fn chaos_program(d: usize, in_band: bool) -> Lowered {
     };
     roots.extend([e, ln, max, sum, mean]);
     lower(&g, &roots)
+}
+
+/// ln‖w‖ = E ln 2 + ½ ln‖u‖² of a vector kept as u = w·2^−E.
+fn ln_norm(g: &mut Dag, octave: Id, n2: Id) -> Id {
+    let ln2 = g.num(std::f64::consts::LN_2);
+    let whole = g.mul(octave, ln2);
+    let log = g.call(Func::Log, n2);
+    let half = g.num(0.5);
+    let part = g.mul(half, log);
+    g.add(whole, part)
+}
+
+/// The FLI vector's ‖u‖² as [`chaos_program`] computes it, into a running
+/// maximum (a run of steps keeps it while the FLI's samples wait, where a
+/// sample would change nothing but `fli_max`): inputs that maximum, then
+/// the vector's `d` components; output the new maximum, over input 0.
+pub fn chaos_peak_program(d: usize) -> Lowered {
+    let mut g = Dag::new();
+    let x: Vec<Id> = (0..=d).map(|i| g.var(i as u32)).collect();
+    let n2 = dot(&mut g, &x[1..], &x[1..]);
+    let max = g.call2(Func2::Max, x[0], n2);
+    lower(&g, &[max])
+}
+
+/// `fli_max` after samples that waited, from the largest ‖u‖² among them
+/// ([`chaos_peak_program`]), as [`chaos_program`] would have made it at
+/// that step (ln is non-decreasing, and E does not change while the
+/// samples wait): inputs `fli_max`, `fli_oct` and that ‖u‖², in the band
+/// of `in_band_r`; output `fli_max`, over input 0.
+pub fn chaos_fold_program() -> Lowered {
+    let mut g = Dag::new();
+    let [max0, octave, n2] = [0, 1, 2].map(|i| g.var(i));
+    let ln = ln_norm(&mut g, octave, n2);
+    let max = g.call2(Func2::Max, max0, ln);
+    lower(&g, &[max])
 }
 
 /// Where [`chaos_program`] of dimension `d` reads and writes `fli_max`

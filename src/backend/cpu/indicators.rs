@@ -9,6 +9,7 @@
 // Lane loops index several arrays by lane; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
+use super::sample_ops;
 use super::samples::{in_band_fn, sample_fn, SampleFn};
 use super::tangent::{CompiledTangent, TangentScratch};
 use crate::models::lanes::{index_of, Lanes, LANES};
@@ -104,8 +105,8 @@ enum Waits {
     Lyapunov,
     /// The FLI without MEGNO: the sample would change nothing but
     /// `fli_max` (its array `max`; and `fli_log` and the sums, which only
-    /// MEGNO reads); the vector at the largest ‖u‖² of the steps it waited
-    /// has their largest ln‖w‖ ([`Peak`]).
+    /// MEGNO reads); the largest ‖u‖² of the steps it waited gives their
+    /// largest ln‖w‖ ([`Peak`]).
     Fli {
         max: usize,
     },
@@ -596,11 +597,14 @@ fn run_steps<R: Real>(
             };
             match (loc.waits, norms) {
                 (Waits::Lyapunov, Some(_)) => continue,
-                (Waits::Fli { .. }, Some(n2)) => {
-                    peak.as_mut().expect("a peak").keep(&n2, s, &loc.vectors);
+                (Waits::Fli { .. }, Some(_)) => {
+                    peak.as_mut().expect("a peak").keep(s, &loc.vectors);
                     continue;
                 }
-                (Waits::Fli { max }, None) => peak.as_mut().expect("a peak").fold(p, loc, buf, max),
+                (Waits::Fli { max }, None) => {
+                    let octave = loc.vectors.len();
+                    peak.as_mut().expect("a peak").fold(buf, max, octave)
+                }
                 _ => {}
             }
             let in_band = p.in_band.is_some() && band_norms(s, &loc.vectors).is_some();
@@ -657,84 +661,55 @@ fn band_norms<R: Real>(
     (!out).then_some(n2)
 }
 
-/// The FLI vector at its largest ‖u‖² over the steps its sample waited
-/// (‖u‖² 0: none yet), per lane: in the half `now` of `n2` and `u`
-/// (component j at `now`·[`MAX_DIMENSION`] + j), each step's choice
-/// written into the other half. Selected into other arrays than they
-/// read: a lane loop that writes back where it read, under a condition,
-/// compiles to stores under a mask, which AVX2 makes slow (the FLI run
-/// 3.13× the plain run against 2.45×, Zen 4). On the heap: kilobytes on
-/// the stack of a run of steps moved the compiled tangent's spills (two
-/// vectors 12 % slower, AVX2 and f64).
+/// The FLI vector's largest ‖u‖² over the steps its sample waited, per
+/// lane (0: none yet), computed as the sample program computes it
+/// (`chaos_peak_program`), so that the fold gives `fli_max` the bits of
+/// sampling each of those steps. (It kept the vector at that step and ran
+/// the sample on it: 0.23 plain steps per step, the FLI run 2.04× the
+/// plain run against 1.9×, Xeon AVX-512 f32.) On the heap, as the run's
+/// other state: the stack of a run of steps holds the compiled tangent's
+/// spills.
 struct Peak<R> {
-    n2: Vec<[R; LANES]>,
-    u: Vec<[R; LANES]>,
-    now: usize,
+    n2: Box<[R; LANES]>,
 }
-
-/// The largest tangent dimension of the compiled sample shapes.
-const MAX_DIMENSION: usize = 4;
 
 impl<R: Real> Peak<R> {
     fn new() -> Peak<R> {
         Peak {
-            n2: vec![[R::from_f64(0.0); LANES]; 2],
-            u: vec![[R::from_f64(0.0); LANES]; 2 * MAX_DIMENSION],
-            now: 0,
+            n2: Box::new([R::from_f64(0.0); LANES]),
         }
     }
 
-    /// The vector at `vectors` in `s` where its ‖u‖² `n2` is the largest.
+    /// The vector at `vectors` in `s` into the largest ‖u‖².
     #[inline(always)]
-    fn keep(&mut self, n2: &[R; LANES], s: &TangentScratch<R>, vectors: &[(usize, usize, usize)]) {
-        let (a, b) = self.u.split_at_mut(MAX_DIMENSION);
-        let (from, to) = if self.now == 0 { (a, b) } else { (b, a) };
-        let (m, n) = self.n2.split_at_mut(1);
-        let (was, is) = if self.now == 0 {
-            (&m[0], &mut n[0])
-        } else {
-            (&n[0], &mut m[0])
+    fn keep(&mut self, s: &TangentScratch<R>, vectors: &[(usize, usize, usize)]) {
+        let u = |j: usize| {
+            let (_, k, lane) = vectors[j];
+            s.d[k].at(lane)
         };
-        for (j, &(_, k, lane)) in vectors.iter().enumerate() {
-            let (x, from, to) = (s.d[k].at(lane), &from[j], &mut to[j]);
-            for i in 0..LANES {
-                to[i] = R::select(from[i], x[i], n2[i] > was[i]);
-            }
+        let n2 = &mut *self.n2;
+        match vectors.len() {
+            2 => sample_ops::chaos_peak_2(n2, u(0), u(1)),
+            3 => sample_ops::chaos_peak_3(n2, u(0), u(1), u(2)),
+            4 => sample_ops::chaos_peak_4(n2, u(0), u(1), u(2), u(3)),
+            d => unreachable!("no compiled FLI sample of dimension {d}"),
         }
-        for i in 0..LANES {
-            is[i] = R::select(was[i], n2[i], n2[i] > was[i]);
-        }
-        self.now = 1 - self.now;
     }
 
-    /// Before the FLI sample `p` (arrays `buf` at `loc`, `fli_max` at `max`)
-    /// after steps it waited: its program on the kept vector, which puts
-    /// their largest ln‖w‖ into `fli_max` with the bits of the sample at
-    /// that step (the same code on the same vector and E: E changes only
-    /// at a sample). The vector is picked by this ‖u‖², which the
-    /// compiler may contract into FMAs otherwise than in the program: two
-    /// steps within an ulp or two of ‖u‖² may be told apart otherwise.
-    #[inline(always)]
-    fn fold(&mut self, p: &Program<R>, loc: &RunLocs, buf: &mut [[R; LANES]], max: usize) {
+    /// Before the FLI sample (arrays `buf`, `fli_max` at `max`, `fli_oct`
+    /// before it) after steps it waited: `fli_max` from the largest ‖u‖²
+    /// (`chaos_fold_program`), as the samples at those steps would have
+    /// made it. All lanes or none waited (a run waits only where every
+    /// lane is in the band).
+    fn fold(&mut self, buf: &mut [[R; LANES]], max: usize, octave: usize) {
         let zero = R::from_f64(0.0);
-        let u = &self.u[self.now * MAX_DIMENSION..];
-        let n2 = &mut self.n2[self.now];
-        if n2.iter().all(|n2| *n2 == zero) {
+        if self.n2[0] == zero {
             return;
         }
-        let (shape, f) = p.compiled.expect("a compiled sample");
-        let mut x = buf.to_vec();
-        for (j, &(a, _, _)) in loc.vectors.iter().enumerate() {
-            x[a] = u[j];
-        }
-        // SAFETY: as in `sample_in_run`.
-        unsafe { f(shape, &mut x) };
-        for i in 0..LANES {
-            if n2[i] > zero {
-                buf[max][i] = x[max][i];
-            }
-        }
-        *n2 = [zero; LANES];
+        debug_assert!(octave < max);
+        let (low, high) = buf.split_at_mut(max);
+        sample_ops::chaos_fold(&mut high[0], &low[octave], &self.n2);
+        *self.n2 = [zero; LANES];
     }
 }
 

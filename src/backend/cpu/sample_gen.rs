@@ -8,7 +8,7 @@ use std::fmt::Write;
 
 use crate::models::tangent_gen::{rust_lets, rust_operand};
 use crate::num::formula::lower::Lowered;
-use crate::plan::indicators::SampleShape;
+use crate::plan::indicators::{chaos_fold_program, chaos_peak_program, SampleShape};
 
 /// The shapes compiled: tangent dimensions 2 to 4 (every built-in model,
 /// and formula models of up to two degrees of freedom), every number of
@@ -51,7 +51,6 @@ fn lane_loop(s: SampleShape) -> String {
 /// [`SampleShape::program_in_band`]), so it calls `log_normal_r`, the
 /// same bits without the cases of 0, ∞ and NaN.
 fn lane_loop_of(name: &str, l: &Lowered, inputs: usize, in_band: bool) -> String {
-    let input = |k: u32| format!("x{k}[i]");
     let names = (0..inputs).map(|k| format!("x{k}")).collect::<Vec<_>>();
     let written = l.outputs.len();
     let mut t = String::new();
@@ -72,6 +71,17 @@ fn lane_loop_of(name: &str, l: &Lowered, inputs: usize, in_band: bool) -> String
         writeln!(t, "    {n}: {m}[R; LANES],").unwrap();
     }
     writeln!(t, ") {{").unwrap();
+    t.push_str(&lane_body(l, in_band));
+    t.push_str("}\n");
+    t
+}
+
+/// The lane loop of the program `l` on arrays `x0`, `x1`, … (input k in
+/// `xk`, output k written over it); `in_band`: its logarithm reads a
+/// positive normal number (`log_normal_r`).
+fn lane_body(l: &Lowered, in_band: bool) -> String {
+    let input = |k: u32| format!("x{k}[i]");
+    let mut t = String::new();
     writeln!(t, "    for i in 0..LANES {{").unwrap();
     let lets = rust_lets(l, &input, "        ");
     match in_band {
@@ -82,10 +92,38 @@ fn lane_loop_of(name: &str, l: &Lowered, inputs: usize, in_band: bool) -> String
     for (k, o) in l.outputs.iter().enumerate() {
         writeln!(t, "        let o{k}: R = {};", rust_operand(*o, &input)).unwrap();
     }
-    for k in 0..written {
+    for k in 0..l.outputs.len() {
         writeln!(t, "        x{k}[i] = o{k};").unwrap();
     }
-    t.push_str("    }\n}\n");
+    t.push_str("    }\n");
+    t
+}
+
+/// The FLI's waiting programs: `chaos_peak_{d}` ([`chaos_peak_program`],
+/// the vector by reference) and `chaos_fold` ([`chaos_fold_program`]).
+fn waiting_loops() -> String {
+    let mut t = String::new();
+    for d in 2..=4 {
+        let args: Vec<String> = (1..=d).map(|k| format!("x{k}: &[R; LANES]")).collect();
+        writeln!(
+            t,
+            "/// The FLI vector's ‖u‖² into the running maximum `x0`.\n\
+             #[inline(always)]\npub fn chaos_peak_{d}<R: Real>(x0: &mut [R; LANES], {}) {{",
+            args.join(", ")
+        )
+        .unwrap();
+        t.push_str(&lane_body(&chaos_peak_program(d), false));
+        t.push_str("}\n\n");
+    }
+    writeln!(
+        t,
+        "/// `fli_max` (`x0`) from `fli_oct` (`x1`) and the largest ‖u‖² (`x2`).\n\
+         #[inline(always)]\n\
+         pub fn chaos_fold<R: Real>(x0: &mut [R; LANES], x1: &[R; LANES], x2: &[R; LANES]) {{"
+    )
+    .unwrap();
+    t.push_str(&lane_body(&chaos_fold_program(), true));
+    t.push_str("}\n");
     t
 }
 
@@ -156,6 +194,8 @@ pub fn generate() -> String {
         s.push_str(&lane_loop(*sh));
         s.push('\n');
     }
+    s.push_str(&waiting_loops());
+    s.push('\n');
     for sh in banded() {
         let l = sh.program_in_band().expect("an in-band program");
         let n = format!("{}_in_band", name(*sh));

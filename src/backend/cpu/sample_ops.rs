@@ -1422,6 +1422,65 @@ fn chaos_4_lanes<R: Real>(
     }
 }
 
+/// The FLI vector's ‖u‖² into the running maximum `x0`.
+#[inline(always)]
+pub fn chaos_peak_2<R: Real>(x0: &mut [R; LANES], x1: &[R; LANES], x2: &[R; LANES]) {
+    for i in 0..LANES {
+        let v0: R = x1[i] * x1[i];
+        let v1: R = x2[i] * x2[i];
+        let v2: R = v0 + v1;
+        let v3: R = R::max_r(x0[i], v2);
+        let o0: R = v3;
+        x0[i] = o0;
+    }
+}
+
+/// The FLI vector's ‖u‖² into the running maximum `x0`.
+#[inline(always)]
+pub fn chaos_peak_3<R: Real>(x0: &mut [R; LANES], x1: &[R; LANES], x2: &[R; LANES], x3: &[R; LANES]) {
+    for i in 0..LANES {
+        let v0: R = x1[i] * x1[i];
+        let v1: R = x2[i] * x2[i];
+        let v2: R = v0 + v1;
+        let v3: R = x3[i] * x3[i];
+        let v4: R = v2 + v3;
+        let v5: R = R::max_r(x0[i], v4);
+        let o0: R = v5;
+        x0[i] = o0;
+    }
+}
+
+/// The FLI vector's ‖u‖² into the running maximum `x0`.
+#[inline(always)]
+pub fn chaos_peak_4<R: Real>(x0: &mut [R; LANES], x1: &[R; LANES], x2: &[R; LANES], x3: &[R; LANES], x4: &[R; LANES]) {
+    for i in 0..LANES {
+        let v0: R = x1[i] * x1[i];
+        let v1: R = x2[i] * x2[i];
+        let v2: R = v0 + v1;
+        let v3: R = x3[i] * x3[i];
+        let v4: R = v2 + v3;
+        let v5: R = x4[i] * x4[i];
+        let v6: R = v4 + v5;
+        let v7: R = R::max_r(x0[i], v6);
+        let o0: R = v7;
+        x0[i] = o0;
+    }
+}
+
+/// `fli_max` (`x0`) from `fli_oct` (`x1`) and the largest ‖u‖² (`x2`).
+#[inline(always)]
+pub fn chaos_fold<R: Real>(x0: &mut [R; LANES], x1: &[R; LANES], x2: &[R; LANES]) {
+    for i in 0..LANES {
+        let v0: R = x1[i] * R::from_f64(0.6931471805599453);
+        let v1: R = R::log_normal_r(x2[i]);
+        let v2: R = v1 * R::from_f64(0.5);
+        let v3: R = v0 + v2;
+        let v4: R = R::max_r(x0[i], v3);
+        let o0: R = v4;
+        x0[i] = o0;
+    }
+}
+
 #[inline(always)]
 pub fn chaos_2_in_band<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 9] = x.try_into().expect("9 arrays");
