@@ -142,11 +142,11 @@ impl Engine {
         if choice == BackendChoice::Cpu {
             return Ok((Engine::Cpu, None));
         }
-        let ctx = match (choice, open(index)) {
-            (BackendChoice::Cpu, _) => return Ok((Engine::Cpu, None)),
+        // `gpu` or `auto` from here.
+        let ctx = match open(index) {
             // A setting the user got wrong is an error, not a missing GPU.
-            (_, Err(e @ GpuError::Setting(_))) => return Err(e.into()),
-            (BackendChoice::Gpu, ctx) => {
+            Err(e @ GpuError::Setting(_)) => return Err(e.into()),
+            ctx if choice == BackendChoice::Gpu => {
                 let ctx = ctx?;
                 tune::check_env(&ctx)?;
                 if f64_missing(&ctx) {
@@ -154,7 +154,7 @@ impl Engine {
                 }
                 return Ok((Engine::Gpu(Box::new(ctx)), None));
             }
-            (BackendChoice::Auto, Err(e)) if index.is_none() => {
+            Err(e) if index.is_none() => {
                 return Ok((
                     Engine::Cpu,
                     Some(format!(
@@ -163,7 +163,7 @@ impl Engine {
                     )),
                 ))
             }
-            (BackendChoice::Auto, ctx) => ctx?,
+            ctx => ctx?,
         };
         if index.is_none() && gpu::is_software(&ctx.info) {
             return Ok((Engine::Cpu, Some(format!("note: only a software GPU adapter ({}); running on the CPU (use --backend gpu to run it anyway)", ctx.info.name))));
