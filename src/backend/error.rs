@@ -5,7 +5,7 @@ use super::gpu::context::GpuError;
 
 #[derive(Debug, thiserror::Error)]
 pub enum BackendError {
-    #[error("{0}")]
+    #[error(transparent)]
     Gpu(#[from] GpuError),
     /// The plan's arrays or buffers do not fit (in memory, in 64 bits, in
     /// the adapter's limits).

@@ -24,7 +24,7 @@ pub enum GpuError {
     Device(String),
     #[error("the generated kernel was rejected: {0}")]
     Shader(String),
-    #[error("{0}")]
+    #[error(transparent)]
     Codegen(#[from] super::codegen::CodegenError),
     #[error("the GPU reported an error: {0}")]
     Runtime(String),
