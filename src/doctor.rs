@@ -28,6 +28,12 @@ pub const AGREEMENT_SCHEMES: [&str; 4] = ["s2", "yoshida6a", "kahanli8", "rk4"];
 /// over 60 steps: those of `tests/gpu.rs`.
 pub const TOLERANCE_F32: f64 = 2e-4;
 pub const TOLERANCE_F64: f64 = 1e-10;
+/// The f32 tolerance where the kernels' exp is the adapter's exp2 (a
+/// different function from the CPU's, within 4 ULP): that of
+/// `tests/gpu.rs::hardware_exp_agrees_with_the_cpu`. On an H200 Kepler
+/// kahanli8 differs by 2.2e-4, where the CPU's f32 is itself 1.2e-4 from
+/// its f64.
+pub const TOLERANCE_F32_HARDWARE_EXP: f64 = 1e-3;
 /// The throughput scenarios.
 pub const BENCH_SCENARIOS: [Scenario; 4] = [
     Scenario::VdpS2,
@@ -84,6 +90,7 @@ pub struct Tuned {
     pub gpu_rate: f64,
     pub cpu_rate: f64,
     pub probe_seconds: f64,
+    pub compile_seconds: f64,
 }
 
 /// `reeb verify --backend gpu` at one precision.
@@ -246,6 +253,7 @@ fn tune(
                 gpu_rate: t.tuned.gpu_rate,
                 cpu_rate: t.tuned.cpu_rate,
                 probe_seconds: t.tuned.probe_seconds,
+                compile_seconds: t.tuned.compile_seconds,
             })
             .collect(),
         Err(e) => {
@@ -328,9 +336,11 @@ fn ensemble(model: &str, scheme: &str) -> Option<Problem> {
 
 /// Every model × [`AGREEMENT_SCHEMES`] at `precision`.
 fn agree(gpu: &Engine, precision: Precision) -> Vec<Agreement> {
-    let tolerance = match precision {
-        Precision::F32 => TOLERANCE_F32,
-        Precision::F64 => TOLERANCE_F64,
+    let hardware_exp = matches!(gpu, Engine::Gpu(c) if c.exp_f32 == ExpForm::Hardware);
+    let tolerance = match (precision, hardware_exp) {
+        (Precision::F32, false) => TOLERANCE_F32,
+        (Precision::F32, true) => TOLERANCE_F32_HARDWARE_EXP,
+        (Precision::F64, _) => TOLERANCE_F64,
     };
     let mut rows = vec![];
     for model in MODEL_NAMES {

@@ -713,17 +713,18 @@ fn tune(
         engine.describe()
     );
     println!(
-        "{:<28} {:<60} {:>14} {:>14} {:>8}",
-        "shape", "launch", "GPU steps/s", "CPU steps/s", "probe s"
+        "{:<28} {:<60} {:>14} {:>14} {:>8} {:>10}",
+        "shape", "launch", "GPU steps/s", "CPU steps/s", "probe s", "compile s"
     );
     let rows = reeb::bench::tune(&engine, scene.as_ref(), &precisions, |t| {
         println!(
-            "{:<28} {:<60} {:>14.4e} {:>14.4e} {:>8.2}",
+            "{:<28} {:<60} {:>14.4e} {:>14.4e} {:>8.2} {:>10.2}",
             t.shape,
             t.tuned.launch.describe(),
             t.tuned.gpu_rate,
             t.tuned.cpu_rate,
-            t.tuned.probe_seconds
+            t.tuned.probe_seconds,
+            t.tuned.compile_seconds
         );
     })?;
     if rows.is_empty() {
@@ -758,10 +759,12 @@ fn print_tuning(adapters: &[reeb::backend::gpu::AdapterSummary]) {
         }
         for (shape, t) in tuned.into_iter().flatten() {
             println!(
-                "  adapter {k}, {shape}: {}; GPU {:.3e}, CPU {:.3e} trajectory-steps/s",
+                "  adapter {k}, {shape}: {}; GPU {:.3e}, CPU {:.3e} trajectory-steps/s; probe {:.2} s, of which {:.2} s compiling",
                 t.launch.describe(),
                 t.gpu_rate,
-                t.cpu_rate
+                t.cpu_rate,
+                t.probe_seconds,
+                t.compile_seconds
             );
         }
     }

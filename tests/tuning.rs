@@ -57,11 +57,25 @@ fn setup(name: &str) -> Option<PathBuf> {
 fn tune_caches_each_shape_and_info_shows_it() {
     let Some(d) = setup("tune") else { return };
     let cache = d.join("cache");
-    let out = succeeds(reeb_in(&cache, &[], &["tune", "--precision", "f32"]));
+    let out = succeeds(reeb_in(
+        &cache,
+        &[("REEB_GPU_PROBE_LOG", "1")],
+        &["tune", "--precision", "f32"],
+    ));
     assert!(
         out.contains("f32 van_der_pol") && out.contains("workgroup"),
         "{out}"
     );
+    // The log names each candidate; the blocks of steps are measured
+    // whatever the budget (van der Pol's kernel has them).
+    for b in [4, 8] {
+        let line = format!("finite test every {b} steps: ");
+        assert!(
+            out.lines()
+                .any(|l| l.starts_with("probe f32: ") && l.contains(&line)),
+            "{out}"
+        );
+    }
     let json: serde_json::Value = json(&cache_file(&cache));
     assert_eq!(json["reeb_version"], env!("CARGO_PKG_VERSION"));
     let (_, shapes) = json["tuned"].as_object().unwrap().iter().next().unwrap();
@@ -70,12 +84,15 @@ fn tune_caches_each_shape_and_info_shows_it() {
     for (shape, t) in shapes {
         assert!(shape.starts_with("f32 "), "{shape}");
         assert!(t["gpu_rate"].as_f64().unwrap() > 0.0 && t["cpu_rate"].as_f64().unwrap() > 0.0);
-        assert!(t["probe_seconds"].as_f64().unwrap() < 5.0, "{t}");
+        let probe = t["probe_seconds"].as_f64().unwrap();
+        let compile = t["compile_seconds"].as_f64().unwrap();
+        assert!(probe < 5.0 && (0.0..=probe).contains(&compile), "{t}");
     }
     let info = succeeds(reeb_in(&cache, &[], &["info"]));
     assert!(
-        info.contains("adapter 0, f32 van_der_pol 2^20")
-            || info.contains("adapter 0, f32 van_der_pol 2^12"),
+        (info.contains("adapter 0, f32 van_der_pol 2^20")
+            || info.contains("adapter 0, f32 van_der_pol 2^12"))
+            && info.contains("s compiling"),
         "{info}"
     );
     let info = succeeds(reeb_in(&cache, &[("REEB_GPU_WORKGROUP", "128")], &["info"]));

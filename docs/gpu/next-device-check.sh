@@ -1,26 +1,27 @@
 #!/bin/bash
-# The next GPU session's check (issue 35 point 6), as one call of the device
-# tool: carry the stripped binary as .dev/reeb-gpu, the CUDA peer as
-# .dev/vdp_s2.cu, and the Vulkan loader and glvnd debs as .gl/ (README,
-# "no Rust toolchain"); run with DEADLINE seconds of budget.
+# The next GPU session's check (issue 35, after the fourth session), as one
+# call of the device tool: carry the stripped binary as .dev/reeb-gpu, the
+# CUDA peer as .dev/vdp_s2.cu, and the Vulkan loader and glvnd debs as .gl/
+# (README, "no Rust toolchain"); run with DEADLINE seconds of budget.
 #   strip -o .dev/reeb-gpu target/release/reeb
 #   cp ../shared/peers/vdp_s2.cu .dev/
-# It measures what the third session could not: the committed kernel (the
-# probe's blocks of 4 or 8 steps per finite test; the f32 exp from the
-# adapter's exp2, which `reeb info` and the doctor's `exp` rows check)
-# against REEB_GPU_EXP=exact and the CUDA peer, then `reeb doctor`.
+# It measures what the fourth session could not: the probe timing each
+# candidate over about 0.25 s on a hardware GPU (the f64 probe of the fourth
+# session, over 30 ms runs, ranked the blocks backwards and kept a test per
+# step, 0.81x CUDA where blocks of 8 give 1.03x). Expect from a fresh cache
+# blocks of 8 (or 4) in both precisions: f32 ~1.59e12, f64 ~5.3-5.6e11.
 T0=$(date +%s); el() { echo $(( $(date +%s) - T0 )); }
-DEADLINE=${DEADLINE:-380}
+DEADLINE=${DEADLINE:-300}
 for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig >/dev/null
 B=$PWD/.dev/reeb-gpu; export XDG_CACHE_HOME=/tmp/cache
 (cd /tmp && nvcc -O3 -arch=native -o vdp_cuda "$OLDPWD/.dev/vdp_s2.cu"; echo nvcc rc $?) > /tmp/nvcc.txt 2>&1 &
 NV=$!
-timeout 60 "$B" info 2>&1 | head -8
-bn() { echo "## t=$(el)s $*"; timeout 60 "$B" bench --backend gpu --scenario van_der_pol/s2 --n 10000000 --precision f32,f64 "$@" 2>&1 | grep -E "gpu:|rror|note"; }
+bn() { echo "## t=$(el)s $*"; timeout 90 "$B" bench --backend gpu --scenario van_der_pol/s2 --n 10000000 "$@" 2>&1 | grep -E "gpu:|rror|note|probe"; }
 {
-echo "### tuned, 10000 steps"; bn --steps 10000 --repeats 3
-echo "### tuned, 1000 steps (lengthened)"; bn --steps 1000
-echo "### REEB_GPU_EXP=exact, 10000 steps"; REEB_GPU_EXP=exact bn --steps 10000 --repeats 3 --precision f32
+echo "### tuned from a fresh cache, probe logged"; REEB_GPU_PROBE_LOG=1 bn --precision f32,f64 --steps 10000 --repeats 3
+timeout 60 "$B" info 2>&1 | grep -A3 "GPU tuning"
+echo "### from the cache"; bn --precision f32,f64 --steps 10000 --repeats 3
+for b in 1 8; do echo "### block $b"; REEB_GPU_FINITE_BLOCK=$b bn --precision f32,f64 --steps 10000 --repeats 3; done
 } 2>&1 | tee "$OUT/reeb.txt"
 wait $NV; cat /tmp/nvcc.txt
 for p in f32 f64; do timeout 30 /tmp/vdp_cuda --precision $p --n 10000000 --steps 10000 --repeat 5; done 2>&1 | tee "$OUT/peers.jsonl"

@@ -2,6 +2,7 @@
 //! `WGPU_ADAPTER_NAME`), its device and queue, and the pipeline cache.
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use super::codegen::{ExpForm, Forms};
@@ -280,6 +281,9 @@ pub struct GpuContext {
     layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
     pipelines: Mutex<HashMap<String, Arc<wgpu::ComputePipeline>>>,
+    /// Wall nanoseconds spent compiling `pipelines` (the tuning probe
+    /// leaves them out of its time budget).
+    compile_nanos: AtomicU64,
     /// Launches tuned in this process, by plan shape (`backend/tune.rs`).
     tuned: Mutex<HashMap<String, Tuned>>,
     /// Errors the device reported outside an error scope.
@@ -361,6 +365,7 @@ impl GpuContext {
             layout,
             pipeline_layout,
             pipelines: Mutex::default(),
+            compile_nanos: AtomicU64::new(0),
             tuned: Mutex::default(),
             errors,
         })
@@ -445,13 +450,23 @@ impl GpuContext {
             return Ok(p.clone());
         }
         // Validate with naga first: its messages point into the source.
+        let started = std::time::Instant::now();
         validate(source, true).map_err(GpuError::Shader)?;
         let p = Arc::new(self.compile(source, Some(&self.pipeline_layout), "reeb kernel")?);
+        let nanos = started.elapsed().as_nanos().min(u64::MAX as u128) as u64;
+        self.compile_nanos.fetch_add(nanos, Ordering::Relaxed);
         self.pipelines
             .lock()
             .map_err(|e| GpuError::Runtime(e.to_string()))?
             .insert(source.to_string(), p.clone());
         Ok(p)
+    }
+
+    /// Wall seconds this context has spent compiling kernels (naga's
+    /// validation and the driver's compile; a first compile on NVIDIA can
+    /// take longer than the tuning probe's whole budget).
+    pub fn compile_seconds(&self) -> f64 {
+        self.compile_nanos.load(Ordering::Relaxed) as f64 * 1e-9
     }
 
     /// Errors the device reported since the last call.

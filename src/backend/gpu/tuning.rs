@@ -196,6 +196,10 @@ pub struct Tuned {
     pub trajectories: u64,
     /// Wall seconds the probe took.
     pub probe_seconds: f64,
+    /// Of which compiling the candidates' kernels (outside the budget of
+    /// `tune::PROBE_SECONDS`; the driver caches them for the next time).
+    #[serde(default)]
+    pub compile_seconds: f64,
 }
 
 /// The cache: probes by adapter (name, backend, driver) and plan shape.
@@ -209,8 +213,9 @@ pub struct Cache {
 }
 
 /// The probe's generation: a cache from an earlier one is measured again
-/// (2: blocks of 4 and 8 steps tried first).
-pub const PROBE: u32 = 2;
+/// (2: blocks of 4 and 8 steps tried first; 3: and always, whatever the
+/// driver's first compiles took).
+pub const PROBE: u32 = 3;
 
 /// The file name of the cache in reeb's cache directory.
 pub const CACHE_FILE: &str = "gpu-tuning.json";
