@@ -66,16 +66,14 @@ fn tune_caches_each_shape_and_info_shows_it() {
         out.contains("f32 van_der_pol") && out.contains("workgroup"),
         "{out}"
     );
-    // The log names each candidate; the blocks of steps are measured
-    // whatever the budget (van der Pol's kernel has them).
-    for b in [4, 8] {
-        let line = format!("finite test every {b} steps: ");
-        assert!(
-            out.lines()
-                .any(|l| l.starts_with("probe f32: ") && l.contains(&line)),
-            "{out}"
-        );
-    }
+    // The log names each candidate; blocks of 8 steps are measured whatever
+    // the budget (van der Pol's kernel has them: on a software adapter
+    // beside 4 and 1, on a hardware GPU as the first candidate).
+    assert!(
+        out.lines()
+            .any(|l| l.starts_with("probe f32: ") && l.contains("finite test every 8 steps: ")),
+        "{out}"
+    );
     let json: serde_json::Value = json(&cache_file(&cache));
     assert_eq!(json["reeb_version"], env!("CARGO_PKG_VERSION"));
     let (_, shapes) = json["tuned"].as_object().unwrap().iter().next().unwrap();

@@ -5,8 +5,8 @@
 # (README, "no Rust toolchain"); run with DEADLINE seconds of budget.
 #   strip -o .dev/reeb-gpu target/release/reeb
 #   cp ../shared/peers/vdp_s2.cu .dev/
-# It measures what the fourth session could not: the probe timing each
-# candidate over about 0.25 s on a hardware GPU (the f64 probe of the fourth
+# It measures what the fourth session could not: the probe taking blocks of 8
+# steps on a hardware GPU without measuring them (the f64 probe of the fourth
 # session, over 30 ms runs, ranked the blocks backwards and kept a test per
 # step, 0.81x CUDA where blocks of 8 give 1.03x). Expect from a fresh cache
 # blocks of 8 (or 4) in both precisions: f32 ~1.59e12, f64 ~5.3-5.6e11.
@@ -22,6 +22,11 @@ echo "### tuned from a fresh cache, probe logged"; REEB_GPU_PROBE_LOG=1 bn --pre
 timeout 60 "$B" info 2>&1 | grep -A3 "GPU tuning"
 echo "### from the cache"; bn --precision f32,f64 --steps 10000 --repeats 3
 for b in 1 8; do echo "### block $b"; REEB_GPU_FINITE_BLOCK=$b bn --precision f32,f64 --steps 10000 --repeats 3; done
+# Wall time against kernel time of whole runs (10^7 trajectories, 10 000
+# steps): is each window's synchronous round trip a cost? Longer windows
+# (REEB_GPU_WINDOW caps them; the forcing table bounds them at 2048/1024).
+printf 'name = "wall"\nmodel = "van_der_pol"\n[params]\nepsilon = 1.0\nforcing_amplitude = 0.5\nforcing_frequency = 1.1\n[initial]\nq = { linspace = [0.5, 2.0, 10000000] }\ns = 0.0\n[integrator]\nscheme = "s2"\ndt = 0.01\nsteps = 10000\n[output]\nfinal = ["q", "s"]\n' > /tmp/wall.toml
+for p in f32 f64; do echo "### wall, $p"; /usr/bin/time -f "wall %e s" timeout 90 "$B" run /tmp/wall.toml --backend gpu --precision $p --out /tmp/wall-$p 2>&1 | tail -2; grep -o '"integration_seconds"[^,]*' /tmp/wall-$p/summary.json; done
 } 2>&1 | tee "$OUT/reeb.txt"
 wait $NV; cat /tmp/nvcc.txt
 for p in f32 f64; do timeout 30 /tmp/vdp_cuda --precision $p --n 10000000 --steps 10000 --repeat 5; done 2>&1 | tee "$OUT/peers.jsonl"

@@ -9,7 +9,8 @@ use std::time::Instant;
 use super::cpu;
 use super::error::BackendError;
 use super::gpu::tuning::{
-    adapter_key, Cache, Launch, Overrides, Tuned, FINITE_BLOCKS, PER_THREAD, WORKGROUPS,
+    adapter_key, Cache, Launch, Overrides, Tuned, FINITE_BLOCKS, GPU_FINITE_BLOCK, PER_THREAD,
+    WORKGROUPS,
 };
 use super::gpu::{self, GpuContext, GpuOptions};
 use crate::models::Flows;
@@ -18,19 +19,11 @@ use crate::plan::Plan;
 
 /// Wall seconds the probe aims to stay within.
 pub const PROBE_SECONDS: f64 = 1.0;
-/// Wall seconds of one measurement (the CPU's, and a software adapter's).
+/// Wall seconds of one measurement.
 const MEASURE_SECONDS: f64 = 0.04;
-/// A hardware GPU's: an H200 drops its clocks within a quarter second of
-/// idling, and the host's work between two runs is that long, so shorter
-/// runs are timed at whatever clock the GPU has ramped to: on a fresh
-/// H200 the f64 candidates read 1.2–1.7·10¹¹ in runs of 1.4·10¹⁰
-/// trajectory-steps (30 ms at full clock) and ranked backwards, where
-/// 0.25 s runs read 4.4–5.6·10¹¹. `reeb bench` lengthens its runs to this
-/// too.
-const MEASURE_SECONDS_GPU: f64 = 0.25;
 /// Most steps of one measurement (an H200 runs 2^20 trajectories × 4096
 /// steps of van der Pol in 3 ms).
-const MOST_STEPS: u64 = 1 << 20;
+const MOST_STEPS: u64 = 1 << 16;
 /// Set (to anything), the probe prints each candidate's rate to stderr.
 pub const PROBE_LOG: &str = "REEB_GPU_PROBE_LOG";
 
@@ -111,8 +104,8 @@ pub fn tuned(
 }
 
 /// Measures the candidate launches on the first trajectories of `plan`
-/// (blocks of steps per finite test, a workgroup size, then trajectories
-/// per invocation), and the CPU.
+/// (on a software adapter blocks of steps per finite test, then a
+/// workgroup size, then trajectories per invocation), and the CPU.
 fn probe<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<Tuned, BackendError> {
     let started = Instant::now();
     let compiled = ctx.compile_seconds();
@@ -121,29 +114,36 @@ fn probe<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<Tuned, BackendError>
     let measuring = || started.elapsed().as_secs_f64() - (ctx.compile_seconds() - compiled);
     let log = std::env::var_os(PROBE_LOG).is_some_and(|v| !v.is_empty());
     let m = probe_size(ctx, plan);
-    // A software adapter's runs are short: the better of two, since a
-    // shared host only ever slows one down. A GPU's are long enough.
-    let (seconds, repeats) = match gpu::is_software(&ctx.info) {
-        true => (MEASURE_SECONDS, 2),
-        false => (MEASURE_SECONDS_GPU, 1),
+    let software = gpu::is_software(&ctx.info);
+    // Only kernels without observers have blocks of steps.
+    let blocks = gpu::codegen::generate(&sample(plan, m, 1), Precision::of::<R>())?.has_blocks();
+    let first = Launch {
+        finite_block: if blocks && !software {
+            GPU_FINITE_BLOCK
+        } else {
+            1
+        },
+        ..Launch::default()
     };
-    let steps = calibrate(m, seconds, |s| {
-        gpu_rate::<R>(ctx, plan, m, s, &Launch::default())
-    })?;
-    let mut best = (Launch::default(), 0.0);
-    // `always`: measured even past the budget (the blocks of steps).
+    let steps = calibrate(m, |s| gpu_rate::<R>(ctx, plan, m, s, &first))?;
+    if !software {
+        // A GPU raises its clocks only while busy (an H200 idled at a sixth
+        // of its clock): a longer run first, so the candidates are timed at
+        // a run's clocks, not the idle ones.
+        gpu_rate::<R>(ctx, plan, m, 5 * steps, &first)?;
+    }
+    let mut best = (first, 0.0);
+    // `always`: measured even past the budget (the first launch, so that
+    // the rate `auto` weighs is measured; a software adapter's blocks).
     let consider = |l: Launch, always: bool, best: &mut (Launch, f64)| {
         if l.check(&ctx.limits).is_err() || (!always && measuring() > PROBE_SECONDS) {
             return Ok::<(), BackendError>(());
         }
         let t = Instant::now();
-        let mut rate: f64 = 0.0;
-        for _ in 0..repeats {
-            rate = rate.max(gpu_rate::<R>(ctx, plan, m, steps, &l)?);
-        }
+        let rate = gpu_rate::<R>(ctx, plan, m, steps, &l)?;
         if log {
             eprintln!(
-                "probe {}: {}: {rate:.4e} trajectory-steps/s ({m} × {steps} steps, {repeats}× in {:.3} s)",
+                "probe {}: {}: {rate:.4e} trajectory-steps/s ({m} × {steps} steps in {:.3} s)",
                 Precision::of::<R>().name(),
                 l.describe(),
                 t.elapsed().as_secs_f64()
@@ -154,20 +154,13 @@ fn probe<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<Tuned, BackendError>
         }
         Ok(())
     };
-    consider(Launch::default(), true, &mut best)?;
-    // Blocks of steps with one finite test each, first and always: they
-    // matter most (van der Pol S2 on an H200: +65 % in f32 at 4 steps, +84 %
-    // at 8; the launch, within 1.5 %). A first probe on a fresh H200 (its
-    // host takes 0.36 s per run of 2^20 trajectories) kept a test every
-    // step, 0.54× the rate: its 1 s had run out before the blocks.
-    // On lavapipe van der Pol's are 5 % slower. Only kernels without
-    // observers have blocks.
-    if gpu::codegen::generate(&sample(plan, m, 1), Precision::of::<R>())?.has_blocks() {
+    consider(first, true, &mut best)?;
+    if blocks && software {
         for b in FINITE_BLOCKS {
             consider(
                 Launch {
                     finite_block: b,
-                    ..Launch::default()
+                    ..first
                 },
                 true,
                 &mut best,
@@ -197,7 +190,7 @@ fn probe<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<Tuned, BackendError>
     }
     best.0.dispatch_seconds = dispatch_seconds::<R>(ctx, plan, &best.0)?;
     let cpu_m = m.min(1 << 16);
-    let cpu_steps = calibrate(cpu_m, MEASURE_SECONDS, |s| cpu_rate::<R>(plan, cpu_m, s))?;
+    let cpu_steps = calibrate(cpu_m, |s| cpu_rate::<R>(plan, cpu_m, s))?;
     Ok(Tuned {
         launch: best.0,
         gpu_rate: best.1,
@@ -210,17 +203,16 @@ fn probe<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<Tuned, BackendError>
     })
 }
 
-/// Steps at which one measurement takes about `seconds`: from a first run
-/// of 4 steps (its one-time costs make it slow), then from one at the
-/// steps that suggests.
+/// Steps at which one measurement takes about [`MEASURE_SECONDS`]: from
+/// a first run of 4 steps (its one-time costs make it slow), then from one
+/// at the steps that suggests.
 fn calibrate(
     m: usize,
-    seconds: f64,
     rate: impl Fn(u64) -> Result<f64, BackendError>,
 ) -> Result<u64, BackendError> {
     let mut steps = 4;
     for _ in 0..2 {
-        steps = ((rate(steps)? * seconds / m as f64) as u64).clamp(4, MOST_STEPS);
+        steps = ((rate(steps)? * MEASURE_SECONDS / m as f64) as u64).clamp(4, MOST_STEPS);
     }
     Ok(steps)
 }

@@ -13,9 +13,19 @@ use std::path::PathBuf;
 pub const WORKGROUPS: [u32; 3] = [64, 128, 256];
 /// Trajectories per invocation the probe tries.
 pub const PER_THREAD: [u32; 3] = [1, 2, 4];
-/// Steps per finite test the probe tries beside 1 (where the kernel has
-/// blocks).
+/// Steps per finite test the probe tries beside 1 on a software adapter
+/// (where the kernel has blocks: lavapipe's van der Pol blocks are 5 %
+/// slower).
 pub const FINITE_BLOCKS: [u32; 2] = [4, 8];
+/// Steps per finite test on a hardware GPU, where the kernel has blocks,
+/// not measured: a block only removes work (7 of every 8 tests), while
+/// the probe's short runs are timed at partial clocks. On a fresh H200
+/// they ranked f64's blocks backwards (1.67·10¹¹ trajectory-steps/s for a
+/// test every step, 1.22 and 1.46·10¹¹ for blocks of 4 and 8) where whole
+/// runs of 10⁷ trajectories give 4.37, 5.29 and 5.56·10¹¹ (f32: 8.67·10¹¹,
+/// 1.43 and 1.59·10¹²); an earlier probe ran out of its second before the
+/// blocks. `REEB_GPU_FINITE_BLOCK` overrides it.
+pub const GPU_FINITE_BLOCK: u32 = 8;
 
 /// A kernel launch.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -213,8 +223,8 @@ pub struct Cache {
 }
 
 /// The probe's generation: a cache from an earlier one is measured again
-/// (2: blocks of 4 and 8 steps tried first; 3: and always, whatever the
-/// driver's first compiles took).
+/// (2: blocks of 4 and 8 steps tried first; 3: blocks of 8 taken on a
+/// hardware GPU, not measured).
 pub const PROBE: u32 = 3;
 
 /// The file name of the cache in reeb's cache directory.
