@@ -23,8 +23,8 @@ timeout 60 "$B" info 2>&1 | grep -A3 "GPU tuning"
 echo "### from the cache"; bn --precision f32,f64 --steps 10000 --repeats 3
 for b in 1 8; do echo "### block $b"; REEB_GPU_FINITE_BLOCK=$b bn --precision f32,f64 --steps 10000 --repeats 3; done
 # Wall time against kernel time of whole runs (10^7 trajectories, 10 000
-# steps): is each window's synchronous round trip a cost? Longer windows
-# (REEB_GPU_WINDOW caps them; the forcing table bounds them at 2048/1024).
+# steps): the host's share (tables, buffers, read-back, sorting, writing
+# the arrays), ~1 s per run in the first session's clock trace.
 printf 'name = "wall"\nmodel = "van_der_pol"\n[params]\nepsilon = 1.0\nforcing_amplitude = 0.5\nforcing_frequency = 1.1\n[initial]\nq = { linspace = [0.5, 2.0, 10000000] }\ns = 0.0\n[integrator]\nscheme = "s2"\ndt = 0.01\nsteps = 10000\n[output]\nfinal = ["q", "s"]\n' > /tmp/wall.toml
 for p in f32 f64; do echo "### wall, $p"; TIMEFORMAT="wall %R s"; time (timeout 90 "$B" run /tmp/wall.toml --backend gpu --precision $p --out /tmp/wall-$p 2>&1 | tail -1); grep -o '"integration_seconds"[^,]*' /tmp/wall-$p/summary.json; done
 } 2>&1 | tee "$OUT/reeb.txt"
