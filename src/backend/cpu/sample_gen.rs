@@ -52,7 +52,6 @@ fn lane_loop(s: SampleShape) -> String {
 /// same bits without the cases of 0, ∞ and NaN.
 fn lane_loop_of(name: &str, l: &Lowered, inputs: usize, in_band: bool) -> String {
     let names = (0..inputs).map(|k| format!("x{k}")).collect::<Vec<_>>();
-    let written = l.outputs.len();
     let mut t = String::new();
     writeln!(t, "#[inline(always)]").unwrap();
     writeln!(t, "pub fn {name}<R: Real>(x: &mut [[R; LANES]]) {{").unwrap();
@@ -64,11 +63,20 @@ fn lane_loop_of(name: &str, l: &Lowered, inputs: usize, in_band: bool) -> String
     writeln!(t, "    let [{}] = x.each_mut();", names.join(", ")).unwrap();
     writeln!(t, "    {name}_lanes({});", names.join(", ")).unwrap();
     t.push_str("}\n\n");
-    writeln!(t, "#[inline(always)]").unwrap();
-    writeln!(t, "fn {name}_lanes<R: Real>(").unwrap();
-    for (k, n) in names.iter().enumerate() {
-        let m = if k < written { "&mut " } else { "&" };
-        writeln!(t, "    {n}: {m}[R; LANES],").unwrap();
+    let lanes = format!("{name}_lanes");
+    t.push_str(&lanes_fn("#[inline(always)]\n", &lanes, l, inputs, in_band));
+    t
+}
+
+/// `head`, then `fn name` over arrays `x0`, `x1`, … (`inputs` of them;
+/// the first as many as `l` has outputs written, the rest read) running
+/// [`lane_body`].
+fn lanes_fn(head: &str, name: &str, l: &Lowered, inputs: usize, in_band: bool) -> String {
+    let mut t = String::from(head);
+    writeln!(t, "fn {name}<R: Real>(").unwrap();
+    for k in 0..inputs {
+        let m = if k < l.outputs.len() { "&mut " } else { "&" };
+        writeln!(t, "    x{k}: {m}[R; LANES],").unwrap();
     }
     writeln!(t, ") {{").unwrap();
     t.push_str(&lane_body(l, in_band));
@@ -104,26 +112,21 @@ fn lane_body(l: &Lowered, in_band: bool) -> String {
 fn waiting_loops() -> String {
     let mut t = String::new();
     for d in 2..=4 {
-        let args: Vec<String> = (1..=d).map(|k| format!("x{k}: &[R; LANES]")).collect();
-        writeln!(
-            t,
-            "/// The FLI vector's ‖u‖² into the running maximum `x0`.\n\
-             #[inline(always)]\npub fn chaos_peak_{d}<R: Real>(x0: &mut [R; LANES], {}) {{",
-            args.join(", ")
-        )
-        .unwrap();
-        t.push_str(&lane_body(&chaos_peak_program(d), false));
-        t.push_str("}\n\n");
+        let head =
+            "/// The FLI vector's ‖u‖² into the running maximum `x0`.\n#[inline(always)]\npub ";
+        let name = format!("chaos_peak_{d}");
+        t.push_str(&lanes_fn(head, &name, &chaos_peak_program(d), d + 1, false));
+        t.push('\n');
     }
-    writeln!(
-        t,
-        "/// `fli_max` (`x0`) from `fli_oct` (`x1`) and the largest ‖u‖² (`x2`).\n\
-         #[inline(always)]\n\
-         pub fn chaos_fold<R: Real>(x0: &mut [R; LANES], x1: &[R; LANES], x2: &[R; LANES]) {{"
-    )
-    .unwrap();
-    t.push_str(&lane_body(&chaos_fold_program(), true));
-    t.push_str("}\n");
+    let head = "/// `fli_max` (`x0`) from `fli_oct` (`x1`) and the largest ‖u‖² (`x2`).\n\
+                #[inline(always)]\npub ";
+    t.push_str(&lanes_fn(
+        head,
+        "chaos_fold",
+        &chaos_fold_program(),
+        3,
+        true,
+    ));
     t
 }
 

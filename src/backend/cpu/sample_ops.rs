@@ -1424,7 +1424,11 @@ fn chaos_4_lanes<R: Real>(
 
 /// The FLI vector's ‖u‖² into the running maximum `x0`.
 #[inline(always)]
-pub fn chaos_peak_2<R: Real>(x0: &mut [R; LANES], x1: &[R; LANES], x2: &[R; LANES]) {
+pub fn chaos_peak_2<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &[R; LANES],
+    x2: &[R; LANES],
+) {
     for i in 0..LANES {
         let v0: R = x1[i] * x1[i];
         let v1: R = x2[i] * x2[i];
@@ -1437,7 +1441,12 @@ pub fn chaos_peak_2<R: Real>(x0: &mut [R; LANES], x1: &[R; LANES], x2: &[R; LANE
 
 /// The FLI vector's ‖u‖² into the running maximum `x0`.
 #[inline(always)]
-pub fn chaos_peak_3<R: Real>(x0: &mut [R; LANES], x1: &[R; LANES], x2: &[R; LANES], x3: &[R; LANES]) {
+pub fn chaos_peak_3<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &[R; LANES],
+    x2: &[R; LANES],
+    x3: &[R; LANES],
+) {
     for i in 0..LANES {
         let v0: R = x1[i] * x1[i];
         let v1: R = x2[i] * x2[i];
@@ -1452,7 +1461,13 @@ pub fn chaos_peak_3<R: Real>(x0: &mut [R; LANES], x1: &[R; LANES], x2: &[R; LANE
 
 /// The FLI vector's ‖u‖² into the running maximum `x0`.
 #[inline(always)]
-pub fn chaos_peak_4<R: Real>(x0: &mut [R; LANES], x1: &[R; LANES], x2: &[R; LANES], x3: &[R; LANES], x4: &[R; LANES]) {
+pub fn chaos_peak_4<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &[R; LANES],
+    x2: &[R; LANES],
+    x3: &[R; LANES],
+    x4: &[R; LANES],
+) {
     for i in 0..LANES {
         let v0: R = x1[i] * x1[i];
         let v1: R = x2[i] * x2[i];
@@ -1469,7 +1484,11 @@ pub fn chaos_peak_4<R: Real>(x0: &mut [R; LANES], x1: &[R; LANES], x2: &[R; LANE
 
 /// `fli_max` (`x0`) from `fli_oct` (`x1`) and the largest ‖u‖² (`x2`).
 #[inline(always)]
-pub fn chaos_fold<R: Real>(x0: &mut [R; LANES], x1: &[R; LANES], x2: &[R; LANES]) {
+pub fn chaos_fold<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &[R; LANES],
+    x2: &[R; LANES],
+) {
     for i in 0..LANES {
         let v0: R = x1[i] * R::from_f64(0.6931471805599453);
         let v1: R = R::log_normal_r(x2[i]);
