@@ -88,14 +88,28 @@ fn lanes_fn(head: &str, name: &str, l: &Lowered, inputs: usize, in_band: bool) -
 /// `xk`, output k written over it); `in_band`: its logarithm reads a
 /// positive normal number (`log_normal_r`).
 fn lane_body(l: &Lowered, in_band: bool) -> String {
-    let input = |k: u32| format!("x{k}[i]");
-    let mut t = String::new();
-    writeln!(t, "    for i in 0..LANES {{").unwrap();
-    let lets = rust_lets(l, &input, "        ");
-    match in_band {
-        true => t.push_str(&lets.replace("R::log_r(", "R::log_normal_r(")),
-        false => t.push_str(&lets),
+    let mut lets = rust_lets(l, &|k: u32| format!("x{k}[i]"), "        ");
+    if in_band {
+        lets = lets.replace("R::log_r(", "R::log_normal_r(");
     }
+    let mut t = String::new();
+    let kept = kept_inputs(&lets, l.outputs.len());
+    for &k in &kept {
+        writeln!(
+            t,
+            "    let x{k}_in: [R; LANES] = std::hint::black_box(*x{k});"
+        )
+        .unwrap();
+        for at in [" ", "("] {
+            lets = lets.replace(&format!("{at}x{k}[i]"), &format!("{at}x{k}_in[i]"));
+        }
+    }
+    let input = |k: u32| match kept.contains(&(k as usize)) {
+        true => format!("x{k}_in[i]"),
+        false => format!("x{k}[i]"),
+    };
+    writeln!(t, "    for i in 0..LANES {{").unwrap();
+    t.push_str(&lets);
     // Every read before any write.
     for (k, o) in l.outputs.iter().enumerate() {
         writeln!(t, "        let o{k}: R = {};", rust_operand(*o, &input)).unwrap();
@@ -105,6 +119,27 @@ fn lane_body(l: &Lowered, in_band: bool) -> String {
     }
     t.push_str("    }\n");
     t
+}
+
+/// The written arrays (of the first `outputs`) whose input is an argument
+/// of a minimum or maximum in `lets` (operands follow a space or a
+/// parenthesis): their loops read a copy of it. Where the output is a choice between the input and another value, LLVM stores it
+/// as a masked store of the other value (`vmaskmovps` with AVX2), which
+/// costs a Zen 3 tens of cycles a vector. The copy goes through
+/// `black_box`, or the compiler reads the array itself again where it
+/// unrolls the loop. It costs a few plain loads and stores.
+fn kept_inputs(lets: &str, outputs: usize) -> Vec<usize> {
+    (0..outputs)
+        .filter(|k| {
+            let read = |l: &str| {
+                [" ", "("]
+                    .iter()
+                    .any(|at| l.contains(&format!("{at}x{k}[i]")))
+            };
+            lets.lines()
+                .any(|l| (l.contains("R::max_r(") || l.contains("R::min_r(")) && read(l))
+        })
+        .collect()
 }
 
 /// The FLI's waiting programs: `chaos_peak_{d}` ([`chaos_peak_program`],

@@ -220,6 +220,7 @@ fn chaos_2_lanes<R: Real>(
     x7: &[R; LANES],
     x8: &[R; LANES],
 ) {
+    let x4_in: [R; LANES] = std::hint::black_box(*x4);
     for i in 0..LANES {
         let v0: R = x0[i] * x0[i];
         let v1: R = x1[i] * x1[i];
@@ -233,7 +234,7 @@ fn chaos_2_lanes<R: Real>(
         let v9: R = R::log_r(v2);
         let v10: R = v9 * R::from_f64(0.5);
         let v11: R = v8 + v10;
-        let v12: R = R::max_r(x4[i], v11);
+        let v12: R = R::max_r(x4_in[i], v11);
         let v13: R = v11 - x3[i];
         let v14: R = x7[i] * v13;
         let v15: R = x5[i] + v14;
@@ -618,6 +619,7 @@ fn chaos_3_lanes<R: Real>(
     x8: &[R; LANES],
     x9: &[R; LANES],
 ) {
+    let x5_in: [R; LANES] = std::hint::black_box(*x5);
     for i in 0..LANES {
         let v0: R = x0[i] * x0[i];
         let v1: R = x1[i] * x1[i];
@@ -634,7 +636,7 @@ fn chaos_3_lanes<R: Real>(
         let v12: R = R::log_r(v4);
         let v13: R = v12 * R::from_f64(0.5);
         let v14: R = v11 + v13;
-        let v15: R = R::max_r(x5[i], v14);
+        let v15: R = R::max_r(x5_in[i], v14);
         let v16: R = v14 - x4[i];
         let v17: R = x8[i] * v16;
         let v18: R = x6[i] + v17;
@@ -1373,6 +1375,7 @@ fn chaos_4_lanes<R: Real>(
     x9: &[R; LANES],
     x10: &[R; LANES],
 ) {
+    let x6_in: [R; LANES] = std::hint::black_box(*x6);
     for i in 0..LANES {
         let v0: R = x0[i] * x0[i];
         let v1: R = x1[i] * x1[i];
@@ -1392,7 +1395,7 @@ fn chaos_4_lanes<R: Real>(
         let v15: R = R::log_r(v6);
         let v16: R = v15 * R::from_f64(0.5);
         let v17: R = v14 + v16;
-        let v18: R = R::max_r(x6[i], v17);
+        let v18: R = R::max_r(x6_in[i], v17);
         let v19: R = v17 - x5[i];
         let v20: R = x9[i] * v19;
         let v21: R = x7[i] + v20;
@@ -1429,11 +1432,12 @@ pub fn chaos_peak_2<R: Real>(
     x1: &[R; LANES],
     x2: &[R; LANES],
 ) {
+    let x0_in: [R; LANES] = std::hint::black_box(*x0);
     for i in 0..LANES {
         let v0: R = x1[i] * x1[i];
         let v1: R = x2[i] * x2[i];
         let v2: R = v0 + v1;
-        let v3: R = R::max_r(x0[i], v2);
+        let v3: R = R::max_r(x0_in[i], v2);
         let o0: R = v3;
         x0[i] = o0;
     }
@@ -1447,13 +1451,14 @@ pub fn chaos_peak_3<R: Real>(
     x2: &[R; LANES],
     x3: &[R; LANES],
 ) {
+    let x0_in: [R; LANES] = std::hint::black_box(*x0);
     for i in 0..LANES {
         let v0: R = x1[i] * x1[i];
         let v1: R = x2[i] * x2[i];
         let v2: R = v0 + v1;
         let v3: R = x3[i] * x3[i];
         let v4: R = v2 + v3;
-        let v5: R = R::max_r(x0[i], v4);
+        let v5: R = R::max_r(x0_in[i], v4);
         let o0: R = v5;
         x0[i] = o0;
     }
@@ -1468,6 +1473,7 @@ pub fn chaos_peak_4<R: Real>(
     x3: &[R; LANES],
     x4: &[R; LANES],
 ) {
+    let x0_in: [R; LANES] = std::hint::black_box(*x0);
     for i in 0..LANES {
         let v0: R = x1[i] * x1[i];
         let v1: R = x2[i] * x2[i];
@@ -1476,7 +1482,7 @@ pub fn chaos_peak_4<R: Real>(
         let v4: R = v2 + v3;
         let v5: R = x4[i] * x4[i];
         let v6: R = v4 + v5;
-        let v7: R = R::max_r(x0[i], v6);
+        let v7: R = R::max_r(x0_in[i], v6);
         let o0: R = v7;
         x0[i] = o0;
     }
@@ -1489,12 +1495,13 @@ pub fn chaos_fold<R: Real>(
     x1: &[R; LANES],
     x2: &[R; LANES],
 ) {
+    let x0_in: [R; LANES] = std::hint::black_box(*x0);
     for i in 0..LANES {
         let v0: R = x1[i] * R::from_f64(0.6931471805599453);
         let v1: R = R::log_normal_r(x2[i]);
         let v2: R = v1 * R::from_f64(0.5);
         let v3: R = v0 + v2;
-        let v4: R = R::max_r(x0[i], v3);
+        let v4: R = R::max_r(x0_in[i], v3);
         let o0: R = v4;
         x0[i] = o0;
     }
@@ -1519,6 +1526,7 @@ fn chaos_2_in_band_lanes<R: Real>(
     x7: &[R; LANES],
     x8: &[R; LANES],
 ) {
+    let x4_in: [R; LANES] = std::hint::black_box(*x4);
     for i in 0..LANES {
         let v0: R = x2[i] * R::from_f64(0.6931471805599453);
         let v1: R = x0[i] * x0[i];
@@ -1527,7 +1535,7 @@ fn chaos_2_in_band_lanes<R: Real>(
         let v4: R = R::log_normal_r(v3);
         let v5: R = v4 * R::from_f64(0.5);
         let v6: R = v0 + v5;
-        let v7: R = R::max_r(x4[i], v6);
+        let v7: R = R::max_r(x4_in[i], v6);
         let v8: R = v6 - x3[i];
         let v9: R = x7[i] * v8;
         let v10: R = x5[i] + v9;
@@ -1573,6 +1581,7 @@ fn chaos_3_in_band_lanes<R: Real>(
     x8: &[R; LANES],
     x9: &[R; LANES],
 ) {
+    let x5_in: [R; LANES] = std::hint::black_box(*x5);
     for i in 0..LANES {
         let v0: R = x3[i] * R::from_f64(0.6931471805599453);
         let v1: R = x0[i] * x0[i];
@@ -1583,7 +1592,7 @@ fn chaos_3_in_band_lanes<R: Real>(
         let v6: R = R::log_normal_r(v5);
         let v7: R = v6 * R::from_f64(0.5);
         let v8: R = v0 + v7;
-        let v9: R = R::max_r(x5[i], v8);
+        let v9: R = R::max_r(x5_in[i], v8);
         let v10: R = v8 - x4[i];
         let v11: R = x8[i] * v10;
         let v12: R = x6[i] + v11;
@@ -1632,6 +1641,7 @@ fn chaos_4_in_band_lanes<R: Real>(
     x9: &[R; LANES],
     x10: &[R; LANES],
 ) {
+    let x6_in: [R; LANES] = std::hint::black_box(*x6);
     for i in 0..LANES {
         let v0: R = x4[i] * R::from_f64(0.6931471805599453);
         let v1: R = x0[i] * x0[i];
@@ -1644,7 +1654,7 @@ fn chaos_4_in_band_lanes<R: Real>(
         let v8: R = R::log_normal_r(v7);
         let v9: R = v8 * R::from_f64(0.5);
         let v10: R = v0 + v9;
-        let v11: R = R::max_r(x6[i], v10);
+        let v11: R = R::max_r(x6_in[i], v10);
         let v12: R = v10 - x5[i];
         let v13: R = x9[i] * v12;
         let v14: R = x7[i] + v13;
