@@ -123,11 +123,12 @@ fn lane_body(l: &Lowered, in_band: bool) -> String {
 
 /// The written arrays (of the first `outputs`) whose input is an argument
 /// of a minimum or maximum in `lets` (operands follow a space or a
-/// parenthesis): their loops read a copy of it. Where the output is a choice between the input and another value, LLVM stores it
-/// as a masked store of the other value (`vmaskmovps` with AVX2), which
-/// costs a Zen 3 tens of cycles a vector. The copy goes through
-/// `black_box`, or the compiler reads the array itself again where it
-/// unrolls the loop. It costs a few plain loads and stores.
+/// parenthesis): their loops read a copy of it. Where the output is a
+/// choice between the input and another value, LLVM stores it as a masked
+/// store of the other value (`vmaskmovps` with AVX2), which costs a Zen 3
+/// tens of cycles a vector. The copy goes through `black_box`, or the
+/// compiler reads the array itself again where it unrolls the loop. It
+/// costs a few plain loads and stores.
 fn kept_inputs(lets: &str, outputs: usize) -> Vec<usize> {
     (0..outputs)
         .filter(|k| {
