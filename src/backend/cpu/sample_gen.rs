@@ -7,7 +7,8 @@
 use std::fmt::Write;
 
 use crate::models::tangent_gen::{rust_lets, rust_operand};
-use crate::num::formula::lower::Lowered;
+use crate::num::formula::lower::{Lowered, Operand, Prim};
+use crate::num::formula::Func2;
 use crate::plan::indicators::{chaos_fold_program, chaos_peak_program, SampleShape};
 
 /// The shapes compiled: tangent dimensions 2 to 4 (every built-in model,
@@ -88,28 +89,25 @@ fn lanes_fn(head: &str, name: &str, l: &Lowered, inputs: usize, in_band: bool) -
 /// `xk`, output k written over it); `in_band`: its logarithm reads a
 /// positive normal number (`log_normal_r`).
 fn lane_body(l: &Lowered, in_band: bool) -> String {
-    let mut lets = rust_lets(l, &|k: u32| format!("x{k}[i]"), "        ");
-    if in_band {
-        lets = lets.replace("R::log_r(", "R::log_normal_r(");
-    }
     let mut t = String::new();
-    let kept = kept_inputs(&lets, l.outputs.len());
+    let kept = kept_inputs(l);
     for &k in &kept {
         writeln!(
             t,
             "    let x{k}_in: [R; LANES] = std::hint::black_box(*x{k});"
         )
         .unwrap();
-        for at in [" ", "("] {
-            lets = lets.replace(&format!("{at}x{k}[i]"), &format!("{at}x{k}_in[i]"));
-        }
     }
-    let input = |k: u32| match kept.contains(&(k as usize)) {
+    let input = |k: u32| match kept.contains(&k) {
         true => format!("x{k}_in[i]"),
         false => format!("x{k}[i]"),
     };
     writeln!(t, "    for i in 0..LANES {{").unwrap();
-    t.push_str(&lets);
+    let lets = rust_lets(l, &input, "        ");
+    match in_band {
+        true => t.push_str(&lets.replace("R::log_r(", "R::log_normal_r(")),
+        false => t.push_str(&lets),
+    }
     // Every read before any write.
     for (k, o) in l.outputs.iter().enumerate() {
         writeln!(t, "        let o{k}: R = {};", rust_operand(*o, &input)).unwrap();
@@ -121,26 +119,28 @@ fn lane_body(l: &Lowered, in_band: bool) -> String {
     t
 }
 
-/// The written arrays (of the first `outputs`) whose input is an argument
-/// of a minimum or maximum in `lets` (operands follow a space or a
-/// parenthesis): their loops read a copy of it. Where the output is a
+/// The written arrays (input k < the number of outputs) that a minimum or
+/// a maximum reads: their loops read a copy of them. Where the output is a
 /// choice between the input and another value, LLVM stores it as a masked
 /// store of the other value (`vmaskmovps` with AVX2), which costs a Zen 3
 /// tens of cycles a vector. The copy goes through `black_box`, or the
 /// compiler reads the array itself again where it unrolls the loop. It
 /// costs a few plain loads and stores.
-fn kept_inputs(lets: &str, outputs: usize) -> Vec<usize> {
-    (0..outputs)
-        .filter(|k| {
-            let read = |l: &str| {
-                [" ", "("]
-                    .iter()
-                    .any(|at| l.contains(&format!("{at}x{k}[i]")))
-            };
-            lets.lines()
-                .any(|l| (l.contains("R::max_r(") || l.contains("R::min_r(")) && read(l))
+fn kept_inputs(l: &Lowered) -> Vec<u32> {
+    let written = l.outputs.len() as u32;
+    let mut kept: Vec<u32> = l
+        .instrs
+        .iter()
+        .filter(|i| matches!(i.op, Prim::Call2(Func2::Min | Func2::Max)))
+        .flat_map(|i| [i.a, i.b])
+        .filter_map(|o| match o {
+            Operand::Input(k) if k < written => Some(k),
+            _ => None,
         })
-        .collect()
+        .collect();
+    kept.sort_unstable();
+    kept.dedup();
+    kept
 }
 
 /// The FLI's waiting programs: `chaos_peak_{d}` ([`chaos_peak_program`],
