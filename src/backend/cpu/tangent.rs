@@ -51,7 +51,19 @@ fn tangent_step<R: Real, P: Pieces<R>, const K: usize>(
         let lanes = first..first + chunk;
         for &(half, full, c) in stages {
             let shared = time_pass::<R, P>(x, c, nf, time_mode, time_terms, lanes.clone());
-            stage_pass::<R, P, 'C', 'B', 'A', K>(x, d, half, full, shared.as_ref(), lanes.clone());
+            // Whether the lanes take shared time terms, decided once per
+            // stage, not per lane: a test in the lane loop splits it into
+            // a block per vector, which the compiler cannot overlap
+            // (van der Pol one exponent, Zen 3 AVX2: f64 1.68× → 1.37× the
+            // plain run, f32 2.16× → 1.74×).
+            let lanes = lanes.clone();
+            match &shared {
+                Some(s) => stage_pass::<R, P, 'C', 'B', 'A', K, true>(x, d, half, full, s, lanes),
+                None => {
+                    let unused = Lane::default();
+                    stage_pass::<R, P, 'C', 'B', 'A', K, false>(x, d, half, full, &unused, lanes)
+                }
+            }
         }
     }
 }
@@ -106,7 +118,8 @@ fn time_pass<R: Real, P: Pieces<R>>(
 }
 
 /// One stage `P1½ P2½ P3 P2½ P1½` (weights `half`, `full` times dt) on
-/// every lane, with its tangent, as the fused stage applies it.
+/// every lane, with its tangent, as the fused stage applies it; `SHARED`:
+/// every lane takes the time terms of `shared` (else `shared` is unused).
 #[inline(always)]
 fn stage_pass<
     R: Real,
@@ -115,18 +128,19 @@ fn stage_pass<
     const P2: char,
     const P3: char,
     const K: usize,
+    const SHARED: bool,
 >(
     x: &mut Lanes<R>,
     d: &mut [Box<Lanes<R>>; K],
     half: R,
     full: R,
-    shared: Option<&Lane<R>>,
+    shared: &Lane<R>,
     lanes: std::ops::Range<usize>,
 ) {
     for i in lanes {
         let mut xi = Lane::gather(x, i);
-        if let Some(s) = shared {
-            P::share_time(&mut xi, s);
+        if SHARED {
+            P::share_time(&mut xi, shared);
         }
         let mut di = [Lane::gather(&d[0], i); K];
         for k in 1..K {
