@@ -75,7 +75,11 @@ fn tangent_step<R: Real, P: Pieces<R>, const K: usize>(
 /// (medians of 5, Zen 4): AVX-512 2.38× (the whole block 2.71×, 16 lanes
 /// 2.98×), AVX2 2.48× (2.54×, 16 lanes 2.81×). Otherwise the whole block:
 /// f64 one exponent 1.98× (half the block 2.13×), f32 two vectors 3.2×
-/// (32 lanes 3.4×, 16 lanes 4.4×). Time terms the ensemble shares are
+/// (32 lanes 3.4×, 16 lanes 4.4×). Measured again on Zen 3 (AVX2) once
+/// the lane loop had no test in it (see [`tangent_step`]), pairs of runs
+/// against this choice: f32 one vector, the whole block 1.03× its time;
+/// half the block for the rest, f32 two vectors 1.07×, f64 one vector
+/// 1.06×, two 1.05×. Time terms the ensemble shares are
 /// evaluated for each chunk, as values: kept in a buffer for the chunks to
 /// read, they cost the registers (the one-exponent run 2× slower).
 const fn chunk<R>(k: usize) -> usize {
