@@ -578,7 +578,8 @@ fn runs_of_steps_are_the_steps_one_by_one() {
 /// A damped oscillator's vectors shrink like e^{−αt/2}: over t = 300 the
 /// Lyapunov and FLI vectors leave the band where their samples may wait
 /// (‖u‖² in [2⁻³⁹, 2³⁹]) a few times and are brought back; the bits are
-/// still those of sampling every step.
+/// still those of sampling every step. So with MEGNO, whose samples in
+/// the band take their logarithms step by step and their sums later.
 #[test]
 fn deferred_samples_are_taken_where_the_vector_leaves_the_band() {
     let p = Problem::new(
@@ -588,6 +589,9 @@ fn deferred_samples_are_taken_where_the_vector_leaves_the_band() {
     .unwrap()
     .param("alpha", C(1.0))
     .initial("q", C(1.0));
+    let (runs, steps) = runs_and_steps(p.clone(), 1, true, 3000, 0.1);
+    same::<f64>("damped_oscillator", &runs, &steps);
+    same::<f32>("damped_oscillator", &runs, &steps);
     let (runs, steps) = runs_and_steps(p, 1, false, 3000, 0.1);
     same::<f64>("damped_oscillator", &runs, &steps);
     same::<f32>("damped_oscillator", &runs, &steps);

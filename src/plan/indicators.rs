@@ -257,23 +257,8 @@ impl SampleShape {
     pub fn program(self) -> Lowered {
         match self {
             SampleShape::Lyapunov { d, k } => lyapunov_program(d, k),
-            SampleShape::Chaos { d } => chaos_program(d, false),
+            SampleShape::Chaos { d } => chaos_program(d),
         }
-    }
-
-    /// The program where the vector is known to be in the band of
-    /// `in_band_r` (see [`chaos_program`]); `None` for a Lyapunov shape,
-    /// whose later vectors are projected before their norm is read.
-    pub fn program_in_band(self) -> Option<Lowered> {
-        match self {
-            SampleShape::Lyapunov { .. } => None,
-            SampleShape::Chaos { d } => Some(chaos_program(d, true)),
-        }
-    }
-
-    /// Whether [`SampleShape::program_in_band`] has a program.
-    pub fn has_program_in_band(self) -> bool {
-        matches!(self, SampleShape::Chaos { .. })
     }
 }
 
@@ -337,13 +322,11 @@ pub fn lyapunov_program(d: usize, k: usize) -> Lowered {
 /// updated. Inputs: its components, `fli_oct`, `fli_log`, `fli_max`,
 /// `megno_sum`, `megno_mean`, the sample's number, one over it; outputs:
 /// the vector brought near norm 1, then the five in the inputs' order.
-///
-/// `in_band`: the program for a vector whose ‖u‖² is known to lie in the
-/// band of `in_band_r`, where the octave is 0: the DAG folds the rescaling
-/// away (u·1, E − 0), leaving the same operations on the same values as
-/// the full program, so the same bits, without a third of its work. Its
-/// logarithm reads a positive normal number (the CPU's `log_normal_r`).
-pub fn chaos_program(d: usize, in_band: bool) -> Lowered {
+/// Where the vector's ‖u‖² is in the band of `in_band_r` its octave is
+/// 0 (the vector scales by 1, `fli_oct` gains 0), and the CPU runs it in
+/// two parts with the same operations ([`chaos_ln_program`],
+/// [`chaos_sums_program`]).
+pub fn chaos_program(d: usize) -> Lowered {
     let mut g = Dag::new();
     let x: Vec<Id> = (0..d + 7).map(|i| g.var(i as u32)).collect();
     let [octave, log0, max0, sum0, mean0, count, inv_count] = x[d..] else {
@@ -352,6 +335,42 @@ pub fn chaos_program(d: usize, in_band: bool) -> Lowered {
     let u = &x[..d];
     let n2 = dot(&mut g, u, u);
     let ln = ln_norm(&mut g, octave, n2);
+    let sums = megno_sums(&mut g, ln, [log0, max0, sum0, mean0], count, inv_count);
+    let (mut roots, e, _) = rescale(&mut g, u, octave, n2);
+    roots.push(e);
+    roots.extend(sums);
+    lower(&g, &roots)
+}
+
+/// The first part of [`chaos_program`] for a vector in the band: ln‖w‖.
+/// Inputs: the result's array (not read), the vector's `d` components,
+/// `fli_oct`; output ln‖w‖, over input 0. Its logarithm reads a positive
+/// normal number (the CPU's `log_normal_r`). The samples of a run of
+/// steps take it step by step (the logarithms of one step are
+/// independent), and the sums after ([`chaos_sums_program`]).
+pub fn chaos_ln_program(d: usize) -> Lowered {
+    let mut g = Dag::new();
+    let x: Vec<Id> = (0..d + 2).map(|i| g.var(i as u32)).collect();
+    let n2 = dot(&mut g, &x[1..=d], &x[1..=d]);
+    let ln = ln_norm(&mut g, x[d + 1], n2);
+    lower(&g, &[ln])
+}
+
+/// The second part of [`chaos_program`] for a vector in the band: inputs
+/// `fli_log`, `fli_max`, `megno_sum`, `megno_mean`, ln‖w‖ (from
+/// [`chaos_ln_program`]), the sample's number and one over it; outputs
+/// the first four, over them.
+pub fn chaos_sums_program() -> Lowered {
+    let mut g = Dag::new();
+    let x: Vec<Id> = (0..7).map(|i| g.var(i)).collect();
+    let sums = megno_sums(&mut g, x[4], [x[0], x[1], x[2], x[3]], x[5], x[6]);
+    lower(&g, &sums)
+}
+
+/// `fli_log`, `fli_max`, `megno_sum` and `megno_mean` after a sample
+/// whose ln‖w‖ is `ln` (the sample's number `count`).
+fn megno_sums(g: &mut Dag, ln: Id, state: [Id; 4], count: Id, inv_count: Id) -> [Id; 4] {
+    let [log0, max0, sum0, mean0] = state;
     let max = g.call2(Func2::Max, max0, ln);
     let delta = g.sub(ln, log0);
     let weighted = g.mul(count, delta);
@@ -363,15 +382,7 @@ pub fn chaos_program(d: usize, in_band: bool) -> Lowered {
     let dev = g.sub(y, mean0);
     let step = g.mul(dev, inv_count);
     let mean = g.add(mean0, step);
-    let (mut roots, e) = match in_band {
-        false => {
-            let (scaled, e, _) = rescale(&mut g, u, octave, n2);
-            (scaled, e)
-        }
-        true => (u.to_vec(), octave),
-    };
-    roots.extend([e, ln, max, sum, mean]);
-    lower(&g, &roots)
+    [ln, max, sum, mean]
 }
 
 /// ln‖w‖ = E ln 2 + ½ ln‖u‖² of a vector kept as u = w·2^−E.

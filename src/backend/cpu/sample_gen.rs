@@ -9,7 +9,9 @@ use std::fmt::Write;
 use crate::models::tangent_gen::{rust_lets, rust_operand};
 use crate::num::formula::lower::{Lowered, Operand, Prim};
 use crate::num::formula::Func2;
-use crate::plan::indicators::{chaos_fold_program, chaos_peak_program, SampleShape};
+use crate::plan::indicators::{
+    chaos_fold_program, chaos_ln_program, chaos_peak_program, chaos_sums_program, SampleShape,
+};
 
 /// The shapes compiled: tangent dimensions 2 to 4 (every built-in model,
 /// and formula models of up to two degrees of freedom), every number of
@@ -44,14 +46,7 @@ fn pattern(s: SampleShape) -> String {
 /// pair for overlap at run time before each call: a hundred instructions,
 /// about the loop's own cost).
 fn lane_loop(s: SampleShape) -> String {
-    lane_loop_of(&name(s), &s.program(), s.inputs(), false)
-}
-
-/// [`lane_loop`] of the program `l` named `name` reading `inputs` arrays;
-/// `in_band`: its logarithm reads a positive normal number (the program of
-/// [`SampleShape::program_in_band`]), so it calls `log_normal_r`, the
-/// same bits without the cases of 0, ∞ and NaN.
-fn lane_loop_of(name: &str, l: &Lowered, inputs: usize, in_band: bool) -> String {
+    let (name, l, inputs) = (name(s), s.program(), s.inputs());
     let names = (0..inputs).map(|k| format!("x{k}")).collect::<Vec<_>>();
     let mut t = String::new();
     writeln!(t, "#[inline(always)]").unwrap();
@@ -65,30 +60,48 @@ fn lane_loop_of(name: &str, l: &Lowered, inputs: usize, in_band: bool) -> String
     writeln!(t, "    {name}_lanes({});", names.join(", ")).unwrap();
     t.push_str("}\n\n");
     let lanes = format!("{name}_lanes");
-    t.push_str(&lanes_fn("#[inline(always)]\n", &lanes, l, inputs, in_band));
+    let arrays = Arrays {
+        inputs,
+        scalars: 0,
+        in_band: false,
+    };
+    t.push_str(&lanes_fn("#[inline(always)]\n", &lanes, &l, arrays));
     t
 }
 
-/// `head`, then `fn name` over arrays `x0`, `x1`, … (`inputs` of them;
-/// the first as many as `l` has outputs written, the rest read) running
-/// [`lane_body`].
-fn lanes_fn(head: &str, name: &str, l: &Lowered, inputs: usize, in_band: bool) -> String {
+/// The arrays of a lane loop: `inputs` in all, the last `scalars` of them
+/// one value for every lane; `in_band`: its logarithm reads a positive
+/// normal number, so it calls `log_normal_r`, the same bits without the
+/// cases of 0, ∞ and NaN.
+#[derive(Clone, Copy)]
+struct Arrays {
+    inputs: usize,
+    scalars: usize,
+    in_band: bool,
+}
+
+/// `head`, then `fn name` over arrays `x0`, `x1`, … (the first as many as
+/// `l` has outputs written, the rest read) running [`lane_body`].
+fn lanes_fn(head: &str, name: &str, l: &Lowered, a: Arrays) -> String {
     let mut t = String::from(head);
     writeln!(t, "fn {name}<R: Real>(").unwrap();
-    for k in 0..inputs {
-        let m = if k < l.outputs.len() { "&mut " } else { "&" };
-        writeln!(t, "    x{k}: {m}[R; LANES],").unwrap();
+    for k in 0..a.inputs {
+        let ty = match k {
+            _ if k >= a.inputs - a.scalars => "R",
+            _ if k < l.outputs.len() => "&mut [R; LANES]",
+            _ => "&[R; LANES]",
+        };
+        writeln!(t, "    x{k}: {ty},").unwrap();
     }
     writeln!(t, ") {{").unwrap();
-    t.push_str(&lane_body(l, in_band));
+    t.push_str(&lane_body(l, a));
     t.push_str("}\n");
     t
 }
 
 /// The lane loop of the program `l` on arrays `x0`, `x1`, … (input k in
-/// `xk`, output k written over it); `in_band`: its logarithm reads a
-/// positive normal number (`log_normal_r`).
-fn lane_body(l: &Lowered, in_band: bool) -> String {
+/// `xk`, output k written over it).
+fn lane_body(l: &Lowered, a: Arrays) -> String {
     let mut t = String::new();
     let kept = kept_inputs(l);
     for &k in &kept {
@@ -98,13 +111,15 @@ fn lane_body(l: &Lowered, in_band: bool) -> String {
         )
         .unwrap();
     }
-    let input = |k: u32| match kept.contains(&k) {
-        true => format!("x{k}_in[i]"),
-        false => format!("x{k}[i]"),
+    let scalar = |k: u32| k as usize >= a.inputs - a.scalars;
+    let input = |k: u32| match (kept.contains(&k), scalar(k)) {
+        (true, _) => format!("x{k}_in[i]"),
+        (false, true) => format!("x{k}"),
+        (false, false) => format!("x{k}[i]"),
     };
     writeln!(t, "    for i in 0..LANES {{").unwrap();
     let lets = rust_lets(l, &input, "        ");
-    match in_band {
+    match a.in_band {
         true => t.push_str(&lets.replace("R::log_r(", "R::log_normal_r(")),
         false => t.push_str(&lets),
     }
@@ -151,18 +166,69 @@ fn waiting_loops() -> String {
         let head =
             "/// The FLI vector's ‖u‖² into the running maximum `x0`.\n#[inline(always)]\npub ";
         let name = format!("chaos_peak_{d}");
-        t.push_str(&lanes_fn(head, &name, &chaos_peak_program(d), d + 1, false));
+        let arrays = Arrays {
+            inputs: d + 1,
+            scalars: 0,
+            in_band: false,
+        };
+        t.push_str(&lanes_fn(head, &name, &chaos_peak_program(d), arrays));
         t.push('\n');
     }
     let head = "/// `fli_max` (`x0`) from `fli_oct` (`x1`) and the largest ‖u‖² (`x2`).\n\
                 #[inline(always)]\npub ";
-    t.push_str(&lanes_fn(
-        head,
-        "chaos_fold",
-        &chaos_fold_program(),
-        3,
-        true,
-    ));
+    let arrays = Arrays {
+        inputs: 3,
+        scalars: 0,
+        in_band: true,
+    };
+    t.push_str(&lanes_fn(head, "chaos_fold", &chaos_fold_program(), arrays));
+    t
+}
+
+/// The FLI/MEGNO sample of a vector in the band in its two parts:
+/// `chaos_ln` ([`chaos_ln_program`], the vector by reference, for each
+/// dimension) and `chaos_sums` ([`chaos_sums_program`], the sample's
+/// number and one over it as values).
+fn band_loops() -> String {
+    let mut t = String::from(
+        "/// ln‖w‖ into `out` of the FLI/MEGNO vector `u` (2 to 4 components) in\n\
+         /// the band, `octave` its `fli_oct`.\n\
+         #[inline(always)]\n\
+         pub fn chaos_ln<R: Real>(out: &mut [R; LANES], u: &[&[R; LANES]], octave: &[R; LANES]) {\n    \
+         match *u {\n",
+    );
+    let names = ["a", "b", "c", "e"];
+    for d in 2..=4 {
+        let u = names[..d].join(", ");
+        writeln!(t, "        [{u}] => chaos_ln_{d}(out, {u}, octave),").unwrap();
+    }
+    t.push_str(
+        "        _ => unreachable!(\"no compiled sample of dimension {}\", u.len()),\n    }\n}\n\n",
+    );
+    for d in 2..=4 {
+        let arrays = Arrays {
+            inputs: d + 2,
+            scalars: 0,
+            in_band: true,
+        };
+        let name = format!("chaos_ln_{d}");
+        t.push_str(&lanes_fn(
+            "#[inline(always)]\n",
+            &name,
+            &chaos_ln_program(d),
+            arrays,
+        ));
+        t.push('\n');
+    }
+    let head = "/// `fli_log`, `fli_max`, `megno_sum`, `megno_mean` (`x0` to `x3`) after a\n\
+                /// sample of ln‖w‖ `x4`, its number `x5`, one over it `x6`.\n\
+                #[inline(always)]\npub ";
+    let arrays = Arrays {
+        inputs: 7,
+        scalars: 2,
+        in_band: false,
+    };
+    t.push_str(&lanes_fn(head, "chaos_sums", &chaos_sums_program(), arrays));
     t
 }
 
@@ -208,40 +274,13 @@ pub fn generate() -> String {
         "        _ => unreachable!(\"{{shape:?}} is not compiled\"),\n    }}\n}}\n"
     )
     .unwrap();
-    writeln!(
-        s,
-        "/// Runs the in-band program of `shape` ([`SampleShape::program_in_band`]),\n\
-         /// one of [`SHAPES`] that has one.\n#[inline(always)]"
-    )
-    .unwrap();
-    writeln!(
-        s,
-        "pub fn run_in_band<R: Real>(shape: SampleShape, x: &mut [[R; LANES]]) {{"
-    )
-    .unwrap();
-    writeln!(s, "    match shape {{").unwrap();
-    let banded = || shapes.iter().filter(|sh| sh.program_in_band().is_some());
-    for sh in banded() {
-        writeln!(s, "        {} => {}_in_band(x),", pattern(*sh), name(*sh)).unwrap();
-    }
-    writeln!(
-        s,
-        "        _ => unreachable!(\"{{shape:?}} has no in-band program\"),\n    }}\n}}\n"
-    )
-    .unwrap();
     for sh in &shapes {
         s.push_str(&lane_loop(*sh));
         s.push('\n');
     }
     s.push_str(&waiting_loops());
     s.push('\n');
-    for sh in banded() {
-        let l = sh.program_in_band().expect("an in-band program");
-        let n = format!("{}_in_band", name(*sh));
-        s.push_str(&lane_loop_of(&n, &l, sh.inputs(), true));
-        s.push('\n');
-    }
-    s.pop();
+    s.push_str(&band_loops());
     s
 }
 

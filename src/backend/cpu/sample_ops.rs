@@ -46,18 +46,6 @@ pub fn run<R: Real>(shape: SampleShape, x: &mut [[R; LANES]]) {
     }
 }
 
-/// Runs the in-band program of `shape` ([`SampleShape::program_in_band`]),
-/// one of [`SHAPES`] that has one.
-#[inline(always)]
-pub fn run_in_band<R: Real>(shape: SampleShape, x: &mut [[R; LANES]]) {
-    match shape {
-        SampleShape::Chaos { d: 2 } => chaos_2_in_band(x),
-        SampleShape::Chaos { d: 3 } => chaos_3_in_band(x),
-        SampleShape::Chaos { d: 4 } => chaos_4_in_band(x),
-        _ => unreachable!("{shape:?} has no in-band program"),
-    }
-}
-
 #[inline(always)]
 pub fn lyapunov_2_1<R: Real>(x: &mut [[R; LANES]]) {
     let x: &mut [[R; LANES]; 7] = x.try_into().expect("7 arrays");
@@ -1507,179 +1495,117 @@ pub fn chaos_fold<R: Real>(
     }
 }
 
+/// ln‖w‖ into `out` of the FLI/MEGNO vector `u` (2 to 4 components) in
+/// the band, `octave` its `fli_oct`.
 #[inline(always)]
-pub fn chaos_2_in_band<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 9] = x.try_into().expect("9 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7, x8] = x.each_mut();
-    chaos_2_in_band_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8);
+pub fn chaos_ln<R: Real>(out: &mut [R; LANES], u: &[&[R; LANES]], octave: &[R; LANES]) {
+    match *u {
+        [a, b] => chaos_ln_2(out, a, b, octave),
+        [a, b, c] => chaos_ln_3(out, a, b, c, octave),
+        [a, b, c, e] => chaos_ln_4(out, a, b, c, e, octave),
+        _ => unreachable!("no compiled sample of dimension {}", u.len()),
+    }
 }
 
 #[inline(always)]
-fn chaos_2_in_band_lanes<R: Real>(
+fn chaos_ln_2<R: Real>(
     x0: &mut [R; LANES],
-    x1: &mut [R; LANES],
-    x2: &mut [R; LANES],
-    x3: &mut [R; LANES],
-    x4: &mut [R; LANES],
-    x5: &mut [R; LANES],
-    x6: &mut [R; LANES],
-    x7: &[R; LANES],
-    x8: &[R; LANES],
+    x1: &[R; LANES],
+    x2: &[R; LANES],
+    x3: &[R; LANES],
 ) {
-    let x4_in: [R; LANES] = std::hint::black_box(*x4);
     for i in 0..LANES {
-        let v0: R = x2[i] * R::from_f64(0.6931471805599453);
-        let v1: R = x0[i] * x0[i];
-        let v2: R = x1[i] * x1[i];
+        let v0: R = x3[i] * R::from_f64(0.6931471805599453);
+        let v1: R = x1[i] * x1[i];
+        let v2: R = x2[i] * x2[i];
         let v3: R = v1 + v2;
         let v4: R = R::log_normal_r(v3);
         let v5: R = v4 * R::from_f64(0.5);
         let v6: R = v0 + v5;
-        let v7: R = R::max_r(x4_in[i], v6);
-        let v8: R = v6 - x3[i];
-        let v9: R = x7[i] * v8;
-        let v10: R = x5[i] + v9;
-        let v11: R = v10 * R::from_f64(2.0);
-        let v12: R = x8[i] * v11;
-        let v13: R = v12 - x6[i];
-        let v14: R = x8[i] * v13;
-        let v15: R = x6[i] + v14;
-        let o0: R = x0[i];
-        let o1: R = x1[i];
-        let o2: R = x2[i];
-        let o3: R = v6;
-        let o4: R = v7;
-        let o5: R = v10;
-        let o6: R = v15;
+        let o0: R = v6;
         x0[i] = o0;
-        x1[i] = o1;
-        x2[i] = o2;
-        x3[i] = o3;
-        x4[i] = o4;
-        x5[i] = o5;
-        x6[i] = o6;
     }
 }
 
 #[inline(always)]
-pub fn chaos_3_in_band<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 10] = x.try_into().expect("10 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9] = x.each_mut();
-    chaos_3_in_band_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9);
-}
-
-#[inline(always)]
-fn chaos_3_in_band_lanes<R: Real>(
+fn chaos_ln_3<R: Real>(
     x0: &mut [R; LANES],
-    x1: &mut [R; LANES],
-    x2: &mut [R; LANES],
-    x3: &mut [R; LANES],
-    x4: &mut [R; LANES],
-    x5: &mut [R; LANES],
-    x6: &mut [R; LANES],
-    x7: &mut [R; LANES],
-    x8: &[R; LANES],
-    x9: &[R; LANES],
+    x1: &[R; LANES],
+    x2: &[R; LANES],
+    x3: &[R; LANES],
+    x4: &[R; LANES],
 ) {
-    let x5_in: [R; LANES] = std::hint::black_box(*x5);
     for i in 0..LANES {
-        let v0: R = x3[i] * R::from_f64(0.6931471805599453);
-        let v1: R = x0[i] * x0[i];
-        let v2: R = x1[i] * x1[i];
+        let v0: R = x4[i] * R::from_f64(0.6931471805599453);
+        let v1: R = x1[i] * x1[i];
+        let v2: R = x2[i] * x2[i];
         let v3: R = v1 + v2;
-        let v4: R = x2[i] * x2[i];
+        let v4: R = x3[i] * x3[i];
         let v5: R = v3 + v4;
         let v6: R = R::log_normal_r(v5);
         let v7: R = v6 * R::from_f64(0.5);
         let v8: R = v0 + v7;
-        let v9: R = R::max_r(x5_in[i], v8);
-        let v10: R = v8 - x4[i];
-        let v11: R = x8[i] * v10;
-        let v12: R = x6[i] + v11;
-        let v13: R = v12 * R::from_f64(2.0);
-        let v14: R = x9[i] * v13;
-        let v15: R = v14 - x7[i];
-        let v16: R = x9[i] * v15;
-        let v17: R = x7[i] + v16;
-        let o0: R = x0[i];
-        let o1: R = x1[i];
-        let o2: R = x2[i];
-        let o3: R = x3[i];
-        let o4: R = v8;
-        let o5: R = v9;
-        let o6: R = v12;
-        let o7: R = v17;
+        let o0: R = v8;
         x0[i] = o0;
-        x1[i] = o1;
-        x2[i] = o2;
-        x3[i] = o3;
-        x4[i] = o4;
-        x5[i] = o5;
-        x6[i] = o6;
-        x7[i] = o7;
     }
 }
 
 #[inline(always)]
-pub fn chaos_4_in_band<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 11] = x.try_into().expect("11 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10] = x.each_mut();
-    chaos_4_in_band_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10);
-}
-
-#[inline(always)]
-fn chaos_4_in_band_lanes<R: Real>(
+fn chaos_ln_4<R: Real>(
     x0: &mut [R; LANES],
-    x1: &mut [R; LANES],
-    x2: &mut [R; LANES],
-    x3: &mut [R; LANES],
-    x4: &mut [R; LANES],
-    x5: &mut [R; LANES],
-    x6: &mut [R; LANES],
-    x7: &mut [R; LANES],
-    x8: &mut [R; LANES],
-    x9: &[R; LANES],
-    x10: &[R; LANES],
+    x1: &[R; LANES],
+    x2: &[R; LANES],
+    x3: &[R; LANES],
+    x4: &[R; LANES],
+    x5: &[R; LANES],
 ) {
-    let x6_in: [R; LANES] = std::hint::black_box(*x6);
     for i in 0..LANES {
-        let v0: R = x4[i] * R::from_f64(0.6931471805599453);
-        let v1: R = x0[i] * x0[i];
-        let v2: R = x1[i] * x1[i];
+        let v0: R = x5[i] * R::from_f64(0.6931471805599453);
+        let v1: R = x1[i] * x1[i];
+        let v2: R = x2[i] * x2[i];
         let v3: R = v1 + v2;
-        let v4: R = x2[i] * x2[i];
+        let v4: R = x3[i] * x3[i];
         let v5: R = v3 + v4;
-        let v6: R = x3[i] * x3[i];
+        let v6: R = x4[i] * x4[i];
         let v7: R = v5 + v6;
         let v8: R = R::log_normal_r(v7);
         let v9: R = v8 * R::from_f64(0.5);
         let v10: R = v0 + v9;
-        let v11: R = R::max_r(x6_in[i], v10);
-        let v12: R = v10 - x5[i];
-        let v13: R = x9[i] * v12;
-        let v14: R = x7[i] + v13;
-        let v15: R = v14 * R::from_f64(2.0);
-        let v16: R = x10[i] * v15;
-        let v17: R = v16 - x8[i];
-        let v18: R = x10[i] * v17;
-        let v19: R = x8[i] + v18;
-        let o0: R = x0[i];
-        let o1: R = x1[i];
-        let o2: R = x2[i];
-        let o3: R = x3[i];
-        let o4: R = x4[i];
-        let o5: R = v10;
-        let o6: R = v11;
-        let o7: R = v14;
-        let o8: R = v19;
+        let o0: R = v10;
+        x0[i] = o0;
+    }
+}
+
+/// `fli_log`, `fli_max`, `megno_sum`, `megno_mean` (`x0` to `x3`) after a
+/// sample of ln‖w‖ `x4`, its number `x5`, one over it `x6`.
+#[inline(always)]
+pub fn chaos_sums<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &[R; LANES],
+    x5: R,
+    x6: R,
+) {
+    let x1_in: [R; LANES] = std::hint::black_box(*x1);
+    for i in 0..LANES {
+        let v0: R = R::max_r(x1_in[i], x4[i]);
+        let v1: R = x4[i] - x0[i];
+        let v2: R = x5 * v1;
+        let v3: R = x2[i] + v2;
+        let v4: R = v3 * R::from_f64(2.0);
+        let v5: R = x6 * v4;
+        let v6: R = v5 - x3[i];
+        let v7: R = x6 * v6;
+        let v8: R = x3[i] + v7;
+        let o0: R = x4[i];
+        let o1: R = v0;
+        let o2: R = v3;
+        let o3: R = v8;
         x0[i] = o0;
         x1[i] = o1;
         x2[i] = o2;
         x3[i] = o3;
-        x4[i] = o4;
-        x5[i] = o5;
-        x6[i] = o6;
-        x7[i] = o7;
-        x8[i] = o8;
     }
 }

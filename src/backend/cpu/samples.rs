@@ -25,59 +25,25 @@ pub fn sample_fn<R: Real>(shape: SampleShape, isa: Isa) -> Option<SampleFn<R>> {
     if !SHAPES.contains(&shape) {
         return None;
     }
-    in_precision::<R, Option<SampleFn<R>>, _, _>(
-        || pick_f32(isa).map(|p| p.all),
-        || pick_f64(isa).map(|p| p.all),
-    )
-    .flatten()
-}
-
-/// The in-band program of `shape` ([`SampleShape::program_in_band`])
-/// compiled at level `isa`, where [`sample_fn`] compiles its program and
-/// it has one.
-pub fn in_band_fn<R: Real>(shape: SampleShape, isa: Isa) -> Option<SampleFn<R>> {
-    if !SHAPES.contains(&shape) || !shape.has_program_in_band() {
-        return None;
-    }
-    in_precision::<R, Option<SampleFn<R>>, _, _>(
-        || pick_f32(isa).map(|p| p.in_band),
-        || pick_f64(isa).map(|p| p.in_band),
-    )
-    .flatten()
-}
-
-/// A level's variants: the programs, the in-band programs.
-struct Picked<R> {
-    all: SampleFn<R>,
-    in_band: SampleFn<R>,
+    in_precision::<R, Option<SampleFn<R>>, _, _>(|| pick_f32(isa), || pick_f64(isa)).flatten()
 }
 
 #[inline(never)]
-fn pick_f32(isa: Isa) -> Option<Picked<f32>> {
+fn pick_f32(isa: Isa) -> Option<SampleFn<f32>> {
     pick::<f32>(isa)
 }
 
 #[inline(never)]
-fn pick_f64(isa: Isa) -> Option<Picked<f64>> {
+fn pick_f64(isa: Isa) -> Option<SampleFn<f64>> {
     pick::<f64>(isa)
 }
 
 #[inline(always)]
-fn pick<R: Real>(isa: Isa) -> Option<Picked<R>> {
+fn pick<R: Real>(isa: Isa) -> Option<SampleFn<R>> {
     #[cfg(target_arch = "x86_64")]
     match isa {
-        Isa::V4 => {
-            return Some(Picked {
-                all: sample_v4::<R>,
-                in_band: in_band_v4::<R>,
-            })
-        }
-        Isa::V3 => {
-            return Some(Picked {
-                all: sample_v3::<R>,
-                in_band: in_band_v3::<R>,
-            })
-        }
+        Isa::V4 => return Some(sample_v4::<R>),
+        Isa::V3 => return Some(sample_v3::<R>),
         Isa::Baseline => {}
     }
     let _ = isa;
@@ -102,26 +68,6 @@ unsafe fn sample_v3<R: Real>(s: SampleShape, x: &mut [[R; LANES]]) {
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
 unsafe fn sample_v4<R: Real>(s: SampleShape, x: &mut [[R; LANES]]) {
     sample_ops::run::<R>(s, x)
-}
-
-/// [`sample_ops::run_in_band`] compiled for AVX2 and FMA.
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn in_band_v3<R: Real>(s: SampleShape, x: &mut [[R; LANES]]) {
-    sample_ops::run_in_band::<R>(s, x)
-}
-
-/// [`sample_ops::run_in_band`] compiled for AVX-512.
-///
-/// # Safety
-/// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
-unsafe fn in_band_v4<R: Real>(s: SampleShape, x: &mut [[R; LANES]]) {
-    sample_ops::run_in_band::<R>(s, x)
 }
 
 #[cfg(test)]
@@ -196,16 +142,55 @@ mod tests {
         }
     }
 
-    /// The in-band programs give the bits of the whole programs wherever
-    /// the vector's ‖u‖² is in the band of `in_band_r`, at every level this
-    /// CPU runs (each compiled with the same contraction as its whole
-    /// program), and leave the vector and its octaves as they are: vectors
-    /// of every ‖u‖² from 2⁻³⁹ to 2³⁹, in every direction.
-    fn in_band_is_the_program<R: Real>() {
-        for &shape in SHAPES.iter().filter(|s| s.has_program_in_band()) {
-            let SampleShape::Chaos { d } = shape else {
-                unreachable!("only the chaos samples have one")
-            };
+    /// The FLI/MEGNO sample of a vector in the band in its two parts, as
+    /// a run of steps takes it (`indicators.rs`'s `Pending`): ln‖w‖
+    /// (`chaos_ln`), then the sums (`chaos_sums`), on the program's arrays.
+    #[inline(always)]
+    fn band_parts<R: Real>(x: &mut [[R; LANES]], d: usize) {
+        let mut ln = [R::from_f64(0.0); LANES];
+        let u: Vec<&[R; LANES]> = x[..d].iter().collect();
+        sample_ops::chaos_ln(&mut ln, &u, &x[d]);
+        let (count, inv) = (x[d + 5][0], x[d + 6][0]);
+        let [log, max, sum, mean] = &mut x[d + 1..d + 5] else {
+            unreachable!("four sums after fli_oct")
+        };
+        sample_ops::chaos_sums(log, max, sum, mean, &ln, count, inv);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn band_parts_v3<R: Real>(x: &mut [[R; LANES]], d: usize) {
+        band_parts(x, d)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
+    unsafe fn band_parts_v4<R: Real>(x: &mut [[R; LANES]], d: usize) {
+        band_parts(x, d)
+    }
+
+    /// [`band_parts`] compiled for `level`, one this CPU runs.
+    fn band_parts_at<R: Real>(level: Isa, x: &mut [[R; LANES]], d: usize) {
+        #[cfg(target_arch = "x86_64")]
+        match level {
+            // SAFETY: the caller names a level this CPU runs.
+            Isa::V4 => return unsafe { band_parts_v4(x, d) },
+            Isa::V3 => return unsafe { band_parts_v3(x, d) },
+            Isa::Baseline => {}
+        }
+        let _ = level;
+        band_parts(x, d)
+    }
+
+    /// The two parts give the bits of the whole program wherever the
+    /// vector's ‖u‖² is in the band of `in_band_r`, at every level this CPU
+    /// runs (each compiled with the same contraction as the whole program),
+    /// and the whole program leaves the vector and its octaves as they
+    /// are there: vectors of every ‖u‖² from 2⁻³⁹ to 2³⁹, in every
+    /// direction.
+    fn band_parts_are_the_program<R: Real>() {
+        for d in 2..=4 {
+            let shape = SampleShape::Chaos { d };
             let mut x = inputs::<R>(shape);
             for i in 0..LANES {
                 // ‖u‖² = 2^(−39 + 78·i/63) along a direction turning with i.
@@ -218,20 +203,20 @@ mod tests {
                     x[j][i] = R::from_f64(dir[j] / norm * n2.sqrt() * 0.999);
                 }
             }
+            // A sample's number and one over it are one value per call.
+            x[d + 5] = [R::from_f64(37.0); LANES];
+            x[d + 6] = [R::from_f64(1.0) / R::from_f64(37.0); LANES];
             for level in [Isa::V3, Isa::V4]
                 .into_iter()
                 .filter(|l| *l as u8 <= isa() as u8)
             {
-                let (all, band) = (sample_fn::<R>(shape, level), in_band_fn::<R>(shape, level));
-                let (Some(all), Some(band)) = (all, band) else {
+                let Some(all) = sample_fn::<R>(shape, level) else {
                     panic!("{shape:?} {level:?} compiled")
                 };
                 let (mut want, mut got) = (x.clone(), x.clone());
                 // SAFETY: only levels this CPU runs.
-                unsafe {
-                    all(shape, &mut want);
-                    band(shape, &mut got);
-                }
+                unsafe { all(shape, &mut want) };
+                band_parts_at(level, &mut got, d);
                 for k in 0..shape.inputs() {
                     for i in 0..LANES {
                         let bits = |a: &[[R; LANES]]| a[k][i].to_f64().to_bits();
@@ -242,15 +227,15 @@ mod tests {
                         );
                     }
                 }
-                assert!(got[..=d] == x[..=d], "{shape:?}: the vector and E stay");
+                assert!(want[..=d] == x[..=d], "{shape:?}: the vector and E stay");
             }
         }
     }
 
     #[test]
-    fn in_band_programs_are_the_programs() {
-        in_band_is_the_program::<f32>();
-        in_band_is_the_program::<f64>();
+    fn band_parts_are_the_programs() {
+        band_parts_are_the_program::<f32>();
+        band_parts_are_the_program::<f64>();
     }
 
     #[test]
