@@ -50,6 +50,17 @@ fn log_r(x: f32) -> f32 {
     return log_kernel_f32(x, select(x, m, normal), select(0.0, e, normal));
 }
 
+// The chaos indicators' ln x: x = 2^k·(1 + f), 1 + f in [√½, √2), from
+// the bits offset by √½'s, then the division-free sample_log_core_f32; the
+// CPU's sample_log_f32 by the same operations.
+fn sample_log_r(x: f32) -> f32 {
+    let tiny = x < 1.17549435e-38;
+    let ix = bitcast<u32>(select(x, x * 4294967296.0, tiny)) - 0x3f3504f3u;
+    let k = f32(bitcast<i32>(ix) >> 23u) - select(0.0, 32.0, tiny);
+    let f = bitcast<f32>((ix & 0x007fffffu) + 0x3f3504f3u) - 1.0;
+    return sample_log_cases_f32(x, sample_log_core_f32(f, k));
+}
+
 fn atan_r(x: f32) -> f32 {
     return atan_f32(x);
 }

@@ -54,6 +54,11 @@ fn log_r(x: f64) -> f64 {
     return log_f64(x);
 }
 
+// The chaos indicators' ln x: log_r in f64, as on the CPU.
+fn sample_log_r(x: f64) -> f64 {
+    return log_f64(x);
+}
+
 fn atan_r(x: f64) -> f64 {
     return atan_f64(x);
 }

@@ -345,7 +345,7 @@ pub fn chaos_program(d: usize) -> Lowered {
 /// The first part of [`chaos_program`] for a vector in the band: ln‖w‖.
 /// Inputs: the result's array (not read), the vector's `d` components,
 /// `fli_oct`; output ln‖w‖, over input 0. Its logarithm reads a positive
-/// normal number (the CPU's `log_normal_r`). The samples of a run of
+/// normal number (the CPU's `sample_log_normal_r`). The samples of a run of
 /// steps take it step by step (the logarithms of one step are
 /// independent), and the sums after ([`chaos_sums_program`]).
 pub fn chaos_ln_program(d: usize) -> Lowered {
@@ -389,7 +389,7 @@ fn megno_sums(g: &mut Dag, ln: Id, state: [Id; 4], count: Id, inv_count: Id) -> 
 fn ln_norm(g: &mut Dag, octave: Id, n2: Id) -> Id {
     let ln2 = g.num(std::f64::consts::LN_2);
     let whole = g.mul(octave, ln2);
-    let log = g.call(Func::Log, n2);
+    let log = g.call(Func::SampleLog, n2);
     let half = g.num(0.5);
     let part = g.mul(half, log);
     g.add(whole, part)

@@ -71,7 +71,7 @@ fn lane_loop(s: SampleShape) -> String {
 
 /// The arrays of a lane loop: `inputs` in all, the last `scalars` of them
 /// one value for every lane; `in_band`: its logarithm reads a positive
-/// normal number, so it calls `log_normal_r`, the same bits without the
+/// normal number, so it calls `sample_log_normal_r`, the same bits without the
 /// cases of 0, ∞ and NaN.
 #[derive(Clone, Copy)]
 struct Arrays {
@@ -120,7 +120,7 @@ fn lane_body(l: &Lowered, a: Arrays) -> String {
     writeln!(t, "    for i in 0..LANES {{").unwrap();
     let lets = rust_lets(l, &input, "        ");
     match a.in_band {
-        true => t.push_str(&lets.replace("R::log_r(", "R::log_normal_r(")),
+        true => t.push_str(&lets.replace("R::sample_log_r(", "R::sample_log_normal_r(")),
         false => t.push_str(&lets),
     }
     // Every read before any write.

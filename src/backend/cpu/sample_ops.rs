@@ -219,7 +219,7 @@ fn chaos_2_lanes<R: Real>(
         let v6: R = x1[i] * v4;
         let v7: R = x2[i] - v3;
         let v8: R = x2[i] * R::from_f64(0.6931471805599453);
-        let v9: R = R::log_r(v2);
+        let v9: R = R::sample_log_r(v2);
         let v10: R = v9 * R::from_f64(0.5);
         let v11: R = v8 + v10;
         let v12: R = R::max_r(x4_in[i], v11);
@@ -621,7 +621,7 @@ fn chaos_3_lanes<R: Real>(
         let v9: R = x2[i] * v6;
         let v10: R = x3[i] - v5;
         let v11: R = x3[i] * R::from_f64(0.6931471805599453);
-        let v12: R = R::log_r(v4);
+        let v12: R = R::sample_log_r(v4);
         let v13: R = v12 * R::from_f64(0.5);
         let v14: R = v11 + v13;
         let v15: R = R::max_r(x5_in[i], v14);
@@ -1380,7 +1380,7 @@ fn chaos_4_lanes<R: Real>(
         let v12: R = x3[i] * v8;
         let v13: R = x4[i] - v7;
         let v14: R = x4[i] * R::from_f64(0.6931471805599453);
-        let v15: R = R::log_r(v6);
+        let v15: R = R::sample_log_r(v6);
         let v16: R = v15 * R::from_f64(0.5);
         let v17: R = v14 + v16;
         let v18: R = R::max_r(x6_in[i], v17);
@@ -1486,7 +1486,7 @@ pub fn chaos_fold<R: Real>(
     let x0_in: [R; LANES] = std::hint::black_box(*x0);
     for i in 0..LANES {
         let v0: R = x1[i] * R::from_f64(0.6931471805599453);
-        let v1: R = R::log_normal_r(x2[i]);
+        let v1: R = R::sample_log_normal_r(x2[i]);
         let v2: R = v1 * R::from_f64(0.5);
         let v3: R = v0 + v2;
         let v4: R = R::max_r(x0_in[i], v3);
@@ -1519,7 +1519,7 @@ fn chaos_ln_2<R: Real>(
         let v1: R = x1[i] * x1[i];
         let v2: R = x2[i] * x2[i];
         let v3: R = v1 + v2;
-        let v4: R = R::log_normal_r(v3);
+        let v4: R = R::sample_log_normal_r(v3);
         let v5: R = v4 * R::from_f64(0.5);
         let v6: R = v0 + v5;
         let o0: R = v6;
@@ -1542,7 +1542,7 @@ fn chaos_ln_3<R: Real>(
         let v3: R = v1 + v2;
         let v4: R = x3[i] * x3[i];
         let v5: R = v3 + v4;
-        let v6: R = R::log_normal_r(v5);
+        let v6: R = R::sample_log_normal_r(v5);
         let v7: R = v6 * R::from_f64(0.5);
         let v8: R = v0 + v7;
         let o0: R = v8;
@@ -1568,7 +1568,7 @@ fn chaos_ln_4<R: Real>(
         let v5: R = v3 + v4;
         let v6: R = x4[i] * x4[i];
         let v7: R = v5 + v6;
-        let v8: R = R::log_normal_r(v7);
+        let v8: R = R::sample_log_normal_r(v7);
         let v9: R = v8 * R::from_f64(0.5);
         let v10: R = v0 + v9;
         let o0: R = v10;

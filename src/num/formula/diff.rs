@@ -101,7 +101,7 @@ impl Dag {
                 self.div(one, twice)
             }
             Func::Exp => id,
-            Func::Log => self.div(one, a),
+            Func::Log | Func::SampleLog => self.div(one, a),
             Func::Sin => self.call(Func::Cos, a),
             Func::Cos => {
                 let s = self.call(Func::Sin, a);

@@ -19,6 +19,9 @@ pub enum Func {
     /// `num/math.rs`); not for formulas.
     Octave,
     Rescale,
+    /// The chaos indicators' logarithm (`sample_log_r`): `Log` in f64, a
+    /// division-free kernel in f32; not for formulas.
+    SampleLog,
 }
 
 /// Functions of two arguments.
@@ -52,7 +55,7 @@ pub fn func(f: Func, x: f64) -> f64 {
     match f {
         Func::Sqrt => x.sqrt(),
         Func::Exp => x.exp(),
-        Func::Log => x.ln(),
+        Func::Log | Func::SampleLog => x.ln(),
         Func::Sin => x.sin(),
         Func::Cos => x.cos(),
         Func::Tan => x.tan(),

@@ -88,6 +88,7 @@ impl Prim {
                 Func::Sign => "sign_r",
                 Func::Octave => "octave_r",
                 Func::Rescale => "rescale_r",
+                Func::SampleLog => "sample_log_r",
             },
             Prim::Call2(f) => match f {
                 Func2::Pow => "pow_r",

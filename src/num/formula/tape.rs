@@ -536,6 +536,7 @@ fn unary<R: Real, const N: usize>(op: Prim, d: &mut [R; N], a: impl At<R>) {
             Func::Sign => lanes!(d, R::sign_r, a),
             Func::Octave => lanes!(d, R::octave_r, a),
             Func::Rescale => lanes!(d, R::rescale_r, a),
+            Func::SampleLog => lanes!(d, R::sample_log_r, a),
         },
         _ => unreachable!("binary operation {op:?} as unary"),
     }
