@@ -240,8 +240,8 @@ crate::shared_fns! {
     /// bound by it). ln(1 + f) = f + f²·Q(f), Q of degree 8 fitted to
     /// (ln(1 + f) − f)/f² for relative error, by Estrin's scheme; ln 2 in
     /// two parts as in `exp_f32`. Within 1.01 ULP of ln x over every
-    /// positive normal f32 (`log_core_f32`: 0.9), non-decreasing on the band
-    /// where the indicators keep ‖u‖² (tested).
+    /// positive normal f32, non-decreasing on the band where the
+    /// indicators keep ‖u‖² (tested).
     fn sample_log_core_f32(f: f32, k: f32) -> f32 {
         let f2: f32 = f * f;
         let f4: f32 = f2 * f2;
@@ -511,8 +511,8 @@ pub trait Math: Sized {
     fn exp_r(x: Self) -> Self;
     fn log_r(x: Self) -> Self;
     /// The chaos indicators' ln x: `log_r` in f64, [`sample_log_f32`] in
-    /// f32 (their samples call nothing else, so formulas keep `log_r`'s
-    /// bits).
+    /// f32 (a function of its own, so formulas, which call `log_r`, keep
+    /// their bits).
     fn sample_log_r(x: Self) -> Self;
     /// `sample_log_r` where x is known positive, normal and finite: the
     /// same bits.
