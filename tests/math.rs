@@ -2,7 +2,7 @@
 //! documented ranges, and the edges (overflow, underflow, NaN, large arguments).
 
 use reeb::num::math::{
-    atan_f32, atan_f64, exp_f32, exp_f64, log_f32, log_f64, sincos_f32, sincos_f64,
+    atan_f32, atan_f64, exp_f32, exp_f64, log_f32, log_f64, sample_log_f32, sincos_f32, sincos_f64,
 };
 
 /// Distance in ULPs of `x` from the f64 reference `r`, in f32 units.
@@ -267,6 +267,36 @@ fn log_within_2_ulp_everywhere() {
     assert!(log_f64(-1.0).is_nan() && log_f64(f64::NAN).is_nan());
     assert_eq!(log_f32(0.0), f32::NEG_INFINITY);
     assert!(log_f32(-2.0).is_nan());
+}
+
+/// The chaos indicators' f32 logarithm (division-free) is within 1.01
+/// ULP of ln x at every subnormal and every 3rd positive normal f32, with
+/// the cases of `log_r`: 0, < 0, ∞, NaN.
+#[test]
+fn sample_log_within_1_01_ulp_over_the_f32() {
+    use rayon::prelude::*;
+    let larger = |a: (f64, u32), b: (f64, u32)| if b.0 > a.0 { b } else { a };
+    let (normal, max) = (f32::MIN_POSITIVE.to_bits(), f32::MAX.to_bits());
+    let worst = (0u32..1 << 15)
+        .into_par_iter()
+        .map(|hi| {
+            (0..1u32 << 16)
+                .map(|lo| hi << 16 | lo)
+                .filter(|&b| b > 0 && b <= max && (b < normal || b % 3 == 0))
+                .map(|b| {
+                    let x = f32::from_bits(b);
+                    (ulp32(sample_log_f32(x), f64::from(x).ln()), b)
+                })
+                .fold((0.0, 0), larger)
+        })
+        .reduce(|| (0.0, 0), larger);
+    let at = f32::from_bits(worst.1);
+    assert!(worst.0 <= 1.01, "sample_log_f32: {} ULP at {at:e}", worst.0);
+    assert_eq!(sample_log_f32(1.0), 0.0);
+    assert_eq!(sample_log_f32(0.0), f32::NEG_INFINITY);
+    assert_eq!(sample_log_f32(f32::INFINITY), f32::INFINITY);
+    assert!(sample_log_f32(-1.0).is_nan() && sample_log_f32(f32::NAN).is_nan());
+    assert!(sample_log_f32(f32::NEG_INFINITY).is_nan());
 }
 
 #[test]
