@@ -93,7 +93,9 @@ fn a_task_killed_and_requeued_resumes_its_chunks() {
         return;
     }
     let d = tmp("requeue");
-    let scene = grid_scene(&d, 12_000.0, 500, "cpu");
+    // Long enough that shard 0 is still running when the test requeues it
+    // after its first chunk (7 chunks of 6 trajectories a shard).
+    let scene = grid_scene(&d, 3_000.0, 500, "cpu");
     let out = d.join("run");
     let line = ok(&[
         "slurm",

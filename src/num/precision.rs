@@ -1,6 +1,7 @@
 //! The working precision: `f32` or `f64` ([`Real`] for generic code,
 //! [`Precision`] chosen at run time).
 
+use std::any::{Any, TypeId};
 use std::fmt::{Debug, Display};
 use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 
@@ -150,6 +151,24 @@ impl Precision {
             Precision::F64 => 8,
         }
     }
+}
+
+/// `x` as `Out`, the type it is: how a function generic in the precision
+/// hands back what its non-generic f32 or f64 twin computed. Such twins
+/// keep the heavy code compiled in this crate alone; a generic body is
+/// monomorphised again in every crate that calls it (each test crate, the
+/// binary, the Python module). Panics if `Out` is not `T`, which its
+/// callers rule out by testing `R` with [`is_f32`].
+pub fn handed_back<Out: Any, T: Any>(x: T) -> Out {
+    match (Box::new(x) as Box<dyn Any>).downcast::<Out>() {
+        Ok(out) => *out,
+        Err(_) => unreachable!("handed back as another type"),
+    }
+}
+
+/// Whether `R` is `f32` (else, for a [`Real`], `f64`).
+pub fn is_f32<R: Real>() -> bool {
+    TypeId::of::<R>() == TypeId::of::<f32>()
 }
 
 impl std::str::FromStr for Precision {

@@ -31,7 +31,7 @@ use super::error::BackendError;
 
 use crate::models::lanes::{LaneArrays, Lanes, LANES};
 use crate::models::Flows;
-use crate::num::precision::Real;
+use crate::num::precision::{handed_back, is_f32, Real};
 use crate::plan::observations::{Observations, Sink};
 use crate::plan::snapshot::{get, get_array, get_one, get_vec, invalid, put, put_slice, Header};
 use crate::plan::{slots, Plan};
@@ -93,13 +93,55 @@ fn uninterrupted<R>(run: Result<(Observations<R>, f64), BackendError>) -> Observ
     }
 }
 
+/// The run of every entry above, through [`integrate_f32`] or
+/// [`integrate_f64`] (see [`handed_back`]).
 fn integrate<R: Flows>(
     plan: &Plan,
     progress: Option<&AtomicU64>,
     isa: Isa,
     share_time: bool,
-    mut cp: Option<&mut Checkpoints>,
+    cp: Option<&mut Checkpoints>,
 ) -> Result<(Observations<R>, f64), BackendError> {
+    if is_f32::<R>() {
+        handed_back(integrate_f32(plan, progress, isa, share_time, cp))
+    } else {
+        handed_back(integrate_f64(plan, progress, isa, share_time, cp))
+    }
+}
+
+type Integrated<R> = Result<(Observations<R>, f64), BackendError>;
+
+/// [`integrate_in`] in f32, compiled in this crate only.
+#[inline(never)]
+fn integrate_f32(
+    plan: &Plan,
+    progress: Option<&AtomicU64>,
+    isa: Isa,
+    share_time: bool,
+    cp: Option<&mut Checkpoints>,
+) -> Integrated<f32> {
+    integrate_in(plan, progress, isa, share_time, cp)
+}
+
+/// [`integrate_in`] in f64, compiled in this crate only.
+#[inline(never)]
+fn integrate_f64(
+    plan: &Plan,
+    progress: Option<&AtomicU64>,
+    isa: Isa,
+    share_time: bool,
+    cp: Option<&mut Checkpoints>,
+) -> Integrated<f64> {
+    integrate_in(plan, progress, isa, share_time, cp)
+}
+
+fn integrate_in<R: Flows>(
+    plan: &Plan,
+    progress: Option<&AtomicU64>,
+    isa: Isa,
+    share_time: bool,
+    mut cp: Option<&mut Checkpoints>,
+) -> Integrated<R> {
     assert!(
         isa_rank(isa) <= isa_rank(self::isa()),
         "the CPU lacks {isa:?}"

@@ -17,7 +17,7 @@ use super::tuning::Launch;
 use crate::backend::checkpoint::Checkpoints;
 use crate::backend::error::BackendError;
 use crate::models::Flows;
-use crate::num::precision::Precision;
+use crate::num::precision::{handed_back, is_f32, Precision};
 use crate::plan::observations::Observations;
 use crate::plan::snapshot::{get_array, get_into, invalid, put, put_slice, Header};
 use crate::plan::{slots, ObsVar, Plan};
@@ -191,6 +191,46 @@ fn engine_name(ctx: &GpuContext, cap: u64) -> String {
 /// [`run_with`] with checkpoints: continues from `cp`'s snapshot if it has
 /// one, and takes one between two windows whenever it is due.
 pub fn run_resumable<R: Flows>(
+    ctx: &GpuContext,
+    plan: &Plan,
+    progress: Option<&AtomicU64>,
+    opts: &GpuOptions,
+    cp: Option<&mut Checkpoints>,
+) -> Result<GpuRun<R>, BackendError> {
+    // Through non-generic twins, compiled in this crate only (see
+    // `handed_back`).
+    if is_f32::<R>() {
+        handed_back(run_f32(ctx, plan, progress, opts, cp))
+    } else {
+        handed_back(run_f64(ctx, plan, progress, opts, cp))
+    }
+}
+
+/// [`run_in`] in f32.
+#[inline(never)]
+fn run_f32(
+    ctx: &GpuContext,
+    plan: &Plan,
+    progress: Option<&AtomicU64>,
+    opts: &GpuOptions,
+    cp: Option<&mut Checkpoints>,
+) -> Result<GpuRun<f32>, BackendError> {
+    run_in(ctx, plan, progress, opts, cp)
+}
+
+/// [`run_in`] in f64.
+#[inline(never)]
+fn run_f64(
+    ctx: &GpuContext,
+    plan: &Plan,
+    progress: Option<&AtomicU64>,
+    opts: &GpuOptions,
+    cp: Option<&mut Checkpoints>,
+) -> Result<GpuRun<f64>, BackendError> {
+    run_in(ctx, plan, progress, opts, cp)
+}
+
+fn run_in<R: Flows>(
     ctx: &GpuContext,
     plan: &Plan,
     progress: Option<&AtomicU64>,
