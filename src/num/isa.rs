@@ -32,3 +32,36 @@ impl Isa {
         }
     }
 }
+
+/// Defines a function whose body is compiled for AVX2 and FMA where the
+/// CPU has them, else as it is: for tests that run an elementary function
+/// over every f32, whose `fma`s the baseline build calls from libm (about
+/// ten times slower). `fma` is exact either way, so a function without an
+/// a·b + c the compiler could contract gives the same bits in both. (The
+/// body is a function of its own, `#[inline(always)]`, called from both
+/// variants: a closure handed to a `#[target_feature]` function is not
+/// reliably inlined there.)
+#[macro_export]
+macro_rules! with_fma {
+    ($(#[$m:meta])* $vis:vis fn $name:ident($($a:ident: $t:ty),* $(,)?) $(-> $r:ty)? $body:block) => {
+        $(#[$m])*
+        $vis fn $name($($a: $t),*) $(-> $r)? {
+            #[inline(always)]
+            fn body($($a: $t),*) $(-> $r)? $body
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx2,fma")]
+            unsafe fn v3($($a: $t),*) $(-> $r)? {
+                body($($a),*)
+            }
+            #[cfg(target_arch = "x86_64")]
+            {
+                use std::arch::is_x86_feature_detected as has;
+                if has!("avx2") && has!("fma") {
+                    // SAFETY: the CPU has the features `v3` is compiled for.
+                    return unsafe { v3($($a),*) };
+                }
+            }
+            body($($a),*)
+        }
+    };
+}
