@@ -62,7 +62,7 @@ fn interrupted(scene: &Path, out: &Path, signal: i32) -> (Option<i32>, String) {
 
 fn stopped_and_continued(signal: i32, name: &str) {
     let d = common::runs::tmp("logs", name);
-    let scene = grid_scene(&d, 40_000.0, 100_000, "cpu");
+    let scene = grid_scene(&d, 10_000.0, 100_000, "cpu");
     let one = d.join("one");
     ok(&["run", s(&scene), "--out", s(&one)]);
     let out = d.join("run");

@@ -84,7 +84,8 @@ fn wait_for_a_chunk(partial: &Path, child: &mut std::process::Child) {
 #[test]
 fn a_run_killed_with_sigkill_resumes_to_the_same_bits() {
     let d = tmp("resume");
-    let scene = grid_scene(&d, 4000.0, 5000, "cpu");
+    // 14 chunks of 6 trajectories; the kill comes after the first.
+    let scene = grid_scene(&d, 1000.0, 5000, "cpu");
     let one = d.join("one");
     ok(&["run", s(&scene), "--out", s(&one)]);
     let out = d.join("killed");
