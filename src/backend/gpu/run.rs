@@ -433,9 +433,19 @@ impl Sizes {
         if let Some(m) = opts.max_chunk {
             cap = cap.min(m.max(1));
         }
+        // No more frames than the run records: wgpu clears each buffer
+        // before its first use, so a frame buffer sized to the budget cost
+        // a clear of up to 1 GiB per run (a third of a small run's time on
+        // lavapipe).
+        let recorded = plan
+            .observers
+            .trajectory
+            .as_ref()
+            .map_or(0, |t| (plan.steps / t.every).saturating_add(1));
         let max_frames = if tv > 0 {
             (limit / (cap * tv * b))
                 .min(MEMORY_BUDGET / (cap * tv * b))
+                .min(recorded)
                 .max(2)
         } else {
             0
