@@ -28,7 +28,7 @@ def test_a_failed_shard_run_again_resumes_its_finished_chunks(tmp_path, capfd):
     from reeb import _reeb
     from reeb._scene import resolve
 
-    scene = {**VAN_DER_POL, "integrator": {"scheme": "s2", "dt": 0.002, "steps": 1_000_000}}
+    scene = {**VAN_DER_POL, "integrator": {"scheme": "s2", "dt": 0.002, "steps": 250_000}}
     scene["output"] = {"final": ["q", "s"], "cycle": True}
     text, path = resolve(scene)
     store = str(tmp_path / "store")
@@ -65,7 +65,7 @@ def test_a_worker_killed_mid_shard_is_retried_and_resumes(tmp_path, capfd):
     import threading
     import time
 
-    scene = {**VAN_DER_POL, "integrator": {"scheme": "s2", "dt": 0.002, "steps": 2_000_000}}
+    scene = {**VAN_DER_POL, "integrator": {"scheme": "s2", "dt": 0.002, "steps": 500_000}}
     scene["output"] = {"final": ["q", "s"], "cycle": True}
     store = tmp_path / "store"
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
