@@ -153,12 +153,28 @@ impl Precision {
     }
 }
 
-/// `x` as `Out`, the type it is: how a function generic in the precision
-/// hands back what its non-generic f32 or f64 twin computed. Such twins
-/// keep the heavy code compiled in this crate alone; a generic body is
-/// monomorphised again in every crate that calls it (each test crate, the
-/// binary, the Python module). Panics if `Out` is not `T`, which its
-/// callers rule out by testing `R` with [`is_f32`].
+/// What `f32s` or `f64s` makes, whichever is `R`, as `Out` (their result
+/// in `R`). Heavy code generic in the precision (the ~1300 kernels, the
+/// runs) is compiled in this crate alone, through non-generic f32 and f64
+/// twins: reached from a generic caller, every crate that calls it (each
+/// test crate, the binary, the Python module) would monomorphise it again
+/// (one test crate's rustc reached 13.7 GB). `Any` hands the result back
+/// in `R`.
+pub fn in_precision<R: Real, Out: Any, A: Any, B: Any>(
+    f32s: impl FnOnce() -> A,
+    f64s: impl FnOnce() -> B,
+) -> Out {
+    if is_f32::<R>() {
+        handed_back(f32s())
+    } else {
+        handed_back(f64s())
+    }
+}
+
+/// `x` as `Out`, the type it is: what [`in_precision`] does with the
+/// twin's result, for callers that branch on [`is_f32`] themselves (whose
+/// twins take the same `&mut`, which two closures cannot both hold).
+/// Panics if `Out` is not `T`.
 pub fn handed_back<Out: Any, T: Any>(x: T) -> Out {
     match (Box::new(x) as Box<dyn Any>).downcast::<Out>() {
         Ok(out) => *out,

@@ -431,7 +431,7 @@ pub struct Lengths {
 
 /// Trajectory frames per trajectory (every `every` steps from step 0);
 /// `None` if the count overflows.
-fn frames_per_trajectory(plan: &Plan) -> Option<u64> {
+pub fn frames_per_trajectory(plan: &Plan) -> Option<u64> {
     match &plan.observers.trajectory {
         Some(t) => (plan.steps / t.every).checked_add(1),
         None => Some(0),

@@ -3,13 +3,11 @@
 //! model's [`Pieces`]; a run of steps of such stages in one call, compiled for
 //! three instruction-set levels and chosen at run time.
 
-use std::any::{Any, TypeId};
-
 use crate::models::lanes::{Lane, Lanes, LANES};
 use crate::models::pieces::{Pieces, PiecesVisitor, Saved, MAX_VARS};
 use crate::models::Model;
 pub use crate::num::isa::Isa;
-use crate::num::precision::Real;
+use crate::num::precision::{in_precision, Real};
 use crate::plan::Plan;
 
 /// A stage's weights: `(w/2, w, time offset c)`.
@@ -481,8 +479,7 @@ impl<R: Real> PiecesVisitor<R> for StageBuilder {
 
 impl StageBuilder {
     /// The fused steps of `model` in precision `R`; `None` for a formula
-    /// model, an order that is not a permutation of A, B, C, or a precision
-    /// other than f32 and f64.
+    /// model or an order that is not a permutation of A, B, C.
     ///
     /// Compiled through the non-generic [`kernels_f32`] and
     /// [`kernels_f64`] (see [`in_precision`]).
@@ -491,31 +488,7 @@ impl StageBuilder {
             || kernels_f32(self, model),
             || kernels_f64(self, model),
         )
-        .flatten()
     }
-}
-
-/// What `f32s` or `f64s` makes, whichever is `R`, as `Out` (their result
-/// in `R`); `None` in another precision. Kernels are compiled in this crate
-/// alone, through non-generic builders for f32 and f64: built from a
-/// generic caller, every crate that runs a plan (each test crate) would
-/// monomorphise all ~1300 of them again (one test crate's rustc reached
-/// 13.7 GB). `Any` hands the result back in `R`.
-pub fn in_precision<R: Real, Out: Any + Copy, A: Any, B: Any>(
-    f32s: impl FnOnce() -> A,
-    f64s: impl FnOnce() -> B,
-) -> Option<Out> {
-    let (a, b);
-    let out: &dyn Any = if TypeId::of::<R>() == TypeId::of::<f32>() {
-        a = f32s();
-        &a
-    } else if TypeId::of::<R>() == TypeId::of::<f64>() {
-        b = f64s();
-        &b
-    } else {
-        return None;
-    };
-    out.downcast_ref::<Out>().copied()
 }
 
 /// [`StageBuilder::build`] in f32, compiled here only.

@@ -94,7 +94,7 @@ fn uninterrupted<R>(run: Result<(Observations<R>, f64), BackendError>) -> Observ
 }
 
 /// The run of every entry above, through [`integrate_f32`] or
-/// [`integrate_f64`] (see [`handed_back`]).
+/// [`integrate_f64`] (see [`crate::num::precision::in_precision`]).
 fn integrate<R: Flows>(
     plan: &Plan,
     progress: Option<&AtomicU64>,

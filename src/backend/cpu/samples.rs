@@ -5,11 +5,10 @@
 //! the tape's operations, its bits where the compiler fuses no a·b + c
 //! into an FMA. Other shapes keep the tape.
 
-use super::kernels::in_precision;
 use super::sample_ops::{self, SHAPES};
 use crate::models::lanes::LANES;
 use crate::num::isa::Isa;
-use crate::num::precision::Real;
+use crate::num::precision::{in_precision, Real};
 use crate::plan::indicators::SampleShape;
 
 /// One sample over a block: `(shape, arrays)`, the program's inputs in its
@@ -25,7 +24,7 @@ pub fn sample_fn<R: Real>(shape: SampleShape, isa: Isa) -> Option<SampleFn<R>> {
     if !SHAPES.contains(&shape) {
         return None;
     }
-    in_precision::<R, Option<SampleFn<R>>, _, _>(|| pick_f32(isa), || pick_f64(isa)).flatten()
+    in_precision::<R, Option<SampleFn<R>>, _, _>(|| pick_f32(isa), || pick_f64(isa))
 }
 
 #[inline(never)]

@@ -13,12 +13,12 @@
 // Lane loops index several arrays by lane; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
-use super::kernels::{in_precision, time, time_mode, weights, Weights};
+use super::kernels::{time, time_mode, weights, Weights};
 use crate::models::lanes::{index_of, Lane, Lanes, LANES};
 use crate::models::pieces::{Pieces, PiecesVisitor};
 use crate::models::{tangent_ops, Model};
 use crate::num::isa::Isa;
-use crate::num::precision::Real;
+use crate::num::precision::{in_precision, Real};
 use crate::plan::Plan;
 
 /// The most deviation vectors one pass of a kernel carries; more run in
@@ -351,7 +351,6 @@ impl<R: Real> CompiledTangent<R> {
 fn kernel<R: Real>(model: &Model, isa: Isa, vectors: usize) -> Option<TangentFn<R>> {
     let b = Builder { isa, vectors };
     in_precision::<R, Option<TangentFn<R>>, _, _>(|| kernel_f32(model, b), || kernel_f64(model, b))
-        .flatten()
 }
 
 #[inline(never)]

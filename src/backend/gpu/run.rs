@@ -18,7 +18,7 @@ use crate::backend::checkpoint::Checkpoints;
 use crate::backend::error::BackendError;
 use crate::models::Flows;
 use crate::num::precision::{handed_back, is_f32, Precision};
-use crate::plan::observations::Observations;
+use crate::plan::observations::{frames_per_trajectory, Observations};
 use crate::plan::snapshot::{get_array, get_into, invalid, put, put_slice, Header};
 use crate::plan::{slots, ObsVar, Plan};
 
@@ -198,7 +198,7 @@ pub fn run_resumable<R: Flows>(
     cp: Option<&mut Checkpoints>,
 ) -> Result<GpuRun<R>, BackendError> {
     // Through non-generic twins, compiled in this crate only (see
-    // `handed_back`).
+    // `in_precision`).
     if is_f32::<R>() {
         handed_back(run_f32(ctx, plan, progress, opts, cp))
     } else {
@@ -437,11 +437,7 @@ impl Sizes {
         // before its first use, so a frame buffer sized to the budget cost
         // a clear of up to 1 GiB per run (a third of a small run's time on
         // lavapipe).
-        let recorded = plan
-            .observers
-            .trajectory
-            .as_ref()
-            .map_or(0, |t| (plan.steps / t.every).saturating_add(1));
+        let recorded = frames_per_trajectory(plan).unwrap_or(u64::MAX);
         let max_frames = if tv > 0 {
             (limit / (cap * tv * b))
                 .min(MEMORY_BUDGET / (cap * tv * b))
