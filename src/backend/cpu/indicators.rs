@@ -622,8 +622,7 @@ fn run_steps_pending<R: Real>(
                 }
                 _ => {}
             }
-            if pending.takes(i) && band_norms(s, &loc.vectors).is_some() {
-                pending.take(s, loc, buf, ind.sample_scalars(p.every, n1));
+            if pending.takes(i) && pending.take(s, loc, buf, ind.sample_scalars(p.every, n1)) {
                 continue;
             }
             pending.flush(i, buf);
@@ -697,17 +696,28 @@ impl<'a, R: Real> Pending<'a, R> {
     }
 
     /// ln‖w‖ of the sample after a step, the vector in the scratch `s`
-    /// (at `loc`), `fli_oct` in `buf`; `v` its number.
+    /// (at `loc`), `fli_oct` in `buf`; `v` its number. Whether it waits:
+    /// only if the vector is in the band in every lane (else the whole
+    /// program must run).
     #[inline(always)]
-    fn take(&mut self, s: &TangentScratch<R>, loc: &RunLocs, buf: &[[R; LANES]], v: Scalars<R>) {
+    fn take(
+        &mut self,
+        s: &TangentScratch<R>,
+        loc: &RunLocs,
+        buf: &[[R; LANES]],
+        v: Scalars<R>,
+    ) -> bool {
         let d = loc.vectors.len();
         let mut u: [&[R; LANES]; 4] = [&buf[d]; 4];
         for (j, &(_, k, lane)) in loc.vectors.iter().enumerate() {
             u[j] = s.d[k].at(lane);
         }
-        sample_ops::chaos_ln(&mut self.lns[self.len], &u[..d], &buf[d]);
+        if !sample_ops::chaos_ln(&mut self.lns[self.len], &u[..d], &buf[d]) {
+            return false;
+        }
         self.counts[self.len] = (v.count, v.inv_count);
         self.len += 1;
+        true
     }
 
     /// Where sample `i` (arrays `buf`) is the FLI/MEGNO one, its waiting
@@ -718,11 +728,28 @@ impl<'a, R: Real> Pending<'a, R> {
         if at != i || self.len == 0 {
             return;
         }
-        let [log, max, sum, mean] = &mut buf[d + 1..d + 5] else {
-            unreachable!("four sums after fli_oct")
-        };
-        for (ln, &(count, inv)) in self.lns.iter().zip(&self.counts[..self.len]) {
-            sample_ops::chaos_sums(log, max, sum, mean, ln, count, inv);
+        let sums: &mut [[R; LANES]; 4] = (&mut buf[d + 1..d + 5])
+            .try_into()
+            .expect("four sums after fli_oct");
+        // A chunk of lanes at a time, its sums in registers through every
+        // waiting sample (one array pass per sample kept them in memory).
+        const W: usize = 8;
+        for c in (0..LANES).step_by(W) {
+            let mut r: [[R; W]; 4] = [[R::from_f64(0.0); W]; 4];
+            for (to, from) in r.iter_mut().zip(sums.iter()) {
+                to.copy_from_slice(&from[c..c + W]);
+            }
+            let [log, max, sum, mean] = &mut r;
+            for (ln, &(count, inv)) in self.lns.iter().zip(&self.counts[..self.len]) {
+                for j in 0..W {
+                    let (l, m) = (&mut log[j], &mut max[j]);
+                    let (s, y) = (&mut sum[j], &mut mean[j]);
+                    sample_ops::chaos_sums(l, m, s, y, ln[c + j], count, inv);
+                }
+            }
+            for (from, to) in r.iter().zip(sums.iter_mut()) {
+                to[c..c + W].copy_from_slice(from);
+            }
         }
         self.len = 0;
     }

@@ -8,7 +8,7 @@ use std::fmt::Write;
 
 use crate::models::tangent_gen::{rust_lets, rust_operand};
 use crate::num::formula::lower::{Lowered, Operand, Prim};
-use crate::num::formula::Func2;
+use crate::num::formula::{Func, Func2};
 use crate::plan::indicators::{
     chaos_fold_program, chaos_ln_program, chaos_peak_program, chaos_sums_program, SampleShape,
 };
@@ -80,9 +80,23 @@ struct Arrays {
     in_band: bool,
 }
 
+/// What a lane loop returns: nothing, or whether its logarithm's argument
+/// is in the band of `in_band_r` in every lane (`chaos_ln`: the check
+/// in the same pass as the logarithm, not a pass of its own).
+#[derive(Clone, Copy, PartialEq)]
+enum Returns {
+    Nothing,
+    InBand,
+}
+
 /// `head`, then `fn name` over arrays `x0`, `x1`, … (the first as many as
 /// `l` has outputs written, the rest read) running [`lane_body`].
 fn lanes_fn(head: &str, name: &str, l: &Lowered, a: Arrays) -> String {
+    lanes_fn_returning(head, name, l, a, Returns::Nothing)
+}
+
+/// [`lanes_fn`], returning what `r` says.
+fn lanes_fn_returning(head: &str, name: &str, l: &Lowered, a: Arrays, r: Returns) -> String {
     let mut t = String::from(head);
     writeln!(t, "fn {name}<R: Real>(").unwrap();
     for k in 0..a.inputs {
@@ -93,15 +107,50 @@ fn lanes_fn(head: &str, name: &str, l: &Lowered, a: Arrays) -> String {
         };
         writeln!(t, "    x{k}: {ty},").unwrap();
     }
+    match r {
+        Returns::Nothing => writeln!(t, ") {{").unwrap(),
+        Returns::InBand => writeln!(t, ") -> bool {{\n    let mut out = false;").unwrap(),
+    }
+    t.push_str(&lane_body(l, a, r));
+    if r == Returns::InBand {
+        t.push_str("    !out\n");
+    }
+    t.push_str("}\n");
+    t
+}
+
+/// One lane of the program `l` as a function of its own: output k over
+/// input k (`&mut R`), the other inputs values. A caller's loop keeps a
+/// chunk of lanes in registers across several calls (`chaos_sums`, the
+/// samples that waited in a run of steps).
+fn lane_fn(head: &str, name: &str, l: &Lowered, inputs: usize) -> String {
+    let mut t = String::from(head);
+    writeln!(t, "fn {name}<R: Real>(").unwrap();
+    let written = l.outputs.len();
+    for k in 0..inputs {
+        let ty = if k < written { "&mut R" } else { "R" };
+        writeln!(t, "    x{k}: {ty},").unwrap();
+    }
     writeln!(t, ") {{").unwrap();
-    t.push_str(&lane_body(l, a));
+    let input = |k: u32| match (k as usize) < written {
+        true => format!("(*x{k})"),
+        false => format!("x{k}"),
+    };
+    t.push_str(&rust_lets(l, &input, "    "));
+    // Every read before any write.
+    for (k, o) in l.outputs.iter().enumerate() {
+        writeln!(t, "    let o{k}: R = {};", rust_operand(*o, &input)).unwrap();
+    }
+    for k in 0..written {
+        writeln!(t, "    *x{k} = o{k};").unwrap();
+    }
     t.push_str("}\n");
     t
 }
 
 /// The lane loop of the program `l` on arrays `x0`, `x1`, … (input k in
 /// `xk`, output k written over it).
-fn lane_body(l: &Lowered, a: Arrays) -> String {
+fn lane_body(l: &Lowered, a: Arrays, r: Returns) -> String {
     let mut t = String::new();
     let kept = kept_inputs(l);
     for &k in &kept {
@@ -122,6 +171,14 @@ fn lane_body(l: &Lowered, a: Arrays) -> String {
     match a.in_band {
         true => t.push_str(&lets.replace("R::sample_log_r(", "R::sample_log_normal_r(")),
         false => t.push_str(&lets),
+    }
+    if r == Returns::InBand {
+        let log = l
+            .instrs
+            .iter()
+            .find(|i| i.op == Prim::Call(Func::SampleLog));
+        let arg = rust_operand(log.expect("a logarithm").a, &input);
+        writeln!(t, "        out |= !R::in_band_r({arg});").unwrap();
     }
     // Every read before any write.
     for (k, o) in l.outputs.iter().enumerate() {
@@ -187,14 +244,16 @@ fn waiting_loops() -> String {
 
 /// The FLI/MEGNO sample of a vector in the band in its two parts:
 /// `chaos_ln` ([`chaos_ln_program`], the vector by reference, for each
-/// dimension) and `chaos_sums` ([`chaos_sums_program`], the sample's
-/// number and one over it as values).
+/// dimension; it says whether the vector was in the band) and
+/// `chaos_sums` ([`chaos_sums_program`], one lane, the sample's number and
+/// one over it as values).
 fn band_loops() -> String {
     let mut t = String::from(
-        "/// ln‖w‖ into `out` of the FLI/MEGNO vector `u` (2 to 4 components) in\n\
-         /// the band, `octave` its `fli_oct`.\n\
+        "/// ln‖w‖ into `out` of the FLI/MEGNO vector `u` (2 to 4 components),\n\
+         /// `octave` its `fli_oct`: whether ‖u‖² is in the band of `in_band_r`\n\
+         /// in every lane (only then is `out` ln‖w‖).\n\
          #[inline(always)]\n\
-         pub fn chaos_ln<R: Real>(out: &mut [R; LANES], u: &[&[R; LANES]], octave: &[R; LANES]) {\n    \
+         pub fn chaos_ln<R: Real>(out: &mut [R; LANES], u: &[&[R; LANES]], octave: &[R; LANES]) -> bool {\n    \
          match *u {\n",
     );
     let names = ["a", "b", "c", "e"];
@@ -212,23 +271,21 @@ fn band_loops() -> String {
             in_band: true,
         };
         let name = format!("chaos_ln_{d}");
-        t.push_str(&lanes_fn(
-            "#[inline(always)]\n",
+        let l = chaos_ln_program(d);
+        let head = "#[inline(always)]\n";
+        t.push_str(&lanes_fn_returning(
+            head,
             &name,
-            &chaos_ln_program(d),
+            &l,
             arrays,
+            Returns::InBand,
         ));
         t.push('\n');
     }
-    let head = "/// `fli_log`, `fli_max`, `megno_sum`, `megno_mean` (`x0` to `x3`) after a\n\
-                /// sample of ln‖w‖ `x4`, its number `x5`, one over it `x6`.\n\
+    let head = "/// One lane's `fli_log`, `fli_max`, `megno_sum`, `megno_mean` (`x0` to\n\
+                /// `x3`) after a sample of ln‖w‖ `x4`, its number `x5`, one over it `x6`.\n\
                 #[inline(always)]\npub ";
-    let arrays = Arrays {
-        inputs: 7,
-        scalars: 2,
-        in_band: false,
-    };
-    t.push_str(&lanes_fn(head, "chaos_sums", &chaos_sums_program(), arrays));
+    t.push_str(&lane_fn(head, "chaos_sums", &chaos_sums_program(), 7));
     t
 }
 

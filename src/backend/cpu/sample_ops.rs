@@ -1495,10 +1495,11 @@ pub fn chaos_fold<R: Real>(
     }
 }
 
-/// ln‖w‖ into `out` of the FLI/MEGNO vector `u` (2 to 4 components) in
-/// the band, `octave` its `fli_oct`.
+/// ln‖w‖ into `out` of the FLI/MEGNO vector `u` (2 to 4 components),
+/// `octave` its `fli_oct`: whether ‖u‖² is in the band of `in_band_r`
+/// in every lane (only then is `out` ln‖w‖).
 #[inline(always)]
-pub fn chaos_ln<R: Real>(out: &mut [R; LANES], u: &[&[R; LANES]], octave: &[R; LANES]) {
+pub fn chaos_ln<R: Real>(out: &mut [R; LANES], u: &[&[R; LANES]], octave: &[R; LANES]) -> bool {
     match *u {
         [a, b] => chaos_ln_2(out, a, b, octave),
         [a, b, c] => chaos_ln_3(out, a, b, c, octave),
@@ -1513,7 +1514,8 @@ fn chaos_ln_2<R: Real>(
     x1: &[R; LANES],
     x2: &[R; LANES],
     x3: &[R; LANES],
-) {
+) -> bool {
+    let mut out = false;
     for i in 0..LANES {
         let v0: R = x3[i] * R::from_f64(0.6931471805599453);
         let v1: R = x1[i] * x1[i];
@@ -1522,9 +1524,11 @@ fn chaos_ln_2<R: Real>(
         let v4: R = R::sample_log_normal_r(v3);
         let v5: R = v4 * R::from_f64(0.5);
         let v6: R = v0 + v5;
+        out |= !R::in_band_r(v3);
         let o0: R = v6;
         x0[i] = o0;
     }
+    !out
 }
 
 #[inline(always)]
@@ -1534,7 +1538,8 @@ fn chaos_ln_3<R: Real>(
     x2: &[R; LANES],
     x3: &[R; LANES],
     x4: &[R; LANES],
-) {
+) -> bool {
+    let mut out = false;
     for i in 0..LANES {
         let v0: R = x4[i] * R::from_f64(0.6931471805599453);
         let v1: R = x1[i] * x1[i];
@@ -1545,9 +1550,11 @@ fn chaos_ln_3<R: Real>(
         let v6: R = R::sample_log_normal_r(v5);
         let v7: R = v6 * R::from_f64(0.5);
         let v8: R = v0 + v7;
+        out |= !R::in_band_r(v5);
         let o0: R = v8;
         x0[i] = o0;
     }
+    !out
 }
 
 #[inline(always)]
@@ -1558,7 +1565,8 @@ fn chaos_ln_4<R: Real>(
     x3: &[R; LANES],
     x4: &[R; LANES],
     x5: &[R; LANES],
-) {
+) -> bool {
+    let mut out = false;
     for i in 0..LANES {
         let v0: R = x5[i] * R::from_f64(0.6931471805599453);
         let v1: R = x1[i] * x1[i];
@@ -1571,41 +1579,40 @@ fn chaos_ln_4<R: Real>(
         let v8: R = R::sample_log_normal_r(v7);
         let v9: R = v8 * R::from_f64(0.5);
         let v10: R = v0 + v9;
+        out |= !R::in_band_r(v7);
         let o0: R = v10;
         x0[i] = o0;
     }
+    !out
 }
 
-/// `fli_log`, `fli_max`, `megno_sum`, `megno_mean` (`x0` to `x3`) after a
-/// sample of ln‖w‖ `x4`, its number `x5`, one over it `x6`.
+/// One lane's `fli_log`, `fli_max`, `megno_sum`, `megno_mean` (`x0` to
+/// `x3`) after a sample of ln‖w‖ `x4`, its number `x5`, one over it `x6`.
 #[inline(always)]
 pub fn chaos_sums<R: Real>(
-    x0: &mut [R; LANES],
-    x1: &mut [R; LANES],
-    x2: &mut [R; LANES],
-    x3: &mut [R; LANES],
-    x4: &[R; LANES],
+    x0: &mut R,
+    x1: &mut R,
+    x2: &mut R,
+    x3: &mut R,
+    x4: R,
     x5: R,
     x6: R,
 ) {
-    let x1_in: [R; LANES] = std::hint::black_box(*x1);
-    for i in 0..LANES {
-        let v0: R = R::max_r(x1_in[i], x4[i]);
-        let v1: R = x4[i] - x0[i];
-        let v2: R = x5 * v1;
-        let v3: R = x2[i] + v2;
-        let v4: R = v3 * R::from_f64(2.0);
-        let v5: R = x6 * v4;
-        let v6: R = v5 - x3[i];
-        let v7: R = x6 * v6;
-        let v8: R = x3[i] + v7;
-        let o0: R = x4[i];
-        let o1: R = v0;
-        let o2: R = v3;
-        let o3: R = v8;
-        x0[i] = o0;
-        x1[i] = o1;
-        x2[i] = o2;
-        x3[i] = o3;
-    }
+    let v0: R = R::max_r((*x1), x4);
+    let v1: R = x4 - (*x0);
+    let v2: R = x5 * v1;
+    let v3: R = (*x2) + v2;
+    let v4: R = v3 * R::from_f64(2.0);
+    let v5: R = x6 * v4;
+    let v6: R = v5 - (*x3);
+    let v7: R = x6 * v6;
+    let v8: R = (*x3) + v7;
+    let o0: R = x4;
+    let o1: R = v0;
+    let o2: R = v3;
+    let o3: R = v8;
+    *x0 = o0;
+    *x1 = o1;
+    *x2 = o2;
+    *x3 = o3;
 }

@@ -143,33 +143,38 @@ mod tests {
 
     /// The FLI/MEGNO sample of a vector in the band in its two parts, as
     /// a run of steps takes it (`indicators.rs`'s `Pending`): ln‖w‖
-    /// (`chaos_ln`), then the sums (`chaos_sums`), on the program's arrays.
+    /// (`chaos_ln`), then the sums (`chaos_sums`, lane by lane), on the
+    /// program's arrays. Whether `chaos_ln` found the vector in the band.
     #[inline(always)]
-    fn band_parts<R: Real>(x: &mut [[R; LANES]], d: usize) {
+    fn band_parts<R: Real>(x: &mut [[R; LANES]], d: usize) -> bool {
         let mut ln = [R::from_f64(0.0); LANES];
         let u: Vec<&[R; LANES]> = x[..d].iter().collect();
-        sample_ops::chaos_ln(&mut ln, &u, &x[d]);
+        let in_band = sample_ops::chaos_ln(&mut ln, &u, &x[d]);
         let (count, inv) = (x[d + 5][0], x[d + 6][0]);
         let [log, max, sum, mean] = &mut x[d + 1..d + 5] else {
             unreachable!("four sums after fli_oct")
         };
-        sample_ops::chaos_sums(log, max, sum, mean, &ln, count, inv);
+        for i in 0..LANES {
+            let (l, m, s, y) = (&mut log[i], &mut max[i], &mut sum[i], &mut mean[i]);
+            sample_ops::chaos_sums(l, m, s, y, ln[i], count, inv);
+        }
+        in_band
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn band_parts_v3<R: Real>(x: &mut [[R; LANES]], d: usize) {
+    unsafe fn band_parts_v3<R: Real>(x: &mut [[R; LANES]], d: usize) -> bool {
         band_parts(x, d)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
-    unsafe fn band_parts_v4<R: Real>(x: &mut [[R; LANES]], d: usize) {
+    unsafe fn band_parts_v4<R: Real>(x: &mut [[R; LANES]], d: usize) -> bool {
         band_parts(x, d)
     }
 
     /// [`band_parts`] compiled for `level`, one this CPU runs.
-    fn band_parts_at<R: Real>(level: Isa, x: &mut [[R; LANES]], d: usize) {
+    fn band_parts_at<R: Real>(level: Isa, x: &mut [[R; LANES]], d: usize) -> bool {
         #[cfg(target_arch = "x86_64")]
         match level {
             // SAFETY: the caller names a level this CPU runs.
@@ -215,7 +220,13 @@ mod tests {
                 let (mut want, mut got) = (x.clone(), x.clone());
                 // SAFETY: only levels this CPU runs.
                 unsafe { all(shape, &mut want) };
-                band_parts_at(level, &mut got, d);
+                // Lane 0's ‖u‖² is 0.998·2⁻³⁹, below the band.
+                assert!(!band_parts_at(level, &mut got, d), "{shape:?} {level:?}");
+                let mut inside = x.clone();
+                for j in 0..d {
+                    inside[j][0] = inside[j][LANES / 2];
+                }
+                assert!(band_parts_at(level, &mut inside, d), "{shape:?} {level:?}");
                 for k in 0..shape.inputs() {
                     for i in 0..LANES {
                         let bits = |a: &[[R; LANES]]| a[k][i].to_f64().to_bits();
