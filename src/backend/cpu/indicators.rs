@@ -10,7 +10,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::sample_ops;
-use super::samples::{sample_fn, SampleFn};
+use super::samples::{on_arrays, sample_fn, SampleFn};
 use super::tangent::{CompiledTangent, TangentScratch};
 use crate::models::lanes::{index_of, Lanes, LANES};
 use crate::num::formula::tape::{Inputs, Tape};
@@ -408,9 +408,6 @@ impl<R: Real> IndicatorTapes<R> {
     ) {
         let (shape, f) = p.compiled.expect("a compiled sample");
         let v = self.sample_scalars(p.every, n1);
-        for &(a, k, lane) in &loc.vectors {
-            buf[a] = *s.d[k].at(lane);
-        }
         for &(a, one) in &loc.scalars {
             buf[a] = [match one {
                 Loc::Count => v.count,
@@ -418,12 +415,28 @@ impl<R: Real> IndicatorTapes<R> {
                 _ => v.at_skip,
             }; LANES];
         }
-        // SAFETY: `sample_fn` compiled it for the block's level, which
-        // `kernels::isa` names only where the CPU has its features.
-        unsafe { f(shape, buf) };
-        for &(a, k, lane) in &loc.vectors {
-            *s.d[k].at_mut(lane) = buf[a];
+        // The arrays of `buf`, but the vectors' where they lie in the
+        // scratch: each pointer from one base pointer per struct, taken
+        // once, so none invalidates another.
+        let mut at = [std::ptr::null_mut(); sample_ops::MOST_ARRAYS];
+        let base = buf.as_mut_ptr();
+        for (a, p) in at.iter_mut().enumerate().take(buf.len()) {
+            // SAFETY: `a` is below `buf.len()`.
+            *p = unsafe { base.add(a) };
         }
+        for (k, d) in s.d.iter_mut().enumerate() {
+            let vector = d.as_mut_slice().as_mut_ptr() as *mut [R; LANES];
+            for &(a, _, lane) in loc.vectors.iter().filter(|v| v.1 == k) {
+                // SAFETY: `Lanes` is `repr(C)`, `COUNT` arrays of `LANES`
+                // values (see `Lanes::at`), and `lane` is one of them.
+                at[a] = unsafe { vector.add(lane) };
+            }
+        }
+        // SAFETY: `sample_fn` compiled it for the block's level, which
+        // `kernels::isa` names only where the CPU has its features; the
+        // arrays are distinct (the vectors' lanes, `buf`'s other arrays),
+        // and borrowed here.
+        unsafe { f(shape, &at[..buf.len()]) };
     }
 
     /// The vectors of the `running` lanes (bits) back into their slots.
@@ -1076,7 +1089,7 @@ fn run<R: Real>(
         }
         // SAFETY: `sample_fn` compiled it for `at.isa`, which
         // `kernels::isa` names only where the CPU has its features.
-        unsafe { f(shape, x) };
+        unsafe { on_arrays(f, shape, x) };
         for (&slot, out) in p.outputs.iter().zip(x.iter()) {
             put(&mut real[slot], out, at.running);
         }
@@ -1114,7 +1127,8 @@ mod tests {
                 let rest = [3.0, 0.5, -2.0, 0.25, 0.0].map(|x| [R::from_f64(x); LANES]);
                 let before: Vec<[R; LANES]> = u.iter().chain(&rest).copied().collect();
                 let mut x = before.clone();
-                sample_ops::run::<R>(shape, &mut x);
+                // SAFETY: the generated loop at the baseline level.
+                unsafe { on_arrays(sample_ops::run::<R>, shape, &mut x) };
                 let unchanged = (0..x.len()).filter(|&k| k != 3).all(|k| x[k] == before[k]);
                 let waits = band_norms(&s, &vectors).is_some();
                 assert!(!waits || unchanged, "‖u‖ = {norm:e}");

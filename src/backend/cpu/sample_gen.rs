@@ -48,16 +48,20 @@ fn pattern(s: SampleShape) -> String {
 fn lane_loop(s: SampleShape) -> String {
     let (name, l, inputs) = (name(s), s.program(), s.inputs());
     let names = (0..inputs).map(|k| format!("x{k}")).collect::<Vec<_>>();
+    let refs = names
+        .iter()
+        .map(|x| format!("&mut *{x}"))
+        .collect::<Vec<_>>();
     let mut t = String::new();
-    writeln!(t, "#[inline(always)]").unwrap();
-    writeln!(t, "pub fn {name}<R: Real>(x: &mut [[R; LANES]]) {{").unwrap();
+    writeln!(t, "/// # Safety\n/// See [`run`].\n#[inline(always)]").unwrap();
+    writeln!(t, "pub unsafe fn {name}<R: Real>(x: &[*mut [R; LANES]]) {{").unwrap();
     writeln!(
         t,
-        "    let x: &mut [[R; LANES]; {inputs}] = x.try_into().expect(\"{inputs} arrays\");"
+        "    let x: &[*mut [R; LANES]; {inputs}] = x.try_into().expect(\"{inputs} arrays\");"
     )
     .unwrap();
-    writeln!(t, "    let [{}] = x.each_mut();", names.join(", ")).unwrap();
-    writeln!(t, "    {name}_lanes({});", names.join(", ")).unwrap();
+    writeln!(t, "    let [{}] = *x;", names.join(", ")).unwrap();
+    writeln!(t, "    unsafe {{ {name}_lanes({}) }};", refs.join(", ")).unwrap();
     t.push_str("}\n\n");
     let lanes = format!("{name}_lanes");
     let arrays = Arrays {
@@ -312,19 +316,37 @@ pub fn generate() -> String {
         writeln!(s, "    {},", pattern(*sh)).unwrap();
     }
     s.push_str("];\n\n");
+    let most = shapes.iter().map(|sh| sh.inputs()).max().unwrap_or(0);
     writeln!(
         s,
-        "/// Runs the program of `shape`, one of [`SHAPES`].\n#[inline(always)]"
+        "/// The most arrays a compiled shape takes.\npub const MOST_ARRAYS: usize = {most};\n"
     )
     .unwrap();
     writeln!(
         s,
-        "pub fn run<R: Real>(shape: SampleShape, x: &mut [[R; LANES]]) {{"
+        "/// Runs the program of `shape`, one of [`SHAPES`], on the arrays `x`\n\
+         /// points to: its inputs in its order, output k written over input k.\n\
+         ///\n\
+         /// # Safety\n\
+         /// The pointers are valid for reads and writes, aligned and distinct, and\n\
+         /// nothing else reads or writes their arrays during the call.\n\
+         #[inline(always)]"
+    )
+    .unwrap();
+    writeln!(
+        s,
+        "pub unsafe fn run<R: Real>(shape: SampleShape, x: &[*mut [R; LANES]]) {{"
     )
     .unwrap();
     writeln!(s, "    match shape {{").unwrap();
     for sh in &shapes {
-        writeln!(s, "        {} => {}(x),", pattern(*sh), name(*sh)).unwrap();
+        writeln!(
+            s,
+            "        {} => unsafe {{ {}(x) }},",
+            pattern(*sh),
+            name(*sh)
+        )
+        .unwrap();
     }
     writeln!(
         s,

@@ -26,31 +26,41 @@ pub const SHAPES: &[SampleShape] = &[
     SampleShape::Chaos { d: 4 },
 ];
 
-/// Runs the program of `shape`, one of [`SHAPES`].
+/// The most arrays a compiled shape takes.
+pub const MOST_ARRAYS: usize = 33;
+
+/// Runs the program of `shape`, one of [`SHAPES`], on the arrays `x`
+/// points to: its inputs in its order, output k written over input k.
+///
+/// # Safety
+/// The pointers are valid for reads and writes, aligned and distinct, and
+/// nothing else reads or writes their arrays during the call.
 #[inline(always)]
-pub fn run<R: Real>(shape: SampleShape, x: &mut [[R; LANES]]) {
+pub unsafe fn run<R: Real>(shape: SampleShape, x: &[*mut [R; LANES]]) {
     match shape {
-        SampleShape::Lyapunov { d: 2, k: 1 } => lyapunov_2_1(x),
-        SampleShape::Lyapunov { d: 2, k: 2 } => lyapunov_2_2(x),
-        SampleShape::Chaos { d: 2 } => chaos_2(x),
-        SampleShape::Lyapunov { d: 3, k: 1 } => lyapunov_3_1(x),
-        SampleShape::Lyapunov { d: 3, k: 2 } => lyapunov_3_2(x),
-        SampleShape::Lyapunov { d: 3, k: 3 } => lyapunov_3_3(x),
-        SampleShape::Chaos { d: 3 } => chaos_3(x),
-        SampleShape::Lyapunov { d: 4, k: 1 } => lyapunov_4_1(x),
-        SampleShape::Lyapunov { d: 4, k: 2 } => lyapunov_4_2(x),
-        SampleShape::Lyapunov { d: 4, k: 3 } => lyapunov_4_3(x),
-        SampleShape::Lyapunov { d: 4, k: 4 } => lyapunov_4_4(x),
-        SampleShape::Chaos { d: 4 } => chaos_4(x),
+        SampleShape::Lyapunov { d: 2, k: 1 } => unsafe { lyapunov_2_1(x) },
+        SampleShape::Lyapunov { d: 2, k: 2 } => unsafe { lyapunov_2_2(x) },
+        SampleShape::Chaos { d: 2 } => unsafe { chaos_2(x) },
+        SampleShape::Lyapunov { d: 3, k: 1 } => unsafe { lyapunov_3_1(x) },
+        SampleShape::Lyapunov { d: 3, k: 2 } => unsafe { lyapunov_3_2(x) },
+        SampleShape::Lyapunov { d: 3, k: 3 } => unsafe { lyapunov_3_3(x) },
+        SampleShape::Chaos { d: 3 } => unsafe { chaos_3(x) },
+        SampleShape::Lyapunov { d: 4, k: 1 } => unsafe { lyapunov_4_1(x) },
+        SampleShape::Lyapunov { d: 4, k: 2 } => unsafe { lyapunov_4_2(x) },
+        SampleShape::Lyapunov { d: 4, k: 3 } => unsafe { lyapunov_4_3(x) },
+        SampleShape::Lyapunov { d: 4, k: 4 } => unsafe { lyapunov_4_4(x) },
+        SampleShape::Chaos { d: 4 } => unsafe { chaos_4(x) },
         _ => unreachable!("{shape:?} is not compiled"),
     }
 }
 
+/// # Safety
+/// See [`run`].
 #[inline(always)]
-pub fn lyapunov_2_1<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 7] = x.try_into().expect("7 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6] = x.each_mut();
-    lyapunov_2_1_lanes(x0, x1, x2, x3, x4, x5, x6);
+pub unsafe fn lyapunov_2_1<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 7] = x.try_into().expect("7 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6] = *x;
+    unsafe { lyapunov_2_1_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6) };
 }
 
 #[inline(always)]
@@ -96,11 +106,13 @@ fn lyapunov_2_1_lanes<R: Real>(
     }
 }
 
+/// # Safety
+/// See [`run`].
 #[inline(always)]
-pub fn lyapunov_2_2<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 13] = x.try_into().expect("13 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12] = x.each_mut();
-    lyapunov_2_2_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12);
+pub unsafe fn lyapunov_2_2<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 13] = x.try_into().expect("13 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12] = *x;
+    unsafe { lyapunov_2_2_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12) };
 }
 
 #[inline(always)]
@@ -189,11 +201,13 @@ fn lyapunov_2_2_lanes<R: Real>(
     }
 }
 
+/// # Safety
+/// See [`run`].
 #[inline(always)]
-pub fn chaos_2<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 9] = x.try_into().expect("9 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7, x8] = x.each_mut();
-    chaos_2_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8);
+pub unsafe fn chaos_2<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 9] = x.try_into().expect("9 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8] = *x;
+    unsafe { chaos_2_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8) };
 }
 
 #[inline(always)]
@@ -248,11 +262,13 @@ fn chaos_2_lanes<R: Real>(
     }
 }
 
+/// # Safety
+/// See [`run`].
 #[inline(always)]
-pub fn lyapunov_3_1<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 8] = x.try_into().expect("8 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7] = x.each_mut();
-    lyapunov_3_1_lanes(x0, x1, x2, x3, x4, x5, x6, x7);
+pub unsafe fn lyapunov_3_1<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 8] = x.try_into().expect("8 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7] = *x;
+    unsafe { lyapunov_3_1_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7) };
 }
 
 #[inline(always)]
@@ -304,11 +320,13 @@ fn lyapunov_3_1_lanes<R: Real>(
     }
 }
 
+/// # Safety
+/// See [`run`].
 #[inline(always)]
-pub fn lyapunov_3_2<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 15] = x.try_into().expect("15 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14] = x.each_mut();
-    lyapunov_3_2_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14);
+pub unsafe fn lyapunov_3_2<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 15] = x.try_into().expect("15 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14] = *x;
+    unsafe { lyapunov_3_2_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12, &mut *x13, &mut *x14) };
 }
 
 #[inline(always)]
@@ -413,11 +431,13 @@ fn lyapunov_3_2_lanes<R: Real>(
     }
 }
 
+/// # Safety
+/// See [`run`].
 #[inline(always)]
-pub fn lyapunov_3_3<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 22] = x.try_into().expect("22 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21] = x.each_mut();
-    lyapunov_3_3_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21);
+pub unsafe fn lyapunov_3_3<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 22] = x.try_into().expect("22 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21] = *x;
+    unsafe { lyapunov_3_3_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12, &mut *x13, &mut *x14, &mut *x15, &mut *x16, &mut *x17, &mut *x18, &mut *x19, &mut *x20, &mut *x21) };
 }
 
 #[inline(always)]
@@ -587,11 +607,13 @@ fn lyapunov_3_3_lanes<R: Real>(
     }
 }
 
+/// # Safety
+/// See [`run`].
 #[inline(always)]
-pub fn chaos_3<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 10] = x.try_into().expect("10 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9] = x.each_mut();
-    chaos_3_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9);
+pub unsafe fn chaos_3<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 10] = x.try_into().expect("10 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9] = *x;
+    unsafe { chaos_3_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9) };
 }
 
 #[inline(always)]
@@ -652,11 +674,13 @@ fn chaos_3_lanes<R: Real>(
     }
 }
 
+/// # Safety
+/// See [`run`].
 #[inline(always)]
-pub fn lyapunov_4_1<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 9] = x.try_into().expect("9 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7, x8] = x.each_mut();
-    lyapunov_4_1_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8);
+pub unsafe fn lyapunov_4_1<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 9] = x.try_into().expect("9 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8] = *x;
+    unsafe { lyapunov_4_1_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8) };
 }
 
 #[inline(always)]
@@ -714,11 +738,13 @@ fn lyapunov_4_1_lanes<R: Real>(
     }
 }
 
+/// # Safety
+/// See [`run`].
 #[inline(always)]
-pub fn lyapunov_4_2<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 17] = x.try_into().expect("17 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16] = x.each_mut();
-    lyapunov_4_2_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16);
+pub unsafe fn lyapunov_4_2<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 17] = x.try_into().expect("17 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16] = *x;
+    unsafe { lyapunov_4_2_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12, &mut *x13, &mut *x14, &mut *x15, &mut *x16) };
 }
 
 #[inline(always)]
@@ -839,11 +865,13 @@ fn lyapunov_4_2_lanes<R: Real>(
     }
 }
 
+/// # Safety
+/// See [`run`].
 #[inline(always)]
-pub fn lyapunov_4_3<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 25] = x.try_into().expect("25 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21, x22, x23, x24] = x.each_mut();
-    lyapunov_4_3_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21, x22, x23, x24);
+pub unsafe fn lyapunov_4_3<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 25] = x.try_into().expect("25 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21, x22, x23, x24] = *x;
+    unsafe { lyapunov_4_3_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12, &mut *x13, &mut *x14, &mut *x15, &mut *x16, &mut *x17, &mut *x18, &mut *x19, &mut *x20, &mut *x21, &mut *x22, &mut *x23, &mut *x24) };
 }
 
 #[inline(always)]
@@ -1043,11 +1071,13 @@ fn lyapunov_4_3_lanes<R: Real>(
     }
 }
 
+/// # Safety
+/// See [`run`].
 #[inline(always)]
-pub fn lyapunov_4_4<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 33] = x.try_into().expect("33 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21, x22, x23, x24, x25, x26, x27, x28, x29, x30, x31, x32] = x.each_mut();
-    lyapunov_4_4_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21, x22, x23, x24, x25, x26, x27, x28, x29, x30, x31, x32);
+pub unsafe fn lyapunov_4_4<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 33] = x.try_into().expect("33 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21, x22, x23, x24, x25, x26, x27, x28, x29, x30, x31, x32] = *x;
+    unsafe { lyapunov_4_4_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12, &mut *x13, &mut *x14, &mut *x15, &mut *x16, &mut *x17, &mut *x18, &mut *x19, &mut *x20, &mut *x21, &mut *x22, &mut *x23, &mut *x24, &mut *x25, &mut *x26, &mut *x27, &mut *x28, &mut *x29, &mut *x30, &mut *x31, &mut *x32) };
 }
 
 #[inline(always)]
@@ -1342,11 +1372,13 @@ fn lyapunov_4_4_lanes<R: Real>(
     }
 }
 
+/// # Safety
+/// See [`run`].
 #[inline(always)]
-pub fn chaos_4<R: Real>(x: &mut [[R; LANES]]) {
-    let x: &mut [[R; LANES]; 11] = x.try_into().expect("11 arrays");
-    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10] = x.each_mut();
-    chaos_4_lanes(x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10);
+pub unsafe fn chaos_4<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 11] = x.try_into().expect("11 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10] = *x;
+    unsafe { chaos_4_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10) };
 }
 
 #[inline(always)]

@@ -11,11 +11,31 @@ use crate::num::isa::Isa;
 use crate::num::precision::{in_precision, Real};
 use crate::plan::indicators::SampleShape;
 
-/// One sample over a block: `(shape, arrays)`, the program's inputs in its
-/// order, each one array of lanes; output k is written over input k (the
-/// programs keep their state in that order: the vectors, then the sums).
-/// Unsafe to call: the AVX2/FMA and AVX-512 variants need those features.
-pub type SampleFn<R> = unsafe fn(SampleShape, &mut [[R; LANES]]);
+/// One sample over a block: `(shape, arrays)`, pointers to the program's
+/// inputs in its order, each one array of lanes; output k is written over
+/// input k (the programs keep their state in that order: the vectors, then
+/// the sums). Pointers, not one slice: a run of steps hands the deviation
+/// vectors where they lie, in the compiled tangent's scratch lanes (their
+/// copies in and out cost the full spectrum of a 2-D system 7 % of its
+/// run). Unsafe to call: the AVX2/FMA and AVX-512 variants need those
+/// features, and the arrays must be as [`sample_ops::run`] says.
+pub type SampleFn<R> = unsafe fn(SampleShape, &[*mut [R; LANES]]);
+
+/// Runs `f` on the arrays `x`, one after the other.
+///
+/// # Safety
+/// `f` must be one this CPU runs (see [`SampleFn`]).
+#[inline(always)]
+pub unsafe fn on_arrays<R: Real>(f: SampleFn<R>, shape: SampleShape, x: &mut [[R; LANES]]) {
+    let mut at = [std::ptr::null_mut(); sample_ops::MOST_ARRAYS];
+    let base = x.as_mut_ptr();
+    for (a, p) in at.iter_mut().enumerate().take(x.len()) {
+        // SAFETY: `a` is below `x.len()`.
+        *p = unsafe { base.add(a) };
+    }
+    // SAFETY: distinct arrays of `x`, which this call borrows.
+    unsafe { f(shape, &at[..x.len()]) }
+}
 
 /// The sample program of `shape` compiled at level `isa`, if it is one of
 /// the compiled shapes and the level is AVX2 or AVX-512 (as for the
@@ -55,8 +75,9 @@ fn pick<R: Real>(isa: Isa) -> Option<SampleFn<R>> {
 /// The CPU must support AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn sample_v3<R: Real>(s: SampleShape, x: &mut [[R; LANES]]) {
-    sample_ops::run::<R>(s, x)
+unsafe fn sample_v3<R: Real>(s: SampleShape, x: &[*mut [R; LANES]]) {
+    // SAFETY: as the caller's.
+    unsafe { sample_ops::run::<R>(s, x) }
 }
 
 /// [`sample_ops::run`] compiled for AVX-512.
@@ -65,8 +86,9 @@ unsafe fn sample_v3<R: Real>(s: SampleShape, x: &mut [[R; LANES]]) {
 /// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
-unsafe fn sample_v4<R: Real>(s: SampleShape, x: &mut [[R; LANES]]) {
-    sample_ops::run::<R>(s, x)
+unsafe fn sample_v4<R: Real>(s: SampleShape, x: &[*mut [R; LANES]]) {
+    // SAFETY: as the caller's.
+    unsafe { sample_ops::run::<R>(s, x) }
 }
 
 #[cfg(test)]
@@ -120,8 +142,9 @@ mod tests {
                 );
                 match compiled {
                     // SAFETY: only levels this CPU runs.
-                    Some(f) => unsafe { f(shape, &mut y) },
-                    None => sample_ops::run::<R>(shape, &mut y),
+                    Some(f) => unsafe { on_arrays(f, shape, &mut y) },
+                    // SAFETY: the generated loop at the baseline level.
+                    None => unsafe { on_arrays(sample_ops::run::<R>, shape, &mut y) },
                 }
                 let tol = match level {
                     Isa::Baseline => 0.0,
@@ -219,7 +242,7 @@ mod tests {
                 };
                 let (mut want, mut got) = (x.clone(), x.clone());
                 // SAFETY: only levels this CPU runs.
-                unsafe { all(shape, &mut want) };
+                unsafe { on_arrays(all, shape, &mut want) };
                 // Lane 0's ‖u‖² is 0.998·2⁻³⁹, below the band.
                 assert!(!band_parts_at(level, &mut got, d), "{shape:?} {level:?}");
                 let mut inside = x.clone();
