@@ -270,6 +270,24 @@ impl SampleShape {
 /// skip step's; outputs: the vectors, then the rest in the inputs' order.
 /// No logarithm: [`lyapunov_finish`] reads the growth from them.
 pub fn lyapunov_program(d: usize, k: usize) -> Lowered {
+    lyapunov_lowered(d, k, true)
+}
+
+/// [`lyapunov_program`] for a sample that is not the skip step's: the
+/// same operations but for the starts, which it leaves as they are
+/// (outputs: the vectors, their octaves and ‖u‖²; the starts and the
+/// skip flag are inputs it does not read). The whole program writes
+/// 1·x + 0·y there, which is x wherever y (E or ‖u‖²) is finite, and x is
+/// never −0 (a start is 0 or a finite E or ‖u‖²); where y is not finite
+/// the vectors are not either, and the trajectory's exponents are NaN.
+/// The CPU's compiled samples take it between skip steps: a fifth of the
+/// full spectrum's sample is the starts' blends.
+pub fn lyapunov_program_between(d: usize, k: usize) -> Lowered {
+    lyapunov_lowered(d, k, false)
+}
+
+/// [`lyapunov_program`]; `starts`: with the starts' outputs.
+fn lyapunov_lowered(d: usize, k: usize, starts: bool) -> Lowered {
     let mut g = Dag::new();
     let var = |g: &mut Dag, k: usize| g.var(k as u32);
     let at_skip = var(&mut g, k * d + 4 * k);
@@ -314,7 +332,8 @@ pub fn lyapunov_program(d: usize, k: usize) -> Lowered {
         state[1].push(n2_scaled);
     }
     let mut roots = vectors;
-    roots.extend(state.concat());
+    let outputs = if starts { 4 } else { 2 };
+    roots.extend(state[..outputs].concat());
     lower(&g, &roots)
 }
 

@@ -436,7 +436,7 @@ impl<R: Real> IndicatorTapes<R> {
         // `kernels::isa` names only where the CPU has its features; the
         // arrays are distinct (the vectors' lanes, `buf`'s other arrays),
         // and borrowed here.
-        unsafe { f(shape, &at[..buf.len()]) };
+        unsafe { f(shape, &at[..buf.len()], v.at_skip != R::from_f64(0.0)) };
     }
 
     /// The vectors of the `running` lanes (bits) back into their slots.
@@ -1089,7 +1089,7 @@ fn run<R: Real>(
         }
         // SAFETY: `sample_fn` compiled it for `at.isa`, which
         // `kernels::isa` names only where the CPU has its features.
-        unsafe { on_arrays(f, shape, x) };
+        unsafe { on_arrays(f, shape, x, s.at_skip != R::from_f64(0.0)) };
         for (&slot, out) in p.outputs.iter().zip(x.iter()) {
             put(&mut real[slot], out, at.running);
         }
@@ -1128,7 +1128,7 @@ mod tests {
                 let before: Vec<[R; LANES]> = u.iter().chain(&rest).copied().collect();
                 let mut x = before.clone();
                 // SAFETY: the generated loop at the baseline level.
-                unsafe { on_arrays(sample_ops::run::<R>, shape, &mut x) };
+                unsafe { on_arrays(sample_ops::run::<R>, shape, &mut x, true) };
                 let unchanged = (0..x.len()).filter(|&k| k != 3).all(|k| x[k] == before[k]);
                 let waits = band_norms(&s, &vectors).is_some();
                 assert!(!waits || unchanged, "‖u‖ = {norm:e}");

@@ -10,7 +10,8 @@ use crate::models::tangent_gen::{rust_lets, rust_operand};
 use crate::num::formula::lower::{Lowered, Operand, Prim};
 use crate::num::formula::{Func, Func2};
 use crate::plan::indicators::{
-    chaos_fold_program, chaos_ln_program, chaos_peak_program, chaos_sums_program, SampleShape,
+    chaos_fold_program, chaos_ln_program, chaos_peak_program, chaos_sums_program,
+    lyapunov_program_between, SampleShape,
 };
 
 /// The shapes compiled: tangent dimensions 2 to 4 (every built-in model,
@@ -46,7 +47,22 @@ fn pattern(s: SampleShape) -> String {
 /// pair for overlap at run time before each call: a hundred instructions,
 /// about the loop's own cost).
 fn lane_loop(s: SampleShape) -> String {
-    let (name, l, inputs) = (name(s), s.program(), s.inputs());
+    let mut t = lane_loop_of(&name(s), &s.program(), s.inputs());
+    if let SampleShape::Lyapunov { d, k } = s {
+        let between = lyapunov_program_between(d, k);
+        t.push('\n');
+        t.push_str(&lane_loop_of(&between_name(s), &between, s.inputs()));
+    }
+    t
+}
+
+/// The Lyapunov sample between skip steps ([`lyapunov_program_between`]).
+fn between_name(s: SampleShape) -> String {
+    format!("{}_between", name(s))
+}
+
+/// [`lane_loop`] of the program `l` of `inputs` arrays, called `name`.
+fn lane_loop_of(name: &str, l: &Lowered, inputs: usize) -> String {
     let names = (0..inputs).map(|k| format!("x{k}")).collect::<Vec<_>>();
     let refs = names
         .iter()
@@ -69,7 +85,7 @@ fn lane_loop(s: SampleShape) -> String {
         scalars: 0,
         in_band: false,
     };
-    t.push_str(&lanes_fn("#[inline(always)]\n", &lanes, &l, arrays));
+    t.push_str(&lanes_fn("#[inline(always)]\n", &lanes, l, arrays));
     t
 }
 
@@ -325,7 +341,9 @@ pub fn generate() -> String {
     writeln!(
         s,
         "/// Runs the program of `shape`, one of [`SHAPES`], on the arrays `x`\n\
-         /// points to: its inputs in its order, output k written over input k.\n\
+         /// points to: its inputs in its order, output k written over input k;\n\
+         /// `skip`: the sample is the skip step's (else a Lyapunov sample leaves\n\
+         /// its starts as they are, `lyapunov_program_between`).\n\
          ///\n\
          /// # Safety\n\
          /// The pointers are valid for reads and writes, aligned and distinct, and\n\
@@ -335,18 +353,17 @@ pub fn generate() -> String {
     .unwrap();
     writeln!(
         s,
-        "pub unsafe fn run<R: Real>(shape: SampleShape, x: &[*mut [R; LANES]]) {{"
+        "pub unsafe fn run<R: Real>(shape: SampleShape, x: &[*mut [R; LANES]], skip: bool) {{"
     )
     .unwrap();
     writeln!(s, "    match shape {{").unwrap();
     for sh in &shapes {
-        writeln!(
-            s,
-            "        {} => unsafe {{ {}(x) }},",
-            pattern(*sh),
-            name(*sh)
-        )
-        .unwrap();
+        let (pat, name) = (pattern(*sh), name(*sh));
+        if let SampleShape::Lyapunov { .. } = sh {
+            let between = between_name(*sh);
+            writeln!(s, "        {pat} if !skip => unsafe {{ {between}(x) }},").unwrap();
+        }
+        writeln!(s, "        {pat} => unsafe {{ {name}(x) }},").unwrap();
     }
     writeln!(
         s,

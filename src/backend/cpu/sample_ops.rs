@@ -30,24 +30,35 @@ pub const SHAPES: &[SampleShape] = &[
 pub const MOST_ARRAYS: usize = 33;
 
 /// Runs the program of `shape`, one of [`SHAPES`], on the arrays `x`
-/// points to: its inputs in its order, output k written over input k.
+/// points to: its inputs in its order, output k written over input k;
+/// `skip`: the sample is the skip step's (else a Lyapunov sample leaves
+/// its starts as they are, `lyapunov_program_between`).
 ///
 /// # Safety
 /// The pointers are valid for reads and writes, aligned and distinct, and
 /// nothing else reads or writes their arrays during the call.
 #[inline(always)]
-pub unsafe fn run<R: Real>(shape: SampleShape, x: &[*mut [R; LANES]]) {
+pub unsafe fn run<R: Real>(shape: SampleShape, x: &[*mut [R; LANES]], skip: bool) {
     match shape {
+        SampleShape::Lyapunov { d: 2, k: 1 } if !skip => unsafe { lyapunov_2_1_between(x) },
         SampleShape::Lyapunov { d: 2, k: 1 } => unsafe { lyapunov_2_1(x) },
+        SampleShape::Lyapunov { d: 2, k: 2 } if !skip => unsafe { lyapunov_2_2_between(x) },
         SampleShape::Lyapunov { d: 2, k: 2 } => unsafe { lyapunov_2_2(x) },
         SampleShape::Chaos { d: 2 } => unsafe { chaos_2(x) },
+        SampleShape::Lyapunov { d: 3, k: 1 } if !skip => unsafe { lyapunov_3_1_between(x) },
         SampleShape::Lyapunov { d: 3, k: 1 } => unsafe { lyapunov_3_1(x) },
+        SampleShape::Lyapunov { d: 3, k: 2 } if !skip => unsafe { lyapunov_3_2_between(x) },
         SampleShape::Lyapunov { d: 3, k: 2 } => unsafe { lyapunov_3_2(x) },
+        SampleShape::Lyapunov { d: 3, k: 3 } if !skip => unsafe { lyapunov_3_3_between(x) },
         SampleShape::Lyapunov { d: 3, k: 3 } => unsafe { lyapunov_3_3(x) },
         SampleShape::Chaos { d: 3 } => unsafe { chaos_3(x) },
+        SampleShape::Lyapunov { d: 4, k: 1 } if !skip => unsafe { lyapunov_4_1_between(x) },
         SampleShape::Lyapunov { d: 4, k: 1 } => unsafe { lyapunov_4_1(x) },
+        SampleShape::Lyapunov { d: 4, k: 2 } if !skip => unsafe { lyapunov_4_2_between(x) },
         SampleShape::Lyapunov { d: 4, k: 2 } => unsafe { lyapunov_4_2(x) },
+        SampleShape::Lyapunov { d: 4, k: 3 } if !skip => unsafe { lyapunov_4_3_between(x) },
         SampleShape::Lyapunov { d: 4, k: 3 } => unsafe { lyapunov_4_3(x) },
+        SampleShape::Lyapunov { d: 4, k: 4 } if !skip => unsafe { lyapunov_4_4_between(x) },
         SampleShape::Lyapunov { d: 4, k: 4 } => unsafe { lyapunov_4_4(x) },
         SampleShape::Chaos { d: 4 } => unsafe { chaos_4(x) },
         _ => unreachable!("{shape:?} is not compiled"),
@@ -103,6 +114,47 @@ fn lyapunov_2_1_lanes<R: Real>(
         x3[i] = o3;
         x4[i] = o4;
         x5[i] = o5;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
+pub unsafe fn lyapunov_2_1_between<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 7] = x.try_into().expect("7 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6] = *x;
+    unsafe { lyapunov_2_1_between_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6) };
+}
+
+#[inline(always)]
+fn lyapunov_2_1_between_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &[R; LANES],
+    x5: &[R; LANES],
+    x6: &[R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = R::octave_r(v2);
+        let v4: R = R::rescale_r(v3);
+        let v5: R = x0[i] * v4;
+        let v6: R = x1[i] * v4;
+        let v7: R = x2[i] - v3;
+        let v8: R = v4 * v4;
+        let v9: R = v2 * v8;
+        let o0: R = v5;
+        let o1: R = v6;
+        let o2: R = v7;
+        let o3: R = v9;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
     }
 }
 
@@ -198,6 +250,80 @@ fn lyapunov_2_2_lanes<R: Real>(
         x9[i] = o9;
         x10[i] = o10;
         x11[i] = o11;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
+pub unsafe fn lyapunov_2_2_between<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 13] = x.try_into().expect("13 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12] = *x;
+    unsafe { lyapunov_2_2_between_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12) };
+}
+
+#[inline(always)]
+fn lyapunov_2_2_between_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &[R; LANES],
+    x9: &[R; LANES],
+    x10: &[R; LANES],
+    x11: &[R; LANES],
+    x12: &[R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = R::octave_r(v2);
+        let v4: R = R::rescale_r(v3);
+        let v5: R = x0[i] * v4;
+        let v6: R = x1[i] * v4;
+        let v7: R = R::from_f64(1.0) / v2;
+        let v8: R = x0[i] * x2[i];
+        let v9: R = x1[i] * x3[i];
+        let v10: R = v8 + v9;
+        let v11: R = v7 * v10;
+        let v12: R = x0[i] * v11;
+        let v13: R = x2[i] - v12;
+        let v14: R = v13 * v13;
+        let v15: R = x1[i] * v11;
+        let v16: R = x3[i] - v15;
+        let v17: R = v16 * v16;
+        let v18: R = v14 + v17;
+        let v19: R = R::octave_r(v18);
+        let v20: R = R::rescale_r(v19);
+        let v21: R = v13 * v20;
+        let v22: R = v16 * v20;
+        let v23: R = x4[i] - v3;
+        let v24: R = x5[i] - v19;
+        let v25: R = v4 * v4;
+        let v26: R = v2 * v25;
+        let v27: R = v20 * v20;
+        let v28: R = v18 * v27;
+        let o0: R = v5;
+        let o1: R = v6;
+        let o2: R = v21;
+        let o3: R = v22;
+        let o4: R = v23;
+        let o5: R = v24;
+        let o6: R = v26;
+        let o7: R = v28;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
     }
 }
 
@@ -323,6 +449,53 @@ fn lyapunov_3_1_lanes<R: Real>(
 /// # Safety
 /// See [`run`].
 #[inline(always)]
+pub unsafe fn lyapunov_3_1_between<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 8] = x.try_into().expect("8 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7] = *x;
+    unsafe { lyapunov_3_1_between_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7) };
+}
+
+#[inline(always)]
+fn lyapunov_3_1_between_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &[R; LANES],
+    x6: &[R; LANES],
+    x7: &[R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = x2[i] * x2[i];
+        let v4: R = v2 + v3;
+        let v5: R = R::octave_r(v4);
+        let v6: R = R::rescale_r(v5);
+        let v7: R = x0[i] * v6;
+        let v8: R = x1[i] * v6;
+        let v9: R = x2[i] * v6;
+        let v10: R = x3[i] - v5;
+        let v11: R = v6 * v6;
+        let v12: R = v4 * v11;
+        let o0: R = v7;
+        let o1: R = v8;
+        let o2: R = v9;
+        let o3: R = v10;
+        let o4: R = v12;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
 pub unsafe fn lyapunov_3_2<R: Real>(x: &[*mut [R; LANES]]) {
     let x: &[*mut [R; LANES]; 15] = x.try_into().expect("15 arrays");
     let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14] = *x;
@@ -428,6 +601,96 @@ fn lyapunov_3_2_lanes<R: Real>(
         x11[i] = o11;
         x12[i] = o12;
         x13[i] = o13;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
+pub unsafe fn lyapunov_3_2_between<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 15] = x.try_into().expect("15 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14] = *x;
+    unsafe { lyapunov_3_2_between_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12, &mut *x13, &mut *x14) };
+}
+
+#[inline(always)]
+fn lyapunov_3_2_between_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &[R; LANES],
+    x11: &[R; LANES],
+    x12: &[R; LANES],
+    x13: &[R; LANES],
+    x14: &[R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = x2[i] * x2[i];
+        let v4: R = v2 + v3;
+        let v5: R = R::octave_r(v4);
+        let v6: R = R::rescale_r(v5);
+        let v7: R = x0[i] * v6;
+        let v8: R = x1[i] * v6;
+        let v9: R = x2[i] * v6;
+        let v10: R = R::from_f64(1.0) / v4;
+        let v11: R = x0[i] * x3[i];
+        let v12: R = x1[i] * x4[i];
+        let v13: R = v11 + v12;
+        let v14: R = x2[i] * x5[i];
+        let v15: R = v13 + v14;
+        let v16: R = v10 * v15;
+        let v17: R = x0[i] * v16;
+        let v18: R = x3[i] - v17;
+        let v19: R = v18 * v18;
+        let v20: R = x1[i] * v16;
+        let v21: R = x4[i] - v20;
+        let v22: R = v21 * v21;
+        let v23: R = v19 + v22;
+        let v24: R = x2[i] * v16;
+        let v25: R = x5[i] - v24;
+        let v26: R = v25 * v25;
+        let v27: R = v23 + v26;
+        let v28: R = R::octave_r(v27);
+        let v29: R = R::rescale_r(v28);
+        let v30: R = v18 * v29;
+        let v31: R = v21 * v29;
+        let v32: R = v25 * v29;
+        let v33: R = x6[i] - v5;
+        let v34: R = x7[i] - v28;
+        let v35: R = v6 * v6;
+        let v36: R = v4 * v35;
+        let v37: R = v29 * v29;
+        let v38: R = v27 * v37;
+        let o0: R = v7;
+        let o1: R = v8;
+        let o2: R = v9;
+        let o3: R = v30;
+        let o4: R = v31;
+        let o5: R = v32;
+        let o6: R = v33;
+        let o7: R = v34;
+        let o8: R = v36;
+        let o9: R = v38;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
     }
 }
 
@@ -610,6 +873,151 @@ fn lyapunov_3_3_lanes<R: Real>(
 /// # Safety
 /// See [`run`].
 #[inline(always)]
+pub unsafe fn lyapunov_3_3_between<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 22] = x.try_into().expect("22 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21] = *x;
+    unsafe { lyapunov_3_3_between_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12, &mut *x13, &mut *x14, &mut *x15, &mut *x16, &mut *x17, &mut *x18, &mut *x19, &mut *x20, &mut *x21) };
+}
+
+#[inline(always)]
+fn lyapunov_3_3_between_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &mut [R; LANES],
+    x11: &mut [R; LANES],
+    x12: &mut [R; LANES],
+    x13: &mut [R; LANES],
+    x14: &mut [R; LANES],
+    x15: &[R; LANES],
+    x16: &[R; LANES],
+    x17: &[R; LANES],
+    x18: &[R; LANES],
+    x19: &[R; LANES],
+    x20: &[R; LANES],
+    x21: &[R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = x2[i] * x2[i];
+        let v4: R = v2 + v3;
+        let v5: R = R::octave_r(v4);
+        let v6: R = R::rescale_r(v5);
+        let v7: R = x0[i] * v6;
+        let v8: R = x1[i] * v6;
+        let v9: R = x2[i] * v6;
+        let v10: R = R::from_f64(1.0) / v4;
+        let v11: R = x0[i] * x3[i];
+        let v12: R = x1[i] * x4[i];
+        let v13: R = v11 + v12;
+        let v14: R = x2[i] * x5[i];
+        let v15: R = v13 + v14;
+        let v16: R = v10 * v15;
+        let v17: R = x0[i] * v16;
+        let v18: R = x3[i] - v17;
+        let v19: R = v18 * v18;
+        let v20: R = x1[i] * v16;
+        let v21: R = x4[i] - v20;
+        let v22: R = v21 * v21;
+        let v23: R = v19 + v22;
+        let v24: R = x2[i] * v16;
+        let v25: R = x5[i] - v24;
+        let v26: R = v25 * v25;
+        let v27: R = v23 + v26;
+        let v28: R = R::octave_r(v27);
+        let v29: R = R::rescale_r(v28);
+        let v30: R = v18 * v29;
+        let v31: R = v21 * v29;
+        let v32: R = v25 * v29;
+        let v33: R = x0[i] * x6[i];
+        let v34: R = x1[i] * x7[i];
+        let v35: R = v33 + v34;
+        let v36: R = x2[i] * x8[i];
+        let v37: R = v35 + v36;
+        let v38: R = v10 * v37;
+        let v39: R = x0[i] * v38;
+        let v40: R = x6[i] - v39;
+        let v41: R = R::from_f64(1.0) / v27;
+        let v42: R = v18 * v40;
+        let v43: R = x1[i] * v38;
+        let v44: R = x7[i] - v43;
+        let v45: R = v21 * v44;
+        let v46: R = v42 + v45;
+        let v47: R = x2[i] * v38;
+        let v48: R = x8[i] - v47;
+        let v49: R = v25 * v48;
+        let v50: R = v46 + v49;
+        let v51: R = v41 * v50;
+        let v52: R = v18 * v51;
+        let v53: R = v40 - v52;
+        let v54: R = v53 * v53;
+        let v55: R = v21 * v51;
+        let v56: R = v44 - v55;
+        let v57: R = v56 * v56;
+        let v58: R = v54 + v57;
+        let v59: R = v25 * v51;
+        let v60: R = v48 - v59;
+        let v61: R = v60 * v60;
+        let v62: R = v58 + v61;
+        let v63: R = R::octave_r(v62);
+        let v64: R = R::rescale_r(v63);
+        let v65: R = v53 * v64;
+        let v66: R = v56 * v64;
+        let v67: R = v60 * v64;
+        let v68: R = x9[i] - v5;
+        let v69: R = x10[i] - v28;
+        let v70: R = x11[i] - v63;
+        let v71: R = v6 * v6;
+        let v72: R = v4 * v71;
+        let v73: R = v29 * v29;
+        let v74: R = v27 * v73;
+        let v75: R = v64 * v64;
+        let v76: R = v62 * v75;
+        let o0: R = v7;
+        let o1: R = v8;
+        let o2: R = v9;
+        let o3: R = v30;
+        let o4: R = v31;
+        let o5: R = v32;
+        let o6: R = v65;
+        let o7: R = v66;
+        let o8: R = v67;
+        let o9: R = v68;
+        let o10: R = v69;
+        let o11: R = v70;
+        let o12: R = v72;
+        let o13: R = v74;
+        let o14: R = v76;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+        x10[i] = o10;
+        x11[i] = o11;
+        x12[i] = o12;
+        x13[i] = o13;
+        x14[i] = o14;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
 pub unsafe fn chaos_3<R: Real>(x: &[*mut [R; LANES]]) {
     let x: &[*mut [R; LANES]; 10] = x.try_into().expect("10 arrays");
     let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9] = *x;
@@ -741,6 +1149,59 @@ fn lyapunov_4_1_lanes<R: Real>(
 /// # Safety
 /// See [`run`].
 #[inline(always)]
+pub unsafe fn lyapunov_4_1_between<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 9] = x.try_into().expect("9 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8] = *x;
+    unsafe { lyapunov_4_1_between_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8) };
+}
+
+#[inline(always)]
+fn lyapunov_4_1_between_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &[R; LANES],
+    x7: &[R; LANES],
+    x8: &[R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = x2[i] * x2[i];
+        let v4: R = v2 + v3;
+        let v5: R = x3[i] * x3[i];
+        let v6: R = v4 + v5;
+        let v7: R = R::octave_r(v6);
+        let v8: R = R::rescale_r(v7);
+        let v9: R = x0[i] * v8;
+        let v10: R = x1[i] * v8;
+        let v11: R = x2[i] * v8;
+        let v12: R = x3[i] * v8;
+        let v13: R = x4[i] - v7;
+        let v14: R = v8 * v8;
+        let v15: R = v6 * v14;
+        let o0: R = v9;
+        let o1: R = v10;
+        let o2: R = v11;
+        let o3: R = v12;
+        let o4: R = v13;
+        let o5: R = v15;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
 pub unsafe fn lyapunov_4_2<R: Real>(x: &[*mut [R; LANES]]) {
     let x: &[*mut [R; LANES]; 17] = x.try_into().expect("17 arrays");
     let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16] = *x;
@@ -862,6 +1323,112 @@ fn lyapunov_4_2_lanes<R: Real>(
         x13[i] = o13;
         x14[i] = o14;
         x15[i] = o15;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
+pub unsafe fn lyapunov_4_2_between<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 17] = x.try_into().expect("17 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16] = *x;
+    unsafe { lyapunov_4_2_between_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12, &mut *x13, &mut *x14, &mut *x15, &mut *x16) };
+}
+
+#[inline(always)]
+fn lyapunov_4_2_between_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &mut [R; LANES],
+    x11: &mut [R; LANES],
+    x12: &[R; LANES],
+    x13: &[R; LANES],
+    x14: &[R; LANES],
+    x15: &[R; LANES],
+    x16: &[R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = x2[i] * x2[i];
+        let v4: R = v2 + v3;
+        let v5: R = x3[i] * x3[i];
+        let v6: R = v4 + v5;
+        let v7: R = R::octave_r(v6);
+        let v8: R = R::rescale_r(v7);
+        let v9: R = x0[i] * v8;
+        let v10: R = x1[i] * v8;
+        let v11: R = x2[i] * v8;
+        let v12: R = x3[i] * v8;
+        let v13: R = R::from_f64(1.0) / v6;
+        let v14: R = x0[i] * x4[i];
+        let v15: R = x1[i] * x5[i];
+        let v16: R = v14 + v15;
+        let v17: R = x2[i] * x6[i];
+        let v18: R = v16 + v17;
+        let v19: R = x3[i] * x7[i];
+        let v20: R = v18 + v19;
+        let v21: R = v13 * v20;
+        let v22: R = x0[i] * v21;
+        let v23: R = x4[i] - v22;
+        let v24: R = v23 * v23;
+        let v25: R = x1[i] * v21;
+        let v26: R = x5[i] - v25;
+        let v27: R = v26 * v26;
+        let v28: R = v24 + v27;
+        let v29: R = x2[i] * v21;
+        let v30: R = x6[i] - v29;
+        let v31: R = v30 * v30;
+        let v32: R = v28 + v31;
+        let v33: R = x3[i] * v21;
+        let v34: R = x7[i] - v33;
+        let v35: R = v34 * v34;
+        let v36: R = v32 + v35;
+        let v37: R = R::octave_r(v36);
+        let v38: R = R::rescale_r(v37);
+        let v39: R = v23 * v38;
+        let v40: R = v26 * v38;
+        let v41: R = v30 * v38;
+        let v42: R = v34 * v38;
+        let v43: R = x8[i] - v7;
+        let v44: R = x9[i] - v37;
+        let v45: R = v8 * v8;
+        let v46: R = v6 * v45;
+        let v47: R = v38 * v38;
+        let v48: R = v36 * v47;
+        let o0: R = v9;
+        let o1: R = v10;
+        let o2: R = v11;
+        let o3: R = v12;
+        let o4: R = v39;
+        let o5: R = v40;
+        let o6: R = v41;
+        let o7: R = v42;
+        let o8: R = v43;
+        let o9: R = v44;
+        let o10: R = v46;
+        let o11: R = v48;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+        x10[i] = o10;
+        x11[i] = o11;
     }
 }
 
@@ -1068,6 +1635,181 @@ fn lyapunov_4_3_lanes<R: Real>(
         x21[i] = o21;
         x22[i] = o22;
         x23[i] = o23;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
+pub unsafe fn lyapunov_4_3_between<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 25] = x.try_into().expect("25 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21, x22, x23, x24] = *x;
+    unsafe { lyapunov_4_3_between_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12, &mut *x13, &mut *x14, &mut *x15, &mut *x16, &mut *x17, &mut *x18, &mut *x19, &mut *x20, &mut *x21, &mut *x22, &mut *x23, &mut *x24) };
+}
+
+#[inline(always)]
+fn lyapunov_4_3_between_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &mut [R; LANES],
+    x11: &mut [R; LANES],
+    x12: &mut [R; LANES],
+    x13: &mut [R; LANES],
+    x14: &mut [R; LANES],
+    x15: &mut [R; LANES],
+    x16: &mut [R; LANES],
+    x17: &mut [R; LANES],
+    x18: &[R; LANES],
+    x19: &[R; LANES],
+    x20: &[R; LANES],
+    x21: &[R; LANES],
+    x22: &[R; LANES],
+    x23: &[R; LANES],
+    x24: &[R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = x2[i] * x2[i];
+        let v4: R = v2 + v3;
+        let v5: R = x3[i] * x3[i];
+        let v6: R = v4 + v5;
+        let v7: R = R::octave_r(v6);
+        let v8: R = R::rescale_r(v7);
+        let v9: R = x0[i] * v8;
+        let v10: R = x1[i] * v8;
+        let v11: R = x2[i] * v8;
+        let v12: R = x3[i] * v8;
+        let v13: R = R::from_f64(1.0) / v6;
+        let v14: R = x0[i] * x4[i];
+        let v15: R = x1[i] * x5[i];
+        let v16: R = v14 + v15;
+        let v17: R = x2[i] * x6[i];
+        let v18: R = v16 + v17;
+        let v19: R = x3[i] * x7[i];
+        let v20: R = v18 + v19;
+        let v21: R = v13 * v20;
+        let v22: R = x0[i] * v21;
+        let v23: R = x4[i] - v22;
+        let v24: R = v23 * v23;
+        let v25: R = x1[i] * v21;
+        let v26: R = x5[i] - v25;
+        let v27: R = v26 * v26;
+        let v28: R = v24 + v27;
+        let v29: R = x2[i] * v21;
+        let v30: R = x6[i] - v29;
+        let v31: R = v30 * v30;
+        let v32: R = v28 + v31;
+        let v33: R = x3[i] * v21;
+        let v34: R = x7[i] - v33;
+        let v35: R = v34 * v34;
+        let v36: R = v32 + v35;
+        let v37: R = R::octave_r(v36);
+        let v38: R = R::rescale_r(v37);
+        let v39: R = v23 * v38;
+        let v40: R = v26 * v38;
+        let v41: R = v30 * v38;
+        let v42: R = v34 * v38;
+        let v43: R = x0[i] * x8[i];
+        let v44: R = x1[i] * x9[i];
+        let v45: R = v43 + v44;
+        let v46: R = x2[i] * x10[i];
+        let v47: R = v45 + v46;
+        let v48: R = x3[i] * x11[i];
+        let v49: R = v47 + v48;
+        let v50: R = v13 * v49;
+        let v51: R = x0[i] * v50;
+        let v52: R = x8[i] - v51;
+        let v53: R = R::from_f64(1.0) / v36;
+        let v54: R = v23 * v52;
+        let v55: R = x1[i] * v50;
+        let v56: R = x9[i] - v55;
+        let v57: R = v26 * v56;
+        let v58: R = v54 + v57;
+        let v59: R = x2[i] * v50;
+        let v60: R = x10[i] - v59;
+        let v61: R = v30 * v60;
+        let v62: R = v58 + v61;
+        let v63: R = x3[i] * v50;
+        let v64: R = x11[i] - v63;
+        let v65: R = v34 * v64;
+        let v66: R = v62 + v65;
+        let v67: R = v53 * v66;
+        let v68: R = v23 * v67;
+        let v69: R = v52 - v68;
+        let v70: R = v69 * v69;
+        let v71: R = v26 * v67;
+        let v72: R = v56 - v71;
+        let v73: R = v72 * v72;
+        let v74: R = v70 + v73;
+        let v75: R = v30 * v67;
+        let v76: R = v60 - v75;
+        let v77: R = v76 * v76;
+        let v78: R = v74 + v77;
+        let v79: R = v34 * v67;
+        let v80: R = v64 - v79;
+        let v81: R = v80 * v80;
+        let v82: R = v78 + v81;
+        let v83: R = R::octave_r(v82);
+        let v84: R = R::rescale_r(v83);
+        let v85: R = v69 * v84;
+        let v86: R = v72 * v84;
+        let v87: R = v76 * v84;
+        let v88: R = v80 * v84;
+        let v89: R = x12[i] - v7;
+        let v90: R = x13[i] - v37;
+        let v91: R = x14[i] - v83;
+        let v92: R = v8 * v8;
+        let v93: R = v6 * v92;
+        let v94: R = v38 * v38;
+        let v95: R = v36 * v94;
+        let v96: R = v84 * v84;
+        let v97: R = v82 * v96;
+        let o0: R = v9;
+        let o1: R = v10;
+        let o2: R = v11;
+        let o3: R = v12;
+        let o4: R = v39;
+        let o5: R = v40;
+        let o6: R = v41;
+        let o7: R = v42;
+        let o8: R = v85;
+        let o9: R = v86;
+        let o10: R = v87;
+        let o11: R = v88;
+        let o12: R = v89;
+        let o13: R = v90;
+        let o14: R = v91;
+        let o15: R = v93;
+        let o16: R = v95;
+        let o17: R = v97;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+        x10[i] = o10;
+        x11[i] = o11;
+        x12[i] = o12;
+        x13[i] = o13;
+        x14[i] = o14;
+        x15[i] = o15;
+        x16[i] = o16;
+        x17[i] = o17;
     }
 }
 
@@ -1369,6 +2111,266 @@ fn lyapunov_4_4_lanes<R: Real>(
         x29[i] = o29;
         x30[i] = o30;
         x31[i] = o31;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
+pub unsafe fn lyapunov_4_4_between<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 33] = x.try_into().expect("33 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17, x18, x19, x20, x21, x22, x23, x24, x25, x26, x27, x28, x29, x30, x31, x32] = *x;
+    unsafe { lyapunov_4_4_between_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12, &mut *x13, &mut *x14, &mut *x15, &mut *x16, &mut *x17, &mut *x18, &mut *x19, &mut *x20, &mut *x21, &mut *x22, &mut *x23, &mut *x24, &mut *x25, &mut *x26, &mut *x27, &mut *x28, &mut *x29, &mut *x30, &mut *x31, &mut *x32) };
+}
+
+#[inline(always)]
+fn lyapunov_4_4_between_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &mut [R; LANES],
+    x11: &mut [R; LANES],
+    x12: &mut [R; LANES],
+    x13: &mut [R; LANES],
+    x14: &mut [R; LANES],
+    x15: &mut [R; LANES],
+    x16: &mut [R; LANES],
+    x17: &mut [R; LANES],
+    x18: &mut [R; LANES],
+    x19: &mut [R; LANES],
+    x20: &mut [R; LANES],
+    x21: &mut [R; LANES],
+    x22: &mut [R; LANES],
+    x23: &mut [R; LANES],
+    x24: &[R; LANES],
+    x25: &[R; LANES],
+    x26: &[R; LANES],
+    x27: &[R; LANES],
+    x28: &[R; LANES],
+    x29: &[R; LANES],
+    x30: &[R; LANES],
+    x31: &[R; LANES],
+    x32: &[R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = x2[i] * x2[i];
+        let v4: R = v2 + v3;
+        let v5: R = x3[i] * x3[i];
+        let v6: R = v4 + v5;
+        let v7: R = R::octave_r(v6);
+        let v8: R = R::rescale_r(v7);
+        let v9: R = x0[i] * v8;
+        let v10: R = x1[i] * v8;
+        let v11: R = x2[i] * v8;
+        let v12: R = x3[i] * v8;
+        let v13: R = R::from_f64(1.0) / v6;
+        let v14: R = x0[i] * x4[i];
+        let v15: R = x1[i] * x5[i];
+        let v16: R = v14 + v15;
+        let v17: R = x2[i] * x6[i];
+        let v18: R = v16 + v17;
+        let v19: R = x3[i] * x7[i];
+        let v20: R = v18 + v19;
+        let v21: R = v13 * v20;
+        let v22: R = x0[i] * v21;
+        let v23: R = x4[i] - v22;
+        let v24: R = v23 * v23;
+        let v25: R = x1[i] * v21;
+        let v26: R = x5[i] - v25;
+        let v27: R = v26 * v26;
+        let v28: R = v24 + v27;
+        let v29: R = x2[i] * v21;
+        let v30: R = x6[i] - v29;
+        let v31: R = v30 * v30;
+        let v32: R = v28 + v31;
+        let v33: R = x3[i] * v21;
+        let v34: R = x7[i] - v33;
+        let v35: R = v34 * v34;
+        let v36: R = v32 + v35;
+        let v37: R = R::octave_r(v36);
+        let v38: R = R::rescale_r(v37);
+        let v39: R = v23 * v38;
+        let v40: R = v26 * v38;
+        let v41: R = v30 * v38;
+        let v42: R = v34 * v38;
+        let v43: R = x0[i] * x8[i];
+        let v44: R = x1[i] * x9[i];
+        let v45: R = v43 + v44;
+        let v46: R = x2[i] * x10[i];
+        let v47: R = v45 + v46;
+        let v48: R = x3[i] * x11[i];
+        let v49: R = v47 + v48;
+        let v50: R = v13 * v49;
+        let v51: R = x0[i] * v50;
+        let v52: R = x8[i] - v51;
+        let v53: R = R::from_f64(1.0) / v36;
+        let v54: R = v23 * v52;
+        let v55: R = x1[i] * v50;
+        let v56: R = x9[i] - v55;
+        let v57: R = v26 * v56;
+        let v58: R = v54 + v57;
+        let v59: R = x2[i] * v50;
+        let v60: R = x10[i] - v59;
+        let v61: R = v30 * v60;
+        let v62: R = v58 + v61;
+        let v63: R = x3[i] * v50;
+        let v64: R = x11[i] - v63;
+        let v65: R = v34 * v64;
+        let v66: R = v62 + v65;
+        let v67: R = v53 * v66;
+        let v68: R = v23 * v67;
+        let v69: R = v52 - v68;
+        let v70: R = v69 * v69;
+        let v71: R = v26 * v67;
+        let v72: R = v56 - v71;
+        let v73: R = v72 * v72;
+        let v74: R = v70 + v73;
+        let v75: R = v30 * v67;
+        let v76: R = v60 - v75;
+        let v77: R = v76 * v76;
+        let v78: R = v74 + v77;
+        let v79: R = v34 * v67;
+        let v80: R = v64 - v79;
+        let v81: R = v80 * v80;
+        let v82: R = v78 + v81;
+        let v83: R = R::octave_r(v82);
+        let v84: R = R::rescale_r(v83);
+        let v85: R = v69 * v84;
+        let v86: R = v72 * v84;
+        let v87: R = v76 * v84;
+        let v88: R = v80 * v84;
+        let v89: R = x0[i] * x12[i];
+        let v90: R = x1[i] * x13[i];
+        let v91: R = v89 + v90;
+        let v92: R = x2[i] * x14[i];
+        let v93: R = v91 + v92;
+        let v94: R = x3[i] * x15[i];
+        let v95: R = v93 + v94;
+        let v96: R = v13 * v95;
+        let v97: R = x0[i] * v96;
+        let v98: R = x12[i] - v97;
+        let v99: R = v23 * v98;
+        let v100: R = x1[i] * v96;
+        let v101: R = x13[i] - v100;
+        let v102: R = v26 * v101;
+        let v103: R = v99 + v102;
+        let v104: R = x2[i] * v96;
+        let v105: R = x14[i] - v104;
+        let v106: R = v30 * v105;
+        let v107: R = v103 + v106;
+        let v108: R = x3[i] * v96;
+        let v109: R = x15[i] - v108;
+        let v110: R = v34 * v109;
+        let v111: R = v107 + v110;
+        let v112: R = v53 * v111;
+        let v113: R = v23 * v112;
+        let v114: R = v98 - v113;
+        let v115: R = R::from_f64(1.0) / v82;
+        let v116: R = v69 * v114;
+        let v117: R = v26 * v112;
+        let v118: R = v101 - v117;
+        let v119: R = v72 * v118;
+        let v120: R = v116 + v119;
+        let v121: R = v30 * v112;
+        let v122: R = v105 - v121;
+        let v123: R = v76 * v122;
+        let v124: R = v120 + v123;
+        let v125: R = v34 * v112;
+        let v126: R = v109 - v125;
+        let v127: R = v80 * v126;
+        let v128: R = v124 + v127;
+        let v129: R = v115 * v128;
+        let v130: R = v69 * v129;
+        let v131: R = v114 - v130;
+        let v132: R = v131 * v131;
+        let v133: R = v72 * v129;
+        let v134: R = v118 - v133;
+        let v135: R = v134 * v134;
+        let v136: R = v132 + v135;
+        let v137: R = v76 * v129;
+        let v138: R = v122 - v137;
+        let v139: R = v138 * v138;
+        let v140: R = v136 + v139;
+        let v141: R = v80 * v129;
+        let v142: R = v126 - v141;
+        let v143: R = v142 * v142;
+        let v144: R = v140 + v143;
+        let v145: R = R::octave_r(v144);
+        let v146: R = R::rescale_r(v145);
+        let v147: R = v131 * v146;
+        let v148: R = v134 * v146;
+        let v149: R = v138 * v146;
+        let v150: R = v142 * v146;
+        let v151: R = x16[i] - v7;
+        let v152: R = x17[i] - v37;
+        let v153: R = x18[i] - v83;
+        let v154: R = x19[i] - v145;
+        let v155: R = v8 * v8;
+        let v156: R = v6 * v155;
+        let v157: R = v38 * v38;
+        let v158: R = v36 * v157;
+        let v159: R = v84 * v84;
+        let v160: R = v82 * v159;
+        let v161: R = v146 * v146;
+        let v162: R = v144 * v161;
+        let o0: R = v9;
+        let o1: R = v10;
+        let o2: R = v11;
+        let o3: R = v12;
+        let o4: R = v39;
+        let o5: R = v40;
+        let o6: R = v41;
+        let o7: R = v42;
+        let o8: R = v85;
+        let o9: R = v86;
+        let o10: R = v87;
+        let o11: R = v88;
+        let o12: R = v147;
+        let o13: R = v148;
+        let o14: R = v149;
+        let o15: R = v150;
+        let o16: R = v151;
+        let o17: R = v152;
+        let o18: R = v153;
+        let o19: R = v154;
+        let o20: R = v156;
+        let o21: R = v158;
+        let o22: R = v160;
+        let o23: R = v162;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+        x10[i] = o10;
+        x11[i] = o11;
+        x12[i] = o12;
+        x13[i] = o13;
+        x14[i] = o14;
+        x15[i] = o15;
+        x16[i] = o16;
+        x17[i] = o17;
+        x18[i] = o18;
+        x19[i] = o19;
+        x20[i] = o20;
+        x21[i] = o21;
+        x22[i] = o22;
+        x23[i] = o23;
     }
 }
 

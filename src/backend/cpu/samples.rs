@@ -17,16 +17,23 @@ use crate::plan::indicators::SampleShape;
 /// the sums). Pointers, not one slice: a run of steps hands the deviation
 /// vectors where they lie, in the compiled tangent's scratch lanes (their
 /// copies in and out cost the full spectrum of a 2-D system 7 % of its
-/// run). Unsafe to call: the AVX2/FMA and AVX-512 variants need those
+/// run). The flag: the sample is the skip step's (see
+/// [`sample_ops::run`]). Unsafe to call: the AVX2/FMA and AVX-512 variants need those
 /// features, and the arrays must be as [`sample_ops::run`] says.
-pub type SampleFn<R> = unsafe fn(SampleShape, &[*mut [R; LANES]]);
+pub type SampleFn<R> = unsafe fn(SampleShape, &[*mut [R; LANES]], bool);
 
-/// Runs `f` on the arrays `x`, one after the other.
+/// Runs `f` on the arrays `x`, one after the other (`skip`: see
+/// [`SampleFn`]).
 ///
 /// # Safety
 /// `f` must be one this CPU runs (see [`SampleFn`]).
 #[inline(always)]
-pub unsafe fn on_arrays<R: Real>(f: SampleFn<R>, shape: SampleShape, x: &mut [[R; LANES]]) {
+pub unsafe fn on_arrays<R: Real>(
+    f: SampleFn<R>,
+    shape: SampleShape,
+    x: &mut [[R; LANES]],
+    skip: bool,
+) {
     let mut at = [std::ptr::null_mut(); sample_ops::MOST_ARRAYS];
     let base = x.as_mut_ptr();
     for (a, p) in at.iter_mut().enumerate().take(x.len()) {
@@ -34,7 +41,7 @@ pub unsafe fn on_arrays<R: Real>(f: SampleFn<R>, shape: SampleShape, x: &mut [[R
         *p = unsafe { base.add(a) };
     }
     // SAFETY: distinct arrays of `x`, which this call borrows.
-    unsafe { f(shape, &at[..x.len()]) }
+    unsafe { f(shape, &at[..x.len()], skip) }
 }
 
 /// The sample program of `shape` compiled at level `isa`, if it is one of
@@ -75,9 +82,9 @@ fn pick<R: Real>(isa: Isa) -> Option<SampleFn<R>> {
 /// The CPU must support AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn sample_v3<R: Real>(s: SampleShape, x: &[*mut [R; LANES]]) {
+unsafe fn sample_v3<R: Real>(s: SampleShape, x: &[*mut [R; LANES]], skip: bool) {
     // SAFETY: as the caller's.
-    unsafe { sample_ops::run::<R>(s, x) }
+    unsafe { sample_ops::run::<R>(s, x, skip) }
 }
 
 /// [`sample_ops::run`] compiled for AVX-512.
@@ -86,9 +93,9 @@ unsafe fn sample_v3<R: Real>(s: SampleShape, x: &[*mut [R; LANES]]) {
 /// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
-unsafe fn sample_v4<R: Real>(s: SampleShape, x: &[*mut [R; LANES]]) {
+unsafe fn sample_v4<R: Real>(s: SampleShape, x: &[*mut [R; LANES]], skip: bool) {
     // SAFETY: as the caller's.
-    unsafe { sample_ops::run::<R>(s, x) }
+    unsafe { sample_ops::run::<R>(s, x, skip) }
 }
 
 #[cfg(test)]
@@ -123,13 +130,28 @@ mod tests {
     /// without FMA (the generated loop as any CPU runs it), within a few
     /// roundings at each level this CPU runs, where the compiler fuses
     /// a·b + c into one FMA (the build's `-fp-contract=fast`; the tape
-    /// runs one operation at a time).
+    /// runs one operation at a time). Between skip steps (the skip flag 0)
+    /// a Lyapunov sample's own loop leaves the starts as they are, and the
+    /// whole program on the tape writes them back unchanged.
     fn same_values<R: Real>(eps: f64) {
-        let levels = [Isa::Baseline, Isa::V3, Isa::V4];
         for &shape in SHAPES {
+            same_values_at::<R>(shape, eps, true);
+            if let SampleShape::Lyapunov { .. } = shape {
+                same_values_at::<R>(shape, eps, false);
+            }
+        }
+    }
+
+    /// [`same_values`] for `shape` at the skip step or between.
+    fn same_values_at<R: Real>(shape: SampleShape, eps: f64, skip: bool) {
+        let levels = [Isa::Baseline, Isa::V3, Isa::V4];
+        {
             let program = shape.program();
             let tape = Tape::<R>::new(&program, |_| false);
-            let x = inputs::<R>(shape);
+            let mut x = inputs::<R>(shape);
+            if !skip {
+                x[shape.inputs() - 1] = [R::from_f64(0.0); LANES];
+            }
             let mut regs = vec![[R::default(); LANES]; tape.registers];
             tape.run(&mut regs, &x[..], Isa::Baseline);
             for level in levels.into_iter().filter(|l| *l as u8 <= isa() as u8) {
@@ -142,9 +164,21 @@ mod tests {
                 );
                 match compiled {
                     // SAFETY: only levels this CPU runs.
-                    Some(f) => unsafe { on_arrays(f, shape, &mut y) },
+                    Some(f) => unsafe { on_arrays(f, shape, &mut y, skip) },
                     // SAFETY: the generated loop at the baseline level.
-                    None => unsafe { on_arrays(sample_ops::run::<R>, shape, &mut y) },
+                    None => unsafe { on_arrays(sample_ops::run::<R>, shape, &mut y, skip) },
+                }
+                if let (SampleShape::Lyapunov { d, k }, false) = (shape, skip) {
+                    let starts = k * d + 2 * k..k * d + 4 * k;
+                    assert!(
+                        y[starts.clone()] == x[starts.clone()],
+                        "{shape:?} {level:?}"
+                    );
+                    for j in starts {
+                        let bits = |a: &[R; LANES]| a.map(|v| v.to_f64().to_bits());
+                        let kept = bits(tape.output(&regs, j)) == bits(&x[j]);
+                        assert!(kept, "{shape:?}: the tape's start {j}");
+                    }
                 }
                 let tol = match level {
                     Isa::Baseline => 0.0,
@@ -242,7 +276,7 @@ mod tests {
                 };
                 let (mut want, mut got) = (x.clone(), x.clone());
                 // SAFETY: only levels this CPU runs.
-                unsafe { on_arrays(all, shape, &mut want) };
+                unsafe { on_arrays(all, shape, &mut want, true) };
                 // Lane 0's ‖u‖² is 0.998·2⁻³⁹, below the band.
                 assert!(!band_parts_at(level, &mut got, d), "{shape:?} {level:?}");
                 let mut inside = x.clone();
