@@ -277,9 +277,10 @@ pub fn lyapunov_program(d: usize, k: usize) -> Lowered {
 /// same operations but for the starts, which it leaves as they are
 /// (outputs: the vectors, their octaves and ‖u‖²; the starts and the
 /// skip flag are inputs it does not read). The whole program writes
-/// 1·x + 0·y there, which is x wherever y (E or ‖u‖²) is finite, and x is
-/// never −0 (a start is 0 or a finite E or ‖u‖²); where y is not finite
-/// the vectors are not either, and the trajectory's exponents are NaN.
+/// 1·x + 0·y there, which is x wherever y (E or ‖u‖²) is finite and x is
+/// not −0 (no start is: they begin at +0 and 1, and take a finite E, a
+/// sum of octaves from +0, or a ‖u‖² > 0); where y is not finite the
+/// vectors are not either, and the trajectory's exponents are NaN.
 /// The CPU's compiled samples take it between skip steps: a fifth of the
 /// full spectrum's sample is the starts' blends.
 pub fn lyapunov_program_between(d: usize, k: usize) -> Lowered {
@@ -416,13 +417,15 @@ fn ln_norm(g: &mut Dag, octave: Id, n2: Id) -> Id {
 
 /// The FLI vector's ‖u‖² as [`chaos_program`] computes it, into a running
 /// maximum (a run of steps keeps it while the FLI's samples wait, where a
-/// sample would change nothing but `fli_max`): inputs that maximum, then
-/// the vector's `d` components; output the new maximum, over input 0.
+/// sample would change nothing but `fli_max`): inputs the result's array
+/// (not read), that maximum, then the vector's `d` components; output the
+/// new maximum, over input 0 (the old one stays, for a vector that turns
+/// out to be outside the band, where the sample must run).
 pub fn chaos_peak_program(d: usize) -> Lowered {
     let mut g = Dag::new();
-    let x: Vec<Id> = (0..=d).map(|i| g.var(i as u32)).collect();
-    let n2 = dot(&mut g, &x[1..], &x[1..]);
-    let max = g.call2(Func2::Max, x[0], n2);
+    let x: Vec<Id> = (0..d + 2).map(|i| g.var(i as u32)).collect();
+    let n2 = dot(&mut g, &x[2..], &x[2..]);
+    let max = g.call2(Func2::Max, x[1], n2);
     lower(&g, &[max])
 }
 

@@ -100,9 +100,10 @@ struct Arrays {
     in_band: bool,
 }
 
-/// What a lane loop returns: nothing, or whether its logarithm's argument
-/// is in the band of `in_band_r` in every lane (`chaos_ln`: the check
-/// in the same pass as the logarithm, not a pass of its own).
+/// What a lane loop returns: nothing, or whether the vector's ‖u‖² (see
+/// [`band_operand`]) is in the band of `in_band_r` in every lane
+/// (`chaos_ln`, `chaos_peak`: the check in the same pass as the sample's
+/// part, not a pass of its own).
 #[derive(Clone, Copy, PartialEq)]
 enum Returns {
     Nothing,
@@ -193,11 +194,7 @@ fn lane_body(l: &Lowered, a: Arrays, r: Returns) -> String {
         false => t.push_str(&lets),
     }
     if r == Returns::InBand {
-        let log = l
-            .instrs
-            .iter()
-            .find(|i| i.op == Prim::Call(Func::SampleLog));
-        let arg = rust_operand(log.expect("a logarithm").a, &input);
+        let arg = rust_operand(band_operand(l), &input);
         writeln!(t, "        out |= !R::in_band_r({arg});").unwrap();
     }
     // Every read before any write.
@@ -209,6 +206,17 @@ fn lane_body(l: &Lowered, a: Arrays, r: Returns) -> String {
     }
     t.push_str("    }\n");
     t
+}
+
+/// The vector's ‖u‖² in a program of [`Returns::InBand`]: the argument of
+/// its logarithm (`chaos_ln`), else of its maximum (`chaos_peak`).
+fn band_operand(l: &Lowered) -> Operand {
+    let of = |op: Prim| l.instrs.iter().find(|i| i.op == op);
+    match (of(Prim::Call(Func::SampleLog)), of(Prim::Call2(Func2::Max))) {
+        (Some(log), _) => log.a,
+        (None, Some(max)) => max.b,
+        _ => unreachable!("no ‖u‖² to check"),
+    }
 }
 
 /// The written arrays (input k < the number of outputs) that a minimum or
@@ -236,19 +244,28 @@ fn kept_inputs(l: &Lowered) -> Vec<u32> {
 }
 
 /// The FLI's waiting programs: `chaos_peak_{d}` ([`chaos_peak_program`],
-/// the vector by reference) and `chaos_fold` ([`chaos_fold_program`]).
+/// the vector by reference; it says whether the vector was in the band)
+/// and `chaos_fold` ([`chaos_fold_program`]).
 fn waiting_loops() -> String {
     let mut t = String::new();
     for d in 2..=4 {
-        let head =
-            "/// The FLI vector's ‖u‖² into the running maximum `x0`.\n#[inline(always)]\npub ";
+        let head = "/// The running maximum `x1` of the FLI vector's ‖u‖² after this one, into\n\
+                    /// `x0`: whether ‖u‖² is in the band of `in_band_r` in every lane.\n\
+                    #[inline(always)]\npub ";
         let name = format!("chaos_peak_{d}");
         let arrays = Arrays {
-            inputs: d + 1,
+            inputs: d + 2,
             scalars: 0,
             in_band: false,
         };
-        t.push_str(&lanes_fn(head, &name, &chaos_peak_program(d), arrays));
+        let l = chaos_peak_program(d);
+        t.push_str(&lanes_fn_returning(
+            head,
+            &name,
+            &l,
+            arrays,
+            Returns::InBand,
+        ));
         t.push('\n');
     }
     let head = "/// `fli_max` (`x0`) from `fli_oct` (`x1`) and the largest ‖u‖² (`x2`).\n\

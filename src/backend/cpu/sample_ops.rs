@@ -2447,46 +2447,55 @@ fn chaos_4_lanes<R: Real>(
     }
 }
 
-/// The FLI vector's ‖u‖² into the running maximum `x0`.
+/// The running maximum `x1` of the FLI vector's ‖u‖² after this one, into
+/// `x0`: whether ‖u‖² is in the band of `in_band_r` in every lane.
 #[inline(always)]
 pub fn chaos_peak_2<R: Real>(
     x0: &mut [R; LANES],
     x1: &[R; LANES],
     x2: &[R; LANES],
-) {
-    let x0_in: [R; LANES] = std::hint::black_box(*x0);
+    x3: &[R; LANES],
+) -> bool {
+    let mut out = false;
     for i in 0..LANES {
-        let v0: R = x1[i] * x1[i];
-        let v1: R = x2[i] * x2[i];
+        let v0: R = x2[i] * x2[i];
+        let v1: R = x3[i] * x3[i];
         let v2: R = v0 + v1;
-        let v3: R = R::max_r(x0_in[i], v2);
+        let v3: R = R::max_r(x1[i], v2);
+        out |= !R::in_band_r(v2);
         let o0: R = v3;
         x0[i] = o0;
     }
+    !out
 }
 
-/// The FLI vector's ‖u‖² into the running maximum `x0`.
+/// The running maximum `x1` of the FLI vector's ‖u‖² after this one, into
+/// `x0`: whether ‖u‖² is in the band of `in_band_r` in every lane.
 #[inline(always)]
 pub fn chaos_peak_3<R: Real>(
     x0: &mut [R; LANES],
     x1: &[R; LANES],
     x2: &[R; LANES],
     x3: &[R; LANES],
-) {
-    let x0_in: [R; LANES] = std::hint::black_box(*x0);
+    x4: &[R; LANES],
+) -> bool {
+    let mut out = false;
     for i in 0..LANES {
-        let v0: R = x1[i] * x1[i];
-        let v1: R = x2[i] * x2[i];
+        let v0: R = x2[i] * x2[i];
+        let v1: R = x3[i] * x3[i];
         let v2: R = v0 + v1;
-        let v3: R = x3[i] * x3[i];
+        let v3: R = x4[i] * x4[i];
         let v4: R = v2 + v3;
-        let v5: R = R::max_r(x0_in[i], v4);
+        let v5: R = R::max_r(x1[i], v4);
+        out |= !R::in_band_r(v4);
         let o0: R = v5;
         x0[i] = o0;
     }
+    !out
 }
 
-/// The FLI vector's ‖u‖² into the running maximum `x0`.
+/// The running maximum `x1` of the FLI vector's ‖u‖² after this one, into
+/// `x0`: whether ‖u‖² is in the band of `in_band_r` in every lane.
 #[inline(always)]
 pub fn chaos_peak_4<R: Real>(
     x0: &mut [R; LANES],
@@ -2494,20 +2503,23 @@ pub fn chaos_peak_4<R: Real>(
     x2: &[R; LANES],
     x3: &[R; LANES],
     x4: &[R; LANES],
-) {
-    let x0_in: [R; LANES] = std::hint::black_box(*x0);
+    x5: &[R; LANES],
+) -> bool {
+    let mut out = false;
     for i in 0..LANES {
-        let v0: R = x1[i] * x1[i];
-        let v1: R = x2[i] * x2[i];
+        let v0: R = x2[i] * x2[i];
+        let v1: R = x3[i] * x3[i];
         let v2: R = v0 + v1;
-        let v3: R = x3[i] * x3[i];
+        let v3: R = x4[i] * x4[i];
         let v4: R = v2 + v3;
-        let v5: R = x4[i] * x4[i];
+        let v5: R = x5[i] * x5[i];
         let v6: R = v4 + v5;
-        let v7: R = R::max_r(x0_in[i], v6);
+        let v7: R = R::max_r(x1[i], v6);
+        out |= !R::in_band_r(v6);
         let o0: R = v7;
         x0[i] = o0;
     }
+    !out
 }
 
 /// `fli_max` (`x0`) from `fli_oct` (`x1`) and the largest ‖u‖² (`x2`).

@@ -18,9 +18,24 @@ use crate::plan::indicators::SampleShape;
 /// vectors where they lie, in the compiled tangent's scratch lanes (their
 /// copies in and out cost the full spectrum of a 2-D system 7 % of its
 /// run). The flag: the sample is the skip step's (see
-/// [`sample_ops::run`]). Unsafe to call: the AVX2/FMA and AVX-512 variants need those
-/// features, and the arrays must be as [`sample_ops::run`] says.
+/// [`sample_ops::run`]). Unsafe to call: the AVX2/FMA and AVX-512
+/// variants need those features, and the arrays must be as
+/// [`sample_ops::run`] says.
 pub type SampleFn<R> = unsafe fn(SampleShape, &[*mut [R; LANES]], bool);
+
+/// Pointers to the arrays `x`, one after the other, in the first
+/// `x.len()` places (from one base pointer, so that none invalidates
+/// another).
+#[inline(always)]
+pub fn array_ptrs<R>(x: &mut [[R; LANES]]) -> [*mut [R; LANES]; sample_ops::MOST_ARRAYS] {
+    let mut at = [std::ptr::null_mut(); sample_ops::MOST_ARRAYS];
+    let base = x.as_mut_ptr();
+    for (a, p) in at.iter_mut().enumerate().take(x.len()) {
+        // SAFETY: `a` is below `x.len()`.
+        *p = unsafe { base.add(a) };
+    }
+    at
+}
 
 /// Runs `f` on the arrays `x`, one after the other (`skip`: see
 /// [`SampleFn`]).
@@ -34,14 +49,9 @@ pub unsafe fn on_arrays<R: Real>(
     x: &mut [[R; LANES]],
     skip: bool,
 ) {
-    let mut at = [std::ptr::null_mut(); sample_ops::MOST_ARRAYS];
-    let base = x.as_mut_ptr();
-    for (a, p) in at.iter_mut().enumerate().take(x.len()) {
-        // SAFETY: `a` is below `x.len()`.
-        *p = unsafe { base.add(a) };
-    }
+    let n = x.len();
     // SAFETY: distinct arrays of `x`, which this call borrows.
-    unsafe { f(shape, &at[..x.len()], skip) }
+    unsafe { f(shape, &array_ptrs(x)[..n], skip) }
 }
 
 /// The sample program of `shape` compiled at level `isa`, if it is one of
@@ -145,54 +155,52 @@ mod tests {
     /// [`same_values`] for `shape` at the skip step or between.
     fn same_values_at<R: Real>(shape: SampleShape, eps: f64, skip: bool) {
         let levels = [Isa::Baseline, Isa::V3, Isa::V4];
-        {
-            let program = shape.program();
-            let tape = Tape::<R>::new(&program, |_| false);
-            let mut x = inputs::<R>(shape);
-            if !skip {
-                x[shape.inputs() - 1] = [R::from_f64(0.0); LANES];
+        let program = shape.program();
+        let tape = Tape::<R>::new(&program, |_| false);
+        let mut x = inputs::<R>(shape);
+        if !skip {
+            x[shape.inputs() - 1] = [R::from_f64(0.0); LANES];
+        }
+        let mut regs = vec![[R::default(); LANES]; tape.registers];
+        tape.run(&mut regs, &x[..], Isa::Baseline);
+        for level in levels.into_iter().filter(|l| *l as u8 <= isa() as u8) {
+            let mut y = x.clone();
+            let compiled = sample_fn::<R>(shape, level);
+            assert_eq!(
+                compiled.is_some(),
+                level != Isa::Baseline,
+                "{shape:?} {level:?}"
+            );
+            match compiled {
+                // SAFETY: only levels this CPU runs.
+                Some(f) => unsafe { on_arrays(f, shape, &mut y, skip) },
+                // SAFETY: the generated loop at the baseline level.
+                None => unsafe { on_arrays(sample_ops::run::<R>, shape, &mut y, skip) },
             }
-            let mut regs = vec![[R::default(); LANES]; tape.registers];
-            tape.run(&mut regs, &x[..], Isa::Baseline);
-            for level in levels.into_iter().filter(|l| *l as u8 <= isa() as u8) {
-                let mut y = x.clone();
-                let compiled = sample_fn::<R>(shape, level);
-                assert_eq!(
-                    compiled.is_some(),
-                    level != Isa::Baseline,
+            if let (SampleShape::Lyapunov { d, k }, false) = (shape, skip) {
+                let starts = k * d + 2 * k..k * d + 4 * k;
+                assert!(
+                    y[starts.clone()] == x[starts.clone()],
                     "{shape:?} {level:?}"
                 );
-                match compiled {
-                    // SAFETY: only levels this CPU runs.
-                    Some(f) => unsafe { on_arrays(f, shape, &mut y, skip) },
-                    // SAFETY: the generated loop at the baseline level.
-                    None => unsafe { on_arrays(sample_ops::run::<R>, shape, &mut y, skip) },
+                for j in starts {
+                    let bits = |a: &[R; LANES]| a.map(|v| v.to_f64().to_bits());
+                    let kept = bits(tape.output(&regs, j)) == bits(&x[j]);
+                    assert!(kept, "{shape:?}: the tape's start {j}");
                 }
-                if let (SampleShape::Lyapunov { d, k }, false) = (shape, skip) {
-                    let starts = k * d + 2 * k..k * d + 4 * k;
+            }
+            let tol = match level {
+                Isa::Baseline => 0.0,
+                _ => 64.0 * eps,
+            };
+            for (k, got) in y[..program.outputs.len()].iter().enumerate() {
+                let want = tape.output(&regs, k);
+                for i in 0..LANES {
+                    let (g, w) = (got[i].to_f64(), want[i].to_f64());
                     assert!(
-                        y[starts.clone()] == x[starts.clone()],
-                        "{shape:?} {level:?}"
+                        (g - w).abs() <= tol * w.abs().max(1.0),
+                        "{shape:?} {level:?} output {k} lane {i}: {g:e} vs {w:e}"
                     );
-                    for j in starts {
-                        let bits = |a: &[R; LANES]| a.map(|v| v.to_f64().to_bits());
-                        let kept = bits(tape.output(&regs, j)) == bits(&x[j]);
-                        assert!(kept, "{shape:?}: the tape's start {j}");
-                    }
-                }
-                let tol = match level {
-                    Isa::Baseline => 0.0,
-                    _ => 64.0 * eps,
-                };
-                for (k, got) in y[..program.outputs.len()].iter().enumerate() {
-                    let want = tape.output(&regs, k);
-                    for i in 0..LANES {
-                        let (g, w) = (got[i].to_f64(), want[i].to_f64());
-                        assert!(
-                            (g - w).abs() <= tol * w.abs().max(1.0),
-                            "{shape:?} {level:?} output {k} lane {i}: {g:e} vs {w:e}"
-                        );
-                    }
                 }
             }
         }
