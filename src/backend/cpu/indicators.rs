@@ -96,7 +96,7 @@ struct RunLocs {
 }
 
 /// How a sample due every step may wait inside a run of steps, while its
-/// vector stays in the band of `in_band_r` (see [`band_norms`]).
+/// vector stays in the band of `in_band_r` (see [`in_band`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Waits {
     Never,
@@ -432,7 +432,7 @@ impl<R: Real> IndicatorTapes<R> {
         // `kernels::isa` names only where the CPU has its features; the
         // arrays are distinct (the vectors' lanes, `buf`'s other arrays),
         // and borrowed here.
-        unsafe { f(shape, &at[..n], v.at_skip != R::from_f64(0.0)) };
+        unsafe { f(shape, &at[..n], v.is_skip_step()) };
     }
 
     /// The vectors of the `running` lanes (bits) back into their slots.
@@ -616,7 +616,7 @@ fn run_steps_pending<R: Real>(
             let waits = match loc.waits {
                 Waits::Never => false,
                 _ if !may_wait => false,
-                Waits::Lyapunov => band_norms(s, &loc.vectors).is_some(),
+                Waits::Lyapunov => in_band(s, &loc.vectors),
                 Waits::Fli { .. } => peak.as_mut().expect("a peak").keep(s, &loc.vectors),
             };
             if waits {
@@ -760,24 +760,21 @@ impl<'a, R: Real> Pending<'a, R> {
     }
 }
 
-/// ‖u‖² of the vector at `vectors` (`(array, vector, lane)`) per lane
-/// (the compiler may fuse its sum otherwise than a sample program's: the
-/// band's margin covers that), if it is in the band of `in_band_r` in
-/// every lane; there a sample of one Lyapunov vector
-/// would leave everything as it is but ‖u‖² (its octave is 0: it scales
-/// by 1, adds 0 octaves and keeps the start slots; the next sample
-/// computes ‖u‖² from the same u), and so would the FLI's but `fli_max`.
-/// A run of steps takes those samples only where the vector leaves the
+/// Whether ‖u‖² of the vector at `vectors` (`(array, vector, lane)`) is
+/// in the band of `in_band_r` in every lane (the compiler may fuse its sum
+/// otherwise than a sample program's: the band's margin covers that);
+/// there a sample of one Lyapunov vector would leave everything as it is
+/// but ‖u‖² (its octave is 0: it scales by 1, adds 0 octaves and keeps the
+/// start slots; the next sample computes ‖u‖² from the same u), and so
+/// would the FLI's but `fli_max` (whose band check is in its peak's pass,
+/// [`Peak::keep`]). A run of steps takes those samples only where the vector leaves the
 /// band, at the skip step and at the run's end, with the same bits as
 /// every step: the one-exponent run 2.39× → 1.99× the plain run, the FLI
 /// 2.91× → 2.34× (AVX-512 f32). The GPU kernel samples every step: there
 /// the samples cost little beside the tangent program, which recomputes
 /// the step (lavapipe: the one-exponent run the same).
 #[inline(always)]
-fn band_norms<R: Real>(
-    s: &TangentScratch<R>,
-    vectors: &[(usize, usize, usize)],
-) -> Option<[R; LANES]> {
+fn in_band<R: Real>(s: &TangentScratch<R>, vectors: &[(usize, usize, usize)]) -> bool {
     let mut n2 = [R::from_f64(0.0); LANES];
     for &(_, k, lane) in vectors {
         let x = s.d[k].at(lane);
@@ -789,7 +786,7 @@ fn band_norms<R: Real>(
     for i in 0..LANES {
         out |= !R::in_band_r(n2[i]);
     }
-    (!out).then_some(n2)
+    !out
 }
 
 /// The FLI vector's largest ‖u‖² over the steps its sample waited, per
@@ -1003,6 +1000,14 @@ struct Scalars<R> {
     at_skip: R,
 }
 
+impl<R: Real> Scalars<R> {
+    /// Whether the sample is the skip step's (a compiled sample's flag).
+    #[inline(always)]
+    fn is_skip_step(&self) -> bool {
+        self.at_skip != R::from_f64(0.0)
+    }
+}
+
 /// Whether a sample taken every `every` steps is due after step `n1`:
 /// every step without a division for `every = 1` (the default), which a
 /// run of steps asks after each step.
@@ -1091,7 +1096,7 @@ fn run<R: Real>(
         }
         // SAFETY: `sample_fn` compiled it for `at.isa`, which
         // `kernels::isa` names only where the CPU has its features.
-        unsafe { on_arrays(f, shape, x, s.at_skip != R::from_f64(0.0)) };
+        unsafe { on_arrays(f, shape, x, s.is_skip_step()) };
         for (&slot, out) in p.outputs.iter().zip(x.iter()) {
             put(&mut real[slot], out, at.running);
         }
@@ -1109,7 +1114,7 @@ mod tests {
     use super::*;
     use crate::backend::cpu::sample_ops;
 
-    /// Where [`band_norms`] lets the sample of one Lyapunov vector wait, that
+    /// Where [`in_band`] lets the sample of one Lyapunov vector wait, that
     /// sample changes nothing but ‖u‖² (which the next one recomputes from
     /// the same u), so waiting keeps the bits; and the band is that of the
     /// octaves less a margin, not empty.
@@ -1132,7 +1137,7 @@ mod tests {
                 // SAFETY: the generated loop at the baseline level.
                 unsafe { on_arrays(sample_ops::run::<R>, shape, &mut x, true) };
                 let unchanged = (0..x.len()).filter(|&k| k != 3).all(|k| x[k] == before[k]);
-                let waits = band_norms(&s, &vectors).is_some();
+                let waits = in_band(&s, &vectors);
                 assert!(!waits || unchanged, "‖u‖ = {norm:e}");
                 if e.abs() <= 18 || e.abs() >= 21 {
                     assert_eq!(waits, e.abs() <= 18, "‖u‖ = {norm:e}");
