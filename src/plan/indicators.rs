@@ -344,8 +344,8 @@ fn lyapunov_lowered(d: usize, k: usize, starts: bool) -> Lowered {
 /// the vector brought near norm 1, then the five in the inputs' order.
 /// Where the vector's ‖u‖² is in the band of `in_band_r` its octave is
 /// 0 (the vector scales by 1, `fli_oct` gains 0), and the CPU runs it in
-/// two parts with the same operations ([`chaos_ln_program`],
-/// [`chaos_sums_program`]).
+/// two parts with the same operations ([`chaos_n2_program`],
+/// [`chaos_ln_sums_program`]).
 pub fn chaos_program(d: usize) -> Lowered {
     let mut g = Dag::new();
     let x: Vec<Id> = (0..d + 7).map(|i| g.var(i as u32)).collect();
@@ -362,28 +362,30 @@ pub fn chaos_program(d: usize) -> Lowered {
     lower(&g, &roots)
 }
 
-/// The first part of [`chaos_program`] for a vector in the band: ln‖w‖.
-/// Inputs: the result's array (not read), the vector's `d` components,
-/// `fli_oct`; output ln‖w‖, over input 0. Its logarithm reads a positive
-/// normal number (the CPU's `sample_log_normal_r`). The samples of a run of
-/// steps take it step by step (the logarithms of one step are
-/// independent), and the sums after ([`chaos_sums_program`]).
-pub fn chaos_ln_program(d: usize) -> Lowered {
+/// The first part of [`chaos_program`] for a vector in the band: its
+/// ‖u‖². Inputs: the result's array (not read), the vector's `d`
+/// components; output ‖u‖², over input 0. The samples of a run of steps
+/// take it step by step (its band check decides whether they wait), and
+/// the rest when they are brought up to date ([`chaos_ln_sums_program`]).
+pub fn chaos_n2_program(d: usize) -> Lowered {
     let mut g = Dag::new();
-    let x: Vec<Id> = (0..d + 2).map(|i| g.var(i as u32)).collect();
-    let n2 = dot(&mut g, &x[1..=d], &x[1..=d]);
-    let ln = ln_norm(&mut g, x[d + 1], n2);
-    lower(&g, &[ln])
+    let x: Vec<Id> = (0..d + 1).map(|i| g.var(i as u32)).collect();
+    let n2 = dot(&mut g, &x[1..], &x[1..]);
+    lower(&g, &[n2])
 }
 
-/// The second part of [`chaos_program`] for a vector in the band: inputs
-/// `fli_log`, `fli_max`, `megno_sum`, `megno_mean`, ln‖w‖ (from
-/// [`chaos_ln_program`]), the sample's number and one over it; outputs
-/// the first four, over them.
-pub fn chaos_sums_program() -> Lowered {
+/// The second part of [`chaos_program`] for a vector in the band: ln‖w‖
+/// and the sums. Inputs `fli_log`, `fli_max`, `megno_sum`, `megno_mean`,
+/// ‖u‖² (from [`chaos_n2_program`]), `fli_oct`, the sample's number and
+/// one over it; outputs the first four, over them. Its logarithm reads a
+/// positive normal number (the CPU's `sample_log_normal_r`). The
+/// logarithms of consecutive samples are independent: taken here, they
+/// overlap the sums' chain from one sample to the next.
+pub fn chaos_ln_sums_program() -> Lowered {
     let mut g = Dag::new();
-    let x: Vec<Id> = (0..7).map(|i| g.var(i)).collect();
-    let sums = megno_sums(&mut g, x[4], [x[0], x[1], x[2], x[3]], x[5], x[6]);
+    let x: Vec<Id> = (0..8).map(|i| g.var(i)).collect();
+    let ln = ln_norm(&mut g, x[5], x[4]);
+    let sums = megno_sums(&mut g, ln, [x[0], x[1], x[2], x[3]], x[6], x[7]);
     lower(&g, &sums)
 }
 
@@ -414,7 +416,6 @@ fn ln_norm(g: &mut Dag, octave: Id, n2: Id) -> Id {
     let part = g.mul(half, log);
     g.add(whole, part)
 }
-
 /// The FLI vector's ‖u‖² as [`chaos_program`] computes it, into a running
 /// maximum (a run of steps keeps it while the FLI's samples wait, where a
 /// sample would change nothing but `fli_max`): inputs the result's array

@@ -8,9 +8,9 @@ use std::fmt::Write;
 
 use crate::models::tangent_gen::{rust_lets, rust_operand};
 use crate::num::formula::lower::{Lowered, Operand, Prim};
-use crate::num::formula::{Func, Func2};
+use crate::num::formula::Func2;
 use crate::plan::indicators::{
-    chaos_fold_program, chaos_ln_program, chaos_peak_program, chaos_sums_program,
+    chaos_fold_program, chaos_ln_sums_program, chaos_n2_program, chaos_peak_program,
     lyapunov_program_between, SampleShape,
 };
 
@@ -102,7 +102,7 @@ struct Arrays {
 
 /// What a lane loop returns: nothing, or whether the vector's ‖u‖² (see
 /// [`band_operand`]) is in the band of `in_band_r` in every lane
-/// (`chaos_ln`, `chaos_peak`: the check in the same pass as the sample's
+/// (`chaos_n2`, `chaos_peak`: the check in the same pass as the sample's
 /// part, not a pass of its own).
 #[derive(Clone, Copy, PartialEq)]
 enum Returns {
@@ -142,7 +142,7 @@ fn lanes_fn_returning(head: &str, name: &str, l: &Lowered, a: Arrays, r: Returns
 
 /// One lane of the program `l` as a function of its own: output k over
 /// input k (`&mut R`), the other inputs values. A caller's loop keeps a
-/// chunk of lanes in registers across several calls (`chaos_sums`, the
+/// chunk of lanes in registers across several calls (`chaos_ln_sums`, the
 /// samples that waited in a run of steps).
 fn lane_fn(head: &str, name: &str, l: &Lowered, inputs: usize) -> String {
     let mut t = String::from(head);
@@ -208,14 +208,13 @@ fn lane_body(l: &Lowered, a: Arrays, r: Returns) -> String {
     t
 }
 
-/// The vector's ‖u‖² in a program of [`Returns::InBand`]: the argument of
-/// its logarithm (`chaos_ln`), else of its maximum (`chaos_peak`).
+/// The vector's ‖u‖² in a program of [`Returns::InBand`]: the second
+/// operand of its maximum (`chaos_peak`), else its one output
+/// (`chaos_n2`).
 fn band_operand(l: &Lowered) -> Operand {
-    let of = |op: Prim| l.instrs.iter().find(|i| i.op == op);
-    match (of(Prim::Call(Func::SampleLog)), of(Prim::Call2(Func2::Max))) {
-        (Some(log), _) => log.a,
-        (None, Some(max)) => max.b,
-        _ => unreachable!("no ‖u‖² to check"),
+    match l.instrs.iter().find(|i| i.op == Prim::Call2(Func2::Max)) {
+        Some(max) => max.b,
+        None => l.outputs[0],
     }
 }
 
@@ -280,35 +279,34 @@ fn waiting_loops() -> String {
 }
 
 /// The FLI/MEGNO sample of a vector in the band in its two parts:
-/// `chaos_ln` ([`chaos_ln_program`], the vector by reference, for each
+/// `chaos_n2` ([`chaos_n2_program`], the vector by reference, for each
 /// dimension; it says whether the vector was in the band) and
-/// `chaos_sums` ([`chaos_sums_program`], one lane, the sample's number and
-/// one over it as values).
+/// `chaos_ln_sums` ([`chaos_ln_sums_program`], one lane, the sample's
+/// number and one over it as values).
 fn band_loops() -> String {
     let mut t = String::from(
-        "/// ln‖w‖ into `out` of the FLI/MEGNO vector `u` (2 to 4 components),\n\
-         /// `octave` its `fli_oct`: whether ‖u‖² is in the band of `in_band_r`\n\
-         /// in every lane (only then is `out` ln‖w‖).\n\
+        "/// ‖u‖² into `out` of the FLI/MEGNO vector `u` (2 to 4 components):\n\
+         /// whether it is in the band of `in_band_r` in every lane.\n\
          #[inline(always)]\n\
-         pub fn chaos_ln<R: Real>(out: &mut [R; LANES], u: &[&[R; LANES]], octave: &[R; LANES]) -> bool {\n    \
+         pub fn chaos_n2<R: Real>(out: &mut [R; LANES], u: &[&[R; LANES]]) -> bool {\n    \
          match *u {\n",
     );
     let names = ["a", "b", "c", "e"];
     for d in 2..=4 {
         let u = names[..d].join(", ");
-        writeln!(t, "        [{u}] => chaos_ln_{d}(out, {u}, octave),").unwrap();
+        writeln!(t, "        [{u}] => chaos_n2_{d}(out, {u}),").unwrap();
     }
     t.push_str(
         "        _ => unreachable!(\"no compiled sample of dimension {}\", u.len()),\n    }\n}\n\n",
     );
     for d in 2..=4 {
         let arrays = Arrays {
-            inputs: d + 2,
+            inputs: d + 1,
             scalars: 0,
             in_band: true,
         };
-        let name = format!("chaos_ln_{d}");
-        let l = chaos_ln_program(d);
+        let name = format!("chaos_n2_{d}");
+        let l = chaos_n2_program(d);
         let head = "#[inline(always)]\n";
         t.push_str(&lanes_fn_returning(
             head,
@@ -320,9 +318,11 @@ fn band_loops() -> String {
         t.push('\n');
     }
     let head = "/// One lane's `fli_log`, `fli_max`, `megno_sum`, `megno_mean` (`x0` to\n\
-                /// `x3`) after a sample of ln‖w‖ `x4`, its number `x5`, one over it `x6`.\n\
+                /// `x3`) after a sample of ‖u‖² `x4` in the band, `fli_oct` `x5`, its\n\
+                /// number `x6`, one over it `x7`.\n\
                 #[inline(always)]\npub ";
-    t.push_str(&lane_fn(head, "chaos_sums", &chaos_sums_program(), 7));
+    let f = lane_fn(head, "chaos_ln_sums", &chaos_ln_sums_program(), 8);
+    t.push_str(&f.replace("R::sample_log_r(", "R::sample_log_normal_r("));
     t
 }
 

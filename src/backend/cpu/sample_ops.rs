@@ -2541,21 +2541,38 @@ pub fn chaos_fold<R: Real>(
     }
 }
 
-/// ln‖w‖ into `out` of the FLI/MEGNO vector `u` (2 to 4 components),
-/// `octave` its `fli_oct`: whether ‖u‖² is in the band of `in_band_r`
-/// in every lane (only then is `out` ln‖w‖).
+/// ‖u‖² into `out` of the FLI/MEGNO vector `u` (2 to 4 components):
+/// whether it is in the band of `in_band_r` in every lane.
 #[inline(always)]
-pub fn chaos_ln<R: Real>(out: &mut [R; LANES], u: &[&[R; LANES]], octave: &[R; LANES]) -> bool {
+pub fn chaos_n2<R: Real>(out: &mut [R; LANES], u: &[&[R; LANES]]) -> bool {
     match *u {
-        [a, b] => chaos_ln_2(out, a, b, octave),
-        [a, b, c] => chaos_ln_3(out, a, b, c, octave),
-        [a, b, c, e] => chaos_ln_4(out, a, b, c, e, octave),
+        [a, b] => chaos_n2_2(out, a, b),
+        [a, b, c] => chaos_n2_3(out, a, b, c),
+        [a, b, c, e] => chaos_n2_4(out, a, b, c, e),
         _ => unreachable!("no compiled sample of dimension {}", u.len()),
     }
 }
 
 #[inline(always)]
-fn chaos_ln_2<R: Real>(
+fn chaos_n2_2<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &[R; LANES],
+    x2: &[R; LANES],
+) -> bool {
+    let mut out = false;
+    for i in 0..LANES {
+        let v0: R = x1[i] * x1[i];
+        let v1: R = x2[i] * x2[i];
+        let v2: R = v0 + v1;
+        out |= !R::in_band_r(v2);
+        let o0: R = v2;
+        x0[i] = o0;
+    }
+    !out
+}
+
+#[inline(always)]
+fn chaos_n2_3<R: Real>(
     x0: &mut [R; LANES],
     x1: &[R; LANES],
     x2: &[R; LANES],
@@ -2563,79 +2580,47 @@ fn chaos_ln_2<R: Real>(
 ) -> bool {
     let mut out = false;
     for i in 0..LANES {
-        let v0: R = x3[i] * R::from_f64(0.6931471805599453);
-        let v1: R = x1[i] * x1[i];
-        let v2: R = x2[i] * x2[i];
-        let v3: R = v1 + v2;
-        let v4: R = R::sample_log_normal_r(v3);
-        let v5: R = v4 * R::from_f64(0.5);
-        let v6: R = v0 + v5;
-        out |= !R::in_band_r(v3);
+        let v0: R = x1[i] * x1[i];
+        let v1: R = x2[i] * x2[i];
+        let v2: R = v0 + v1;
+        let v3: R = x3[i] * x3[i];
+        let v4: R = v2 + v3;
+        out |= !R::in_band_r(v4);
+        let o0: R = v4;
+        x0[i] = o0;
+    }
+    !out
+}
+
+#[inline(always)]
+fn chaos_n2_4<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &[R; LANES],
+    x2: &[R; LANES],
+    x3: &[R; LANES],
+    x4: &[R; LANES],
+) -> bool {
+    let mut out = false;
+    for i in 0..LANES {
+        let v0: R = x1[i] * x1[i];
+        let v1: R = x2[i] * x2[i];
+        let v2: R = v0 + v1;
+        let v3: R = x3[i] * x3[i];
+        let v4: R = v2 + v3;
+        let v5: R = x4[i] * x4[i];
+        let v6: R = v4 + v5;
+        out |= !R::in_band_r(v6);
         let o0: R = v6;
         x0[i] = o0;
     }
     !out
 }
 
-#[inline(always)]
-fn chaos_ln_3<R: Real>(
-    x0: &mut [R; LANES],
-    x1: &[R; LANES],
-    x2: &[R; LANES],
-    x3: &[R; LANES],
-    x4: &[R; LANES],
-) -> bool {
-    let mut out = false;
-    for i in 0..LANES {
-        let v0: R = x4[i] * R::from_f64(0.6931471805599453);
-        let v1: R = x1[i] * x1[i];
-        let v2: R = x2[i] * x2[i];
-        let v3: R = v1 + v2;
-        let v4: R = x3[i] * x3[i];
-        let v5: R = v3 + v4;
-        let v6: R = R::sample_log_normal_r(v5);
-        let v7: R = v6 * R::from_f64(0.5);
-        let v8: R = v0 + v7;
-        out |= !R::in_band_r(v5);
-        let o0: R = v8;
-        x0[i] = o0;
-    }
-    !out
-}
-
-#[inline(always)]
-fn chaos_ln_4<R: Real>(
-    x0: &mut [R; LANES],
-    x1: &[R; LANES],
-    x2: &[R; LANES],
-    x3: &[R; LANES],
-    x4: &[R; LANES],
-    x5: &[R; LANES],
-) -> bool {
-    let mut out = false;
-    for i in 0..LANES {
-        let v0: R = x5[i] * R::from_f64(0.6931471805599453);
-        let v1: R = x1[i] * x1[i];
-        let v2: R = x2[i] * x2[i];
-        let v3: R = v1 + v2;
-        let v4: R = x3[i] * x3[i];
-        let v5: R = v3 + v4;
-        let v6: R = x4[i] * x4[i];
-        let v7: R = v5 + v6;
-        let v8: R = R::sample_log_normal_r(v7);
-        let v9: R = v8 * R::from_f64(0.5);
-        let v10: R = v0 + v9;
-        out |= !R::in_band_r(v7);
-        let o0: R = v10;
-        x0[i] = o0;
-    }
-    !out
-}
-
 /// One lane's `fli_log`, `fli_max`, `megno_sum`, `megno_mean` (`x0` to
-/// `x3`) after a sample of ln‖w‖ `x4`, its number `x5`, one over it `x6`.
+/// `x3`) after a sample of ‖u‖² `x4` in the band, `fli_oct` `x5`, its
+/// number `x6`, one over it `x7`.
 #[inline(always)]
-pub fn chaos_sums<R: Real>(
+pub fn chaos_ln_sums<R: Real>(
     x0: &mut R,
     x1: &mut R,
     x2: &mut R,
@@ -2643,20 +2628,25 @@ pub fn chaos_sums<R: Real>(
     x4: R,
     x5: R,
     x6: R,
+    x7: R,
 ) {
-    let v0: R = R::max_r((*x1), x4);
-    let v1: R = x4 - (*x0);
-    let v2: R = x5 * v1;
-    let v3: R = (*x2) + v2;
-    let v4: R = v3 * R::from_f64(2.0);
-    let v5: R = x6 * v4;
-    let v6: R = v5 - (*x3);
-    let v7: R = x6 * v6;
-    let v8: R = (*x3) + v7;
-    let o0: R = x4;
-    let o1: R = v0;
-    let o2: R = v3;
-    let o3: R = v8;
+    let v0: R = x5 * R::from_f64(0.6931471805599453);
+    let v1: R = R::sample_log_normal_r(x4);
+    let v2: R = v1 * R::from_f64(0.5);
+    let v3: R = v0 + v2;
+    let v4: R = R::max_r((*x1), v3);
+    let v5: R = v3 - (*x0);
+    let v6: R = x6 * v5;
+    let v7: R = (*x2) + v6;
+    let v8: R = v7 * R::from_f64(2.0);
+    let v9: R = x7 * v8;
+    let v10: R = v9 - (*x3);
+    let v11: R = x7 * v10;
+    let v12: R = (*x3) + v11;
+    let o0: R = v3;
+    let o1: R = v4;
+    let o2: R = v7;
+    let o3: R = v12;
     *x0 = o0;
     *x1 = o1;
     *x2 = o2;

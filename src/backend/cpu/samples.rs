@@ -207,21 +207,22 @@ mod tests {
     }
 
     /// The FLI/MEGNO sample of a vector in the band in its two parts, as
-    /// a run of steps takes it (`indicators.rs`'s `Pending`): ln‖w‖
-    /// (`chaos_ln`), then the sums (`chaos_sums`, lane by lane), on the
-    /// program's arrays. Whether `chaos_ln` found the vector in the band.
+    /// a run of steps takes it (`indicators.rs`'s `Pending`): ‖u‖²
+    /// (`chaos_n2`), then ln‖w‖ and the sums (`chaos_ln_sums`, lane by
+    /// lane), on the program's arrays. Whether `chaos_n2` found the vector
+    /// in the band.
     #[inline(always)]
     fn band_parts<R: Real>(x: &mut [[R; LANES]], d: usize) -> bool {
-        let mut ln = [R::from_f64(0.0); LANES];
+        let mut n2 = [R::from_f64(0.0); LANES];
         let u: Vec<&[R; LANES]> = x[..d].iter().collect();
-        let in_band = sample_ops::chaos_ln(&mut ln, &u, &x[d]);
+        let in_band = sample_ops::chaos_n2(&mut n2, &u);
         let (count, inv) = (x[d + 5][0], x[d + 6][0]);
-        let [log, max, sum, mean] = &mut x[d + 1..d + 5] else {
-            unreachable!("four sums after fli_oct")
+        let [octave, log, max, sum, mean] = &mut x[d..d + 5] else {
+            unreachable!("fli_oct and four sums after the vector")
         };
         for i in 0..LANES {
             let (l, m, s, y) = (&mut log[i], &mut max[i], &mut sum[i], &mut mean[i]);
-            sample_ops::chaos_sums(l, m, s, y, ln[i], count, inv);
+            sample_ops::chaos_ln_sums(l, m, s, y, n2[i], octave[i], count, inv);
         }
         in_band
     }
