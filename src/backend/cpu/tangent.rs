@@ -36,7 +36,7 @@ pub type TangentFn<R> =
 /// The step on `x` and `d` (see [`TangentFn`]), its stages in the piece
 /// order every model takes by default, `CBABC`.
 #[inline(always)]
-fn tangent_step<R: Real, P: Pieces<R>, const K: usize>(
+fn tangent_step<R: Real, P: Pieces<R>, const K: usize, const AVX512: bool>(
     x: &mut Lanes<R>,
     d: &mut [Box<Lanes<R>>],
     stages: &[Weights<R>],
@@ -46,7 +46,7 @@ fn tangent_step<R: Real, P: Pieces<R>, const K: usize>(
 ) {
     let d: &mut [Box<Lanes<R>>; K] = d.try_into().expect("K deviation vectors");
     let nf = R::from_f64(n as f64);
-    let chunk = const { chunk::<R>(K) };
+    let chunk = const { chunk::<R>(K, AVX512) };
     for first in (0..LANES).step_by(chunk) {
         let lanes = first..first + chunk;
         for &(half, full, c) in stages {
@@ -69,8 +69,9 @@ fn tangent_step<R: Real, P: Pieces<R>, const K: usize>(
 }
 
 /// Lanes taken through every stage of the step at once, for `k` vectors
-/// in precision `R`: the compiler keeps a chunk's state and deviations in
-/// registers from stage to stage. With one vector in f32, half the block:
+/// in precision `R` (`avx512`: at that level, else AVX2): the compiler
+/// keeps a chunk's state and deviations in registers from stage to stage.
+/// With one vector in f32 at AVX-512, half the block:
 /// van der Pol, `triple_jump4`, one exponent, against the plain run
 /// (medians of 5, Zen 4): AVX-512 2.38× (the whole block 2.71×, 16 lanes
 /// 2.98×), AVX2 2.48× (2.54×, 16 lanes 2.81×). Otherwise the whole block:
@@ -79,11 +80,15 @@ fn tangent_step<R: Real, P: Pieces<R>, const K: usize>(
 /// the lane loop had no test in it (see [`tangent_step`]), pairs of runs
 /// against this choice: f32 one vector, the whole block 1.03× its time;
 /// half the block for the rest, f32 two vectors 1.07×, f64 one vector
-/// 1.06×, two 1.05×. Time terms the ensemble shares are
+/// 1.06×, two 1.05×. At AVX2 the whole block for one vector in f32 too
+/// (Zen 3 after b21a020, pairs of whole runs against half the block):
+/// spin–orbit (S2, 320 × 320 orbits) one exponent 0.86× the time (5
+/// pairs), MEGNO 0.85× (5); van der Pol one exponent 1.03× (9), the FLI
+/// 1.01× (7), MEGNO 1.01× (7). Time terms the ensemble shares are
 /// evaluated for each chunk, as values: kept in a buffer for the chunks to
 /// read, they cost the registers (the one-exponent run 2× slower).
-const fn chunk<R>(k: usize) -> usize {
-    if k == 1 && std::mem::size_of::<R>() == 4 {
+const fn chunk<R>(k: usize, avx512: bool) -> usize {
+    if avx512 && k == 1 && std::mem::size_of::<R>() == 4 {
         LANES / 2
     } else {
         LANES
@@ -167,7 +172,7 @@ fn stage_pass<
 
 /// Declares a [`TangentFn`] variant of [`tangent_step`] for one level.
 macro_rules! tangent_variant {
-    ($(#[$m:meta])* $name:ident) => {
+    ($(#[$m:meta])* $name:ident, $avx512:literal) => {
         $(#[$m])*
         unsafe fn $name<R: Real, P: Pieces<R>, const K: usize>(
             x: &mut Lanes<R>,
@@ -177,7 +182,7 @@ macro_rules! tangent_variant {
             time_mode: u8,
             time_terms: bool,
         ) {
-            tangent_step::<R, P, K>(x, d, stages, n, time_mode, time_terms)
+            tangent_step::<R, P, K, $avx512>(x, d, stages, n, time_mode, time_terms)
         }
     };
 }
@@ -189,7 +194,7 @@ tangent_variant! {
     /// The CPU must support AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    tangent_v3
+    tangent_v3, false
 }
 
 tangent_variant! {
@@ -199,7 +204,7 @@ tangent_variant! {
     /// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
-    tangent_v4
+    tangent_v4, true
 }
 
 /// Picks the variant of whichever model's pieces it visits: the level and
