@@ -627,7 +627,7 @@ fn run_steps_pending<R: Real>(
                 let octave = loc.vectors.len();
                 peak.as_mut().expect("a peak").fold(buf, max, octave)
             }
-            if pending.takes(i) && pending.take(s, loc, buf, ind.sample_scalars(p.every, n1)) {
+            if pending.takes(i) && pending.take(s, loc, ind.sample_scalars(p.every, n1)) {
                 continue;
             }
             pending.flush(i, buf);
@@ -704,19 +704,13 @@ impl<'a, R: Real> Pending<'a, R> {
     }
 
     /// ‖u‖² of the sample after a step, the vector in the scratch `s`
-    /// (at `loc`; `buf` its arrays); `v` its number. Whether it waits:
+    /// (at `loc`); `v` its number. Whether it waits:
     /// only if the vector is in the band in every lane (else the whole
     /// program must run).
     #[inline(always)]
-    fn take(
-        &mut self,
-        s: &TangentScratch<R>,
-        loc: &RunLocs,
-        buf: &[[R; LANES]],
-        v: Scalars<R>,
-    ) -> bool {
+    fn take(&mut self, s: &TangentScratch<R>, loc: &RunLocs, v: Scalars<R>) -> bool {
         let d = loc.vectors.len();
-        let mut u: [&[R; LANES]; 4] = [&buf[d]; 4];
+        let mut u: [&[R; LANES]; 4] = [s.x.at(0); 4];
         for (j, &(_, k, lane)) in loc.vectors.iter().enumerate() {
             u[j] = s.d[k].at(lane);
         }
@@ -1176,10 +1170,9 @@ mod tests {
         pending: &mut Pending<R>,
         s: &TangentScratch<R>,
         loc: &RunLocs,
-        buf: &[[R; LANES]],
         v: Scalars<R>,
     ) -> bool {
-        pending.take(s, loc, buf, v)
+        pending.take(s, loc, v)
     }
 
     /// Samples' logarithms and sums brought up to date as a run of steps
@@ -1247,7 +1240,7 @@ mod tests {
                 at_skip: R::from_f64(0.0),
             };
             // SAFETY: as above.
-            let waits = unsafe { take_v3(&mut pending, &s, &loc, &got, v) };
+            let waits = unsafe { take_v3(&mut pending, &s, &loc, v) };
             assert!(waits, "sample {n} in the band");
         }
         // SAFETY: as above.

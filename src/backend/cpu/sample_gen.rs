@@ -190,7 +190,7 @@ fn lane_body(l: &Lowered, a: Arrays, r: Returns) -> String {
     writeln!(t, "    for i in 0..LANES {{").unwrap();
     let lets = rust_lets(l, &input, "        ");
     match a.in_band {
-        true => t.push_str(&lets.replace("R::sample_log_r(", "R::sample_log_normal_r(")),
+        true => t.push_str(&normal_logs(&lets)),
         false => t.push_str(&lets),
     }
     if r == Returns::InBand {
@@ -206,6 +206,13 @@ fn lane_body(l: &Lowered, a: Arrays, r: Returns) -> String {
     }
     t.push_str("    }\n");
     t
+}
+
+/// Generated text whose logarithms read a positive normal number (a
+/// vector in the band): `sample_log_normal_r`, the same bits without the
+/// cases of 0, ∞ and NaN.
+fn normal_logs(text: &str) -> String {
+    text.replace("R::sample_log_r(", "R::sample_log_normal_r(")
 }
 
 /// The vector's ‖u‖² in a program of [`Returns::InBand`]: the second
@@ -303,7 +310,7 @@ fn band_loops() -> String {
         let arrays = Arrays {
             inputs: d + 1,
             scalars: 0,
-            in_band: true,
+            in_band: false,
         };
         let name = format!("chaos_n2_{d}");
         let l = chaos_n2_program(d);
@@ -322,7 +329,7 @@ fn band_loops() -> String {
                 /// number `x6`, one over it `x7`.\n\
                 #[inline(always)]\npub ";
     let f = lane_fn(head, "chaos_ln_sums", &chaos_ln_sums_program(), 8);
-    t.push_str(&f.replace("R::sample_log_r(", "R::sample_log_normal_r("));
+    t.push_str(&normal_logs(&f));
     t
 }
 
