@@ -52,6 +52,8 @@ pub trait Real:
     fn sqrt(self) -> Self;
     fn abs(self) -> Self;
     fn floor(self) -> Self;
+    /// Whether it is a positive, normal, finite number (false for NaN).
+    fn positive_normal(self) -> bool;
 }
 
 impl Real for f32 {
@@ -86,6 +88,10 @@ impl Real for f32 {
     fn floor(self) -> f32 {
         f32::floor(self)
     }
+    #[inline(always)]
+    fn positive_normal(self) -> bool {
+        (f32::MIN_POSITIVE..=f32::MAX).contains(&self)
+    }
 }
 
 impl Real for f64 {
@@ -119,6 +125,10 @@ impl Real for f64 {
     #[inline(always)]
     fn floor(self) -> f64 {
         f64::floor(self)
+    }
+    #[inline(always)]
+    fn positive_normal(self) -> bool {
+        (f64::MIN_POSITIVE..=f64::MAX).contains(&self)
     }
 }
 
