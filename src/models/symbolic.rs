@@ -57,6 +57,15 @@ impl LaneFormulas {
         id
     }
 
+    /// Lane `lane` holds a new variable from here on, whatever it held: a
+    /// value the step reads from elsewhere (a table of time terms).
+    pub fn fresh(&mut self, lane: &'static str) -> Id {
+        let id = self.dag.var(self.variables.len() as u32);
+        self.variables.push(lane);
+        self.now.insert(lane, id);
+        id
+    }
+
     /// Lane `lane` holds the known value `v` (not a variable): a parameter
     /// of one value, so that what depends on it only (Lane–Emden's integer
     /// index) folds while the formulas are built.

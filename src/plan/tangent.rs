@@ -18,7 +18,7 @@ use crate::models::symbolic::LaneFormulas;
 use crate::num::formula::lower::{lower, Lowered};
 use crate::num::formula::{Dag, Id};
 
-use crate::models::Model;
+use crate::models::{op_args, Model};
 
 use super::problem::{err, PlanError, Source};
 
@@ -42,6 +42,25 @@ pub enum TangentInput {
     Step,
     /// Component `j` (of the tangent space) of deviation vector `k`.
     Deviation { k: usize, j: usize },
+    /// Time term `term` (of [`time_terms`]) at the step's stage `stage`,
+    /// from the table of the terms the ensemble shares
+    /// ([`TangentStep::tabled`]).
+    TimeTerm { stage: usize, term: usize },
+}
+
+/// The lanes `model`'s time ops write, in the order of its ops and their
+/// arguments: a row of the table of time terms an ensemble shares
+/// (`backend/gpu/time_table.rs`). `None` if an op is unknown.
+pub fn time_terms(model: &Model) -> Option<Vec<&'static str>> {
+    let mut terms: Vec<&'static str> = vec![];
+    for op in model.spec().time_ops {
+        for &(name, written) in op_args(op)? {
+            if written && !terms.contains(&name) {
+                terms.push(name);
+            }
+        }
+    }
+    Some(terms)
 }
 
 /// One step of the tangent map for `vectors` deviation vectors.
@@ -60,8 +79,25 @@ pub struct TangentStep {
 /// values before it (`t` from `t0`, `dt` and the step number, as the ops
 /// compute it).
 pub fn step_formulas(plan: &StepSpec) -> Result<LaneFormulas, PlanError> {
+    Ok(formulas(plan, false)?.0)
+}
+
+/// [`step_formulas`]; `tabled`: the time ops' terms are read, not
+/// computed, each stage's a variable of its own, returned with the
+/// input it is (by variable index).
+fn formulas(
+    plan: &StepSpec,
+    tabled: bool,
+) -> Result<(LaneFormulas, Vec<(u32, TangentInput)>), PlanError> {
     let field = "integrator.scheme";
     let mut f = LaneFormulas::new(plan.model);
+    let time_ops = plan.model.spec().time_ops;
+    let terms = match tabled {
+        true => time_terms(plan.model).ok_or_else(|| err(field, "a time op without arguments"))?,
+        false => vec![],
+    };
+    let mut read = vec![];
+    let mut stages = 0;
     for (lane, source) in plan.bindings {
         if let (Source::Const(v), false) = (source, plan.vars.contains(lane)) {
             f.know(lane, *v);
@@ -84,6 +120,17 @@ pub fn step_formulas(plan: &StepSpec) -> Result<LaneFormulas, PlanError> {
                 let cdt = f.dag.mul(c, dt);
                 let t = f.dag.add(start, cdt);
                 f.write("t", t);
+                stages += 1;
+            }
+            Op::Call(name) if tabled && time_ops.contains(&name) => {
+                let written = op_args(name).into_iter().flatten().filter(|a| a.1);
+                for &(lane, _) in written {
+                    let term = terms.iter().position(|t| *t == lane).expect("a time term");
+                    let k = f.variables.len() as u32;
+                    f.fresh(lane);
+                    let stage = stages.max(1) - 1;
+                    read.push((k, TangentInput::TimeTerm { stage, term }));
+                }
             }
             Op::Call(name) => f.apply(plan.model, name).map_err(|e| {
                 err(
@@ -97,7 +144,7 @@ pub fn step_formulas(plan: &StepSpec) -> Result<LaneFormulas, PlanError> {
             })?,
         }
     }
-    Ok(f)
+    Ok((f, read))
 }
 
 /// The tangent space of `plan` (see the module documentation).
@@ -135,7 +182,7 @@ impl TangentStep {
     /// The tangent map of `plan`'s step for `vectors` deviation vectors
     /// (at most the tangent dimension).
     pub fn new(plan: &StepSpec, vectors: usize) -> Result<TangentStep, PlanError> {
-        TangentStep::build(plan, vectors, false)
+        TangentStep::build(plan, vectors, false, false)
     }
 
     /// As [`TangentStep::new`], with the state after the step as more
@@ -143,11 +190,24 @@ impl TangentStep {
     /// program that moves the state and the vectors (the GPU's, where the
     /// step and the tangent would otherwise compute the step twice).
     pub fn with_state(plan: &StepSpec, vectors: usize) -> Result<TangentStep, PlanError> {
-        TangentStep::build(plan, vectors, true)
+        TangentStep::build(plan, vectors, true, false)
     }
 
-    fn build(plan: &StepSpec, vectors: usize, state: bool) -> Result<TangentStep, PlanError> {
-        let mut f = step_formulas(plan)?;
+    /// As [`TangentStep::new`], the time ops' terms read from the table of
+    /// the terms the ensemble shares ([`TangentInput::TimeTerm`]) rather
+    /// than computed for each trajectory, as the GPU's step reads them: the
+    /// same values (the table holds what the ops compute), at no cost.
+    pub fn tabled(plan: &StepSpec, vectors: usize) -> Result<TangentStep, PlanError> {
+        TangentStep::build(plan, vectors, false, true)
+    }
+
+    fn build(
+        plan: &StepSpec,
+        vectors: usize,
+        state: bool,
+        tabled: bool,
+    ) -> Result<TangentStep, PlanError> {
+        let (mut f, read) = formulas(plan, tabled)?;
         // Read before the deviations' variables are numbered: a lane no op
         // touches becomes a variable here.
         let state_after: Vec<Id> = match state {
@@ -176,6 +236,9 @@ impl TangentStep {
                 lane => TangentInput::Lane(lane),
             })
             .collect();
+        for (k, term) in read {
+            inputs[k as usize] = term;
+        }
         for k in 0..vectors {
             inputs.extend((0..space.len()).map(|j| TangentInput::Deviation { k, j }));
         }

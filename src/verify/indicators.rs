@@ -161,6 +161,9 @@ pub fn tangent_columns(
             TangentInput::Lane(name) => [l.get(name).unwrap_or(0.0)],
             TangentInput::Step => [n as f64],
             TangentInput::Deviation { k, j } => [if k == j { 1.0 } else { 0.0 }],
+            TangentInput::TimeTerm { .. } => {
+                unreachable!("an untabled tangent computes its time terms")
+            }
         })
         .collect();
     let tape = Tape::<f64>::new(&t.program, |_| false);

@@ -321,6 +321,7 @@ fn shared_text(
     precision: Precision,
     formula: Option<&FormulaKernel>,
     moves_state: bool,
+    time_table: Option<&TimeTable>,
 ) -> Result<String, CodegenError> {
     let mut text = math_text(precision)?;
     for t in COMMON_WGSL.iter().chain(plan.model.spec().wgsl) {
@@ -330,7 +331,8 @@ fn shared_text(
         text.push_str(&stop_function(stop));
     }
     if let Some(ind) = &plan.indicators {
-        text.push_str(&indicator_functions(plan, ind, moves_state)?);
+        let tabled = time_table.is_some_and(|tt| !tt.ops().is_empty());
+        text.push_str(&indicator_functions(plan, ind, moves_state, tabled)?);
     }
     // A formula model's ops are emitted as WGSL directly (num/formula/wgsl.rs).
     if let Some(m) = plan.model.formula() {
@@ -358,6 +360,7 @@ fn indicator_functions(
     plan: &Plan,
     ind: &Indicators,
     moves_state: bool,
+    tabled: bool,
 ) -> Result<String, CodegenError> {
     // The indicators' slots are real slots from `first` on.
     let first = slots::indicator_first(plan);
@@ -366,15 +369,19 @@ fn indicator_functions(
         .skip(first)
         .map(|(n, _)| n)
         .collect();
-    let with_state;
-    let tangent = match moves_state {
-        true => {
-            with_state = TangentStep::with_state(&plan.step_spec(), ind.tangent.vectors)
-                .map_err(|e| CodegenError::Plan(e.message))?;
-            &with_state
-        }
-        false => &ind.tangent,
+    // The step's time terms from the window's table, as the step reads
+    // them, where it has one (else the tangent computes them for every
+    // trajectory: Kepler's equation for each spin–orbit orbit and step).
+    let (vectors, spec) = (ind.tangent.vectors, plan.step_spec());
+    let built = match (moves_state, tabled) {
+        (true, _) => Some(TangentStep::with_state(&spec, vectors)),
+        (false, true) => Some(TangentStep::tabled(&spec, vectors)),
+        (false, false) => None,
     };
+    let built = built
+        .transpose()
+        .map_err(|e| CodegenError::Plan(e.message))?;
+    let tangent = built.as_ref().unwrap_or(&ind.tangent);
     let tangent_inputs: Vec<String> = tangent
         .inputs
         .iter()
@@ -382,6 +389,7 @@ fn indicator_functions(
             TangentInput::Lane(v) if plan.vars.contains(&v) => format!("prev_{v}"),
             TangentInput::Lane(name) => name.to_string(),
             TangentInput::Step => "nf".into(),
+            TangentInput::TimeTerm { stage, term } => table_term(stage, term),
             d => slot_names[ind.deviation_slot(d).expect("a deviation")].clone(),
         })
         .collect();
@@ -422,6 +430,12 @@ fn indicator_functions(
     Ok(text)
 }
 
+/// The tangent program's local for time term `term` of stage `stage`
+/// ([`TangentInput::TimeTerm`]).
+fn table_term(stage: usize, term: usize) -> String {
+    format!("tt{stage}_{term}")
+}
+
 fn strs(v: &[String]) -> Vec<&str> {
     v.iter().map(String::as_str).collect()
 }
@@ -449,7 +463,13 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
     // computes its time terms itself.
     let moves_state =
         plan.indicators.is_some() && plan.model.formula().is_none() && time_table.is_none();
-    let shared = shared_text(plan, precision, formula.as_ref(), moves_state)?;
+    let shared = shared_text(
+        plan,
+        precision,
+        formula.as_ref(),
+        moves_state,
+        time_table.as_ref(),
+    )?;
     let sigs = signatures(&shared);
     let names = bound_names(plan, &sigs)?;
     // Room for every axis at once: growing by doubling would copy a table
@@ -801,6 +821,25 @@ impl Gen<'_> {
         step
     }
 
+    /// Every time term of every stage of the step from this window's
+    /// table, as the locals of [`table_term`], for the tangent program.
+    fn table_terms(tt: &TimeTable) -> String {
+        let mut s = String::new();
+        for stage in 0..tt.stages() {
+            for term in 0..tt.terms.len() {
+                let at = stage * tt.vec4s() + term / 4;
+                let name = table_term(stage, term);
+                writeln!(
+                    s,
+                    "        let {name}: R = tterms[trow + {at}u][{}];",
+                    term % 4
+                )
+                .unwrap();
+            }
+        }
+        s
+    }
+
     /// The time terms of stage `stage` from this window's table, assigned
     /// to existing locals (`decl`, `ty` empty) or declared (`let `, `: R`).
     fn table_reads(tt: &TimeTable, stage: usize, decl: &str, ty: &str) -> String {
@@ -1072,10 +1111,13 @@ impl Gen<'_> {
             .iter()
             .map(|k| format!("finite({})", ind.slots[*k].0))
             .collect();
-        let mut s = match self.moves_state {
-            true => String::new(),
-            false => self.call("tangent_step"),
-        };
+        let mut s = String::new();
+        if !self.moves_state {
+            if let Some(tt) = self.time_table.filter(|tt| !tt.ops().is_empty()) {
+                s.push_str(&Self::table_terms(tt));
+            }
+            s.push_str(&self.call("tangent_step"));
+        }
         writeln!(
             s,
             "        if !({}) {{\n            st = n + 1u;\n            break;\n        }}",

@@ -13,11 +13,12 @@
 
 use crate::models::formula::{names, Composed, STEP_INDEX, UNIFORM_PREFIX};
 use crate::models::lanes::{Lane, LANES};
-use crate::models::{op_args, scalar_fn, Flows};
+use crate::models::{scalar_fn, Flows};
 use crate::num::formula::lower::Lowered;
 use crate::num::formula::stage::Staged;
 use crate::num::formula::tape::Tape;
 use crate::num::isa::Isa;
+use crate::plan::tangent::time_terms;
 use crate::plan::{Op, Plan};
 
 /// Bytes of the `tterms` uniform: WebGPU's guaranteed uniform binding size.
@@ -66,14 +67,10 @@ impl TimeTable {
         if !calls_time || !plan.shares_time() {
             return None;
         }
-        let mut terms: Vec<String> = vec![];
-        for op in ops {
-            for &(name, written) in op_args(op)? {
-                if written && !terms.iter().any(|t| t == name) {
-                    terms.push(name.into());
-                }
-            }
-        }
+        let terms = time_terms(&plan.model)?
+            .into_iter()
+            .map(String::from)
+            .collect();
         let offsets = plan
             .ops
             .iter()
@@ -235,5 +232,76 @@ fn fill_formula<'o, R: Flows>(
                 *slot = uniform.output(&regs, k)[j];
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::tangent::{TangentInput, TangentStep};
+    use crate::verify::indicators::lane_at;
+    use crate::verify::samples::problem;
+
+    /// The tangent the GPU builds where the ensemble shares its time terms
+    /// reads them from this table (`TangentStep::tabled`): the same map,
+    /// bit for bit, as the tangent that computes them, at every stage of a
+    /// composition and for every model with time ops.
+    #[test]
+    fn a_tangent_reading_the_table_is_the_tangent_computing_it() {
+        let mut tabled = vec![];
+        for model in [
+            "damped_oscillator",
+            "kepler",
+            "lane_emden",
+            "van_der_pol",
+            "spin_orbit",
+        ] {
+            for scheme in ["s2", "triple_jump4"] {
+                let plan = Plan::new(&problem(model, scheme).expect("a problem")).unwrap();
+                let Some(tt) = TimeTable::of(&plan) else {
+                    continue;
+                };
+                let spec = plan.step_spec();
+                let d = TangentStep::new(&spec, 1).unwrap().space.len();
+                let computed = TangentStep::new(&spec, d).unwrap();
+                let read = TangentStep::tabled(&spec, d).unwrap();
+                let n = 7;
+                let rows: Vec<f64> = tt.fill::<f64>(&plan, n, 1);
+                let l = lane_at(&plan, &[]);
+                let columns = |t: &TangentStep| -> Vec<u64> {
+                    let inputs: Vec<[f64; 1]> = t
+                        .inputs
+                        .iter()
+                        .map(|i| match *i {
+                            TangentInput::Lane(name) => [l.get(name).unwrap_or(0.0)],
+                            TangentInput::Step => [n as f64],
+                            TangentInput::Deviation { k, j } => [f64::from(u8::from(k == j))],
+                            TangentInput::TimeTerm { stage, term } => {
+                                [rows[stage * 4 * tt.vec4s() + term]]
+                            }
+                        })
+                        .collect();
+                    let tape = Tape::<f64>::new(&t.program, |_| false);
+                    let mut regs = vec![[0.0; 1]; tape.registers];
+                    tape.run(&mut regs, &inputs[..], Isa::Baseline);
+                    (0..d * d)
+                        .map(|k| tape.output(&regs, k)[0].to_bits())
+                        .collect()
+                };
+                let terms = read.inputs.iter();
+                let stages = terms.filter_map(|i| match i {
+                    TangentInput::TimeTerm { stage, .. } => Some(*stage),
+                    _ => None,
+                });
+                assert_eq!(
+                    stages.max().map(|s| s + 1),
+                    Some(tt.stages()),
+                    "{model} {scheme}"
+                );
+                assert_eq!(columns(&computed), columns(&read), "{model} {scheme}");
+                tabled.push(format!("{model} {scheme}"));
+            }
+        }
+        assert!(tabled.len() >= 4, "tables for {tabled:?}");
     }
 }
