@@ -153,7 +153,22 @@ pub fn tangent_columns(
 ) -> Result<(Vec<&'static str>, Vec<Vec<f64>>), PlanError> {
     let d = TangentStep::new(&plan.step_spec(), 1)?.space.len();
     let t = TangentStep::new(&plan.step_spec(), d)?;
-    let l = lane_at(plan, x);
+    let untabled = |_: usize, _: usize| unreachable!("an untabled tangent computes its time terms");
+    let cols = columns_of(&t, &lane_at(plan, x), n, untabled);
+    Ok((t.space, cols))
+}
+
+/// The columns of the tangent program `t` (as many vectors as its space
+/// has dimensions) at lane `l` and step `n`: its map applied to the unit
+/// vectors, in f64 on the tape; `time_term(stage, term)`: the inputs of a
+/// tabled tangent (`TangentStep::tabled`).
+pub fn columns_of(
+    t: &TangentStep,
+    l: &Lane<f64>,
+    n: u64,
+    time_term: impl Fn(usize, usize) -> f64,
+) -> Vec<Vec<f64>> {
+    let d = t.space.len();
     let inputs: Vec<[f64; 1]> = t
         .inputs
         .iter()
@@ -161,18 +176,15 @@ pub fn tangent_columns(
             TangentInput::Lane(name) => [l.get(name).unwrap_or(0.0)],
             TangentInput::Step => [n as f64],
             TangentInput::Deviation { k, j } => [if k == j { 1.0 } else { 0.0 }],
-            TangentInput::TimeTerm { .. } => {
-                unreachable!("an untabled tangent computes its time terms")
-            }
+            TangentInput::TimeTerm { stage, term } => [time_term(stage, term)],
         })
         .collect();
     let tape = Tape::<f64>::new(&t.program, |_| false);
     let mut regs = vec![[0.0; 1]; tape.registers];
     tape.run(&mut regs, &inputs[..], Isa::Baseline);
-    let cols = (0..d)
+    (0..d)
         .map(|k| (0..d).map(|j| tape.output(&regs, k * d + j)[0]).collect())
-        .collect();
-    Ok((t.space, cols))
+        .collect()
 }
 
 /// The tangent map of step `n` at `x` on `space` as the CPU's compiled

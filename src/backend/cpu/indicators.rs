@@ -1352,12 +1352,7 @@ mod tests {
             // SAFETY: as above.
             let waits = unsafe { take_v3(&mut pending, &mut s, &loc, v, &mut got) };
             assert!(waits, "sample {n}: ‖u‖² positive and normal");
-            for (j, &lane) in lanes.iter().enumerate() {
-                let bits = |a: &[R; LANES]| a.map(|x| x.to_f64().to_bits());
-                assert_eq!(bits(s.d[0].at(lane)), bits(&want[j]), "sample {n} u{j}");
-            }
-            assert_eq!(got[d].map(|x| x.to_f64()), want[d].map(|x| x.to_f64()));
-            rescaled += (0..LANES).filter(|&i| want[d][i] != octaves[i]).count();
+            rescaled += rescaled_as_the_program(&s, &lanes, &want, &got, &octaves, n);
         }
         assert!(rescaled > 50, "{rescaled} lanes rescaled");
         // SAFETY: as above.
@@ -1368,6 +1363,26 @@ mod tests {
                 assert_eq!(bits(&got), bits(&want), "array {k} lane {i}");
             }
         }
+    }
+
+    /// After sample `n`: the vector in `s` (at `lanes`) and the octaves in
+    /// `got` are the whole program's (`want`, whose octaves were
+    /// `octaves` before it), bit for bit; how many lanes it rescaled.
+    fn rescaled_as_the_program<R: Real>(
+        s: &TangentScratch<R>,
+        lanes: &[usize],
+        want: &[[R; LANES]],
+        got: &[[R; LANES]],
+        octaves: &[R; LANES],
+        n: usize,
+    ) -> usize {
+        let d = lanes.len();
+        let bits = |a: &[R; LANES]| a.map(|x| x.to_f64().to_bits());
+        for (j, &lane) in lanes.iter().enumerate() {
+            assert_eq!(bits(s.d[0].at(lane)), bits(&want[j]), "sample {n} u{j}");
+        }
+        assert_eq!(bits(&got[d]), bits(&want[d]), "sample {n} fli_oct");
+        (0..LANES).filter(|&i| want[d][i] != octaves[i]).count()
     }
 
     /// The FLI's waiting samples as a run of steps compiles them.
@@ -1440,12 +1455,7 @@ mod tests {
             // SAFETY: as above.
             let waits = unsafe { peak_v3(&mut peak, &mut s, &vectors, &mut got, max) };
             assert!(waits, "sample {n}: ‖u‖² positive and normal");
-            for (j, &lane) in lanes.iter().enumerate() {
-                let bits = |a: &[R; LANES]| a.map(|x| x.to_f64().to_bits());
-                assert_eq!(bits(s.d[0].at(lane)), bits(&want[j]), "sample {n} u{j}");
-            }
-            assert_eq!(got[d].map(|x| x.to_f64()), want[d].map(|x| x.to_f64()));
-            rescaled += (0..LANES).filter(|&i| want[d][i] != octaves[i]).count();
+            rescaled += rescaled_as_the_program(&s, &lanes, &want, &got, &octaves, n);
         }
         assert!(rescaled > 50, "{rescaled} lanes rescaled");
         // SAFETY: as above.

@@ -239,7 +239,7 @@ fn fill_formula<'o, R: Flows>(
 mod tests {
     use super::*;
     use crate::plan::tangent::{TangentInput, TangentStep};
-    use crate::verify::indicators::lane_at;
+    use crate::verify::indicators::{columns_of, lane_at};
     use crate::verify::samples::problem;
 
     /// The tangent the GPU builds where the ensemble shares its time terms
@@ -268,25 +268,10 @@ mod tests {
                 let n = 7;
                 let rows: Vec<f64> = tt.fill::<f64>(&plan, n, 1);
                 let l = lane_at(&plan, &[]);
+                let row = |stage: usize, term: usize| rows[stage * 4 * tt.vec4s() + term];
                 let columns = |t: &TangentStep| -> Vec<u64> {
-                    let inputs: Vec<[f64; 1]> = t
-                        .inputs
-                        .iter()
-                        .map(|i| match *i {
-                            TangentInput::Lane(name) => [l.get(name).unwrap_or(0.0)],
-                            TangentInput::Step => [n as f64],
-                            TangentInput::Deviation { k, j } => [f64::from(u8::from(k == j))],
-                            TangentInput::TimeTerm { stage, term } => {
-                                [rows[stage * 4 * tt.vec4s() + term]]
-                            }
-                        })
-                        .collect();
-                    let tape = Tape::<f64>::new(&t.program, |_| false);
-                    let mut regs = vec![[0.0; 1]; tape.registers];
-                    tape.run(&mut regs, &inputs[..], Isa::Baseline);
-                    (0..d * d)
-                        .map(|k| tape.output(&regs, k)[0].to_bits())
-                        .collect()
+                    let cols = columns_of(t, &l, n, row).concat();
+                    cols.iter().map(|x| x.to_bits()).collect()
                 };
                 let terms = read.inputs.iter();
                 let stages = terms.filter_map(|i| match i {
