@@ -51,13 +51,19 @@ fn exp_r(x: f64) -> f64 {
 }
 
 fn log_r(x: f64) -> f64 {
-    return log_f64(x);
+    return log_split_f64(x);
 }
 
 // The chaos indicators' ln x: log_r in f64, as on the CPU.
 fn sample_log_r(x: f64) -> f64 {
-    return log_f64(x);
+    return log_split_f64(x);
 }
+
+// ln x, log_f64's kernel on x = 2^e·m (m in [1, 2)): filled in per
+// adapter (src/backend/gpu/codegen.rs, `launched`): with SHADER_INT64
+// e and m from the bits, as the CPU's log_f64_bits; without, log_f64's
+// ladder of scalings. Both exact, so the same bits.
+{{LOG_SPLIT_F64}}
 
 fn atan_r(x: f64) -> f64 {
     return atan_f64(x);

@@ -14,13 +14,14 @@ use reeb::backend::gpu::codegen::{generate, ExpForm};
 use reeb::backend::gpu::tuning::Launch;
 use reeb::backend::{cpu, gpu};
 use reeb::models::{Model, MODEL_NAMES};
-use reeb::num::math::exp_f32;
+use reeb::num::math::{exp_f32, log_f64_bits};
 use reeb::num::precision::Precision;
 use reeb::num::precision::Real;
 use reeb::plan::observations::Observations;
 use reeb::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
 use reeb::plan::scheme::{Scheme, SCHEME_NAMES};
 use reeb::plan::{Plan, Problem, Source};
+use reeb::verify::indicators::with_indicators;
 
 mod common;
 use common::{first_var, gpu, problem};
@@ -603,11 +604,72 @@ fn every_launch_gives_the_same_bits() {
     assert!(e.to_string().contains("this adapter allows"), "{e}");
 }
 
-/// The f64 kernels' `pow2` from 64-bit integers (adapters with
-/// SHADER_INT64) and from f32 powers of two (those without) give the same
-/// bits: the same plans on a second device told it has no 64-bit integers.
+/// The f64 `log_r` (every formula's and indicator's logarithm) with its
+/// x = 2^e·m from the bits (SHADER_INT64) and by the ladder of scalings
+/// gives the same bits, the CPU's (`log_f64_bits`) wherever x is not
+/// subnormal (an adapter may flush those): around every power of two,
+/// where the split changes, at the ends of the range and the cases. (Not
+/// below 0: there lavapipe folds the kernel's NaN, ∞·0, to 0 in both
+/// forms.)
 #[test]
-fn f64_pow2_with_and_without_int64_gives_the_same_bits() {
+fn f64_log_forms_are_the_cpus_bits() {
+    let Some(ctx) = gpu() else { return };
+    if !ctx.shader_f64 {
+        return;
+    }
+    let mut xs = vec![
+        0.0,
+        -0.0,
+        1.0,
+        f64::INFINITY,
+        f64::NAN,
+        f64::MAX,
+        f64::MIN_POSITIVE,
+    ];
+    for k in -1022..=1023 {
+        let x = 2f64.powi(k);
+        xs.extend([
+            x,
+            x.next_down(),
+            x.next_up(),
+            1.7 * x,
+            std::f64::consts::SQRT_2 * x,
+        ]);
+    }
+    // A spread of mantissas: 4·10⁴ bit patterns of positive normal numbers.
+    let mut h: u64 = 0x9e37_79b9_7f4a_7c15;
+    for _ in 0..40_000 {
+        h = h
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let x = f64::from_bits(h >> 1);
+        if x.is_normal() {
+            xs.push(x);
+        }
+    }
+    let bits = accuracy::log_f64_on(ctx, true, &xs).unwrap();
+    let ladder = accuracy::log_f64_on(ctx, false, &xs).unwrap();
+    let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+    for ((&x, &a), &b) in xs.iter().zip(&bits).zip(&ladder) {
+        assert!(
+            same(a, b),
+            "ln {x:e}: {a:e} from the bits, {b:e} by the ladder"
+        );
+        assert!(
+            same(a, log_f64_bits(x)),
+            "ln {x:e}: {a:e}, the CPU's {:e}",
+            log_f64_bits(x)
+        );
+    }
+}
+
+/// The f64 kernels' `pow2` and the logarithm's split x = 2^e·m from
+/// 64-bit integers (adapters with SHADER_INT64) and without them (f32
+/// powers of two, a ladder of scalings) give the same bits: the same
+/// plans on a second device told it has no 64-bit integers (the FLI and
+/// MEGNO take a logarithm at every sample).
+#[test]
+fn f64_forms_with_and_without_int64_give_the_same_bits() {
     let Some(ctx) = gpu() else { return };
     if !ctx.shader_f64 {
         return;
@@ -619,7 +681,13 @@ fn f64_pow2_with_and_without_int64_gives_the_same_bits() {
         Plan::new(&ensemble("van_der_pol", "s2").unwrap()).unwrap(),
         Plan::new(&shared_ensemble("spin_orbit", "yoshida6a").unwrap()).unwrap(),
         Plan::new(&ensemble("damped_oscillator", "triple_jump4").unwrap()).unwrap(),
+        indicators(shared_ensemble("spin_orbit", "s2").unwrap()),
+        indicators(ensemble("van_der_pol", "triple_jump4").unwrap()),
     ];
+    /// `p` with one exponent, the FLI and MEGNO at every step.
+    fn indicators(p: Problem) -> Plan {
+        Plan::new(&with_indicators(p, 1, 1, 0.0, 400, 0.05)).unwrap()
+    }
     for plan in &plans {
         let a = gpu::run::<f64>(ctx, plan, None).unwrap().observations;
         let b = gpu::run::<f64>(&portable, plan, None).unwrap().observations;

@@ -1,6 +1,6 @@
 //! The adapter's f32 `exp` measured against f64's: the kernels' `exp_r`
 //! evaluated on the device over a sweep of arguments (`reeb doctor`, the
-//! tests). The hardware form's error is the driver's exp2's plus under one
+//! tests; the f64 `log_r` too, for the tests). The hardware form's error is the driver's exp2's plus under one
 //! ULP, and nothing but running it says what the driver's is.
 
 use super::codegen::{math_source, ExpForm, Forms};
@@ -39,32 +39,54 @@ pub fn arguments(n: usize) -> Vec<f32> {
 
 /// `exp_r` in `form` of each of `xs`, on `ctx`.
 pub fn exp_f32_on(ctx: &GpuContext, form: ExpForm, xs: &[f32]) -> Result<Vec<f32>, BackendError> {
-    if xs.is_empty() {
-        return Ok(vec![]);
-    }
     let forms = Forms {
         int64: ctx.shader_int64,
         exp: form,
     };
-    let source = format!(
-        "{}\n{}",
-        math_source(Precision::F32, forms)?,
-        "@group(0) @binding(0) var<storage, read> xs: array<f32>;
-@group(0) @binding(1) var<storage, read_write> ys: array<f32>;
-@compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
-    let i = id.y * nwg.x * 64u + id.x;
-    if i < arrayLength(&xs) {
-        ys[i] = exp_r(xs[i]);
+    evaluate(ctx, Precision::F32, forms, "exp_r", xs)
+}
+
+/// `log_r` in f64 of each of `xs`, on `ctx` (needs SHADER_F64), the
+/// split of x = 2^e·m from the bits where `int64` (and the adapter has
+/// SHADER_INT64), else by the ladder of scalings.
+pub fn log_f64_on(ctx: &GpuContext, int64: bool, xs: &[f64]) -> Result<Vec<f64>, BackendError> {
+    let forms = Forms {
+        int64: int64 && ctx.shader_int64,
+        exp: ExpForm::Exact,
+    };
+    evaluate(ctx, Precision::F64, forms, "log_r", xs)
+}
+
+/// The kernels' one-argument function `name` of each of `xs` (of the
+/// working type of `precision`) in `forms`, on `ctx`.
+fn evaluate<T: bytemuck::Pod>(
+    ctx: &GpuContext,
+    precision: Precision,
+    forms: Forms,
+    name: &str,
+    xs: &[T],
+) -> Result<Vec<T>, BackendError> {
+    if xs.is_empty() {
+        return Ok(vec![]);
     }
-}"
+    let source = format!(
+        "{}\n@group(0) @binding(0) var<storage, read> xs: array<R>;
+@group(0) @binding(1) var<storage, read_write> ys: array<R>;
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {{
+    let i = id.y * nwg.x * 64u + id.x;
+    if i < arrayLength(&xs) {{
+        ys[i] = {name}(xs[i]);
+    }}
+}}",
+        math_source(precision, forms)?,
     );
-    super::validate(&source, false).map_err(GpuError::Shader)?;
-    let pipeline = ctx.compile(&source, None, "reeb exp check")?;
+    super::validate(&source, precision == Precision::F64).map_err(GpuError::Shader)?;
+    let pipeline = ctx.compile(&source, None, "reeb function check")?;
     let bytes = std::mem::size_of_val(xs) as u64;
     let buffer = |usage: wgpu::BufferUsages| {
         ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("reeb exp check"),
+            label: Some("reeb function check"),
             size: bytes.max(4),
             usage,
             mapped_at_creation: false,
@@ -76,7 +98,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) n
     let staging = buffer(U::MAP_READ | U::COPY_DST);
     ctx.queue.write_buffer(&input, 0, bytemuck::cast_slice(xs));
     let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("reeb exp check"),
+        label: Some("reeb function check"),
         layout: &pipeline.get_bind_group_layout(0),
         entries: &[
             wgpu::BindGroupEntry {

@@ -48,6 +48,23 @@ const POW2_F64_PORTABLE: &str = "fn pow2(n: f64) -> f64 {
     let m = i32(n);
     return select(pow2i(m), 0.0, m < -1022);
 }";
+/// The f64 prelude's `log_split_f64` from the bits (`log_f64_bits` on the
+/// CPU): where the ladder of 20 scalings took a fifth of an f64 FLI run on
+/// lavapipe (spin–orbit cost scene). WGSL's select takes no abstract
+/// literal for f64, hence the typed constants.
+const LOG_SPLIT_F64_INT64: &str = "fn log_split_f64(x: f64) -> f64 {
+    let tiny = x < 2.2250738585072014e-308;
+    let bits = bitcast<u64>(select(x, x * 1.8446744073709552e19, tiny));
+    let e = f64(u32((bits >> 52u) & 0x7fflu)) - select(f64(1023.0), f64(1087.0), tiny);
+    let m = bitcast<f64>((bits & 0x000ffffffffffffflu) | 0x3ff0000000000000lu);
+    let normal = x > 0.0 && x <= 1.7976931348623157e308;
+    return log_kernel_f64(x, select(x, m, normal), select(f64(0.0), e, normal));
+}";
+
+/// The f64 prelude's `log_split_f64` without 64-bit integers.
+const LOG_SPLIT_F64_PORTABLE: &str = "fn log_split_f64(x: f64) -> f64 {
+    return log_f64(x);
+}";
 const DRIVER: &str = include_str!("../../../shaders/driver.wgsl");
 
 /// The f32 prelude's `exp` as reeb's polynomial (`Math::exp_f32`): the
@@ -83,7 +100,8 @@ const EXP_F32_HARDWARE: &str = "fn exp_r(x: f32) -> f32 {
 /// form changes the results (the launch never does).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Forms {
-    /// SHADER_INT64: the f64 `pow2` from the bits (the same values).
+    /// SHADER_INT64: the f64 `pow2` and the logarithm's 2^e·m from the
+    /// bits (the same values).
     pub int64: bool,
     /// The f32 `exp` (f64 kernels have no hardware exp).
     pub exp: ExpForm,
@@ -570,17 +588,19 @@ fn launched(template: &str, parts: Option<&BlockParts>, launch: &Launch, forms: 
         .replace("{{BLOCKS}}", &blocks)
 }
 
-/// `text` with the adapter's forms of `pow2` (f64) and `exp` (f32).
+/// `text` with the adapter's forms of `pow2` and the log's split (f64)
+/// and `exp` (f32).
 fn fill_forms(text: &str, forms: Forms) -> String {
-    let pow2 = match forms.int64 {
-        true => POW2_F64_INT64,
-        false => POW2_F64_PORTABLE,
+    let (pow2, log) = match forms.int64 {
+        true => (POW2_F64_INT64, LOG_SPLIT_F64_INT64),
+        false => (POW2_F64_PORTABLE, LOG_SPLIT_F64_PORTABLE),
     };
     let exp = match forms.exp {
         ExpForm::Exact => EXP_F32_EXACT,
         ExpForm::Hardware => EXP_F32_HARDWARE,
     };
     text.replace("{{POW2_F64}}", pow2)
+        .replace("{{LOG_SPLIT_F64}}", log)
         .replace("{{EXP_F32}}", exp)
 }
 
