@@ -193,6 +193,13 @@ impl TangentStep {
         TangentStep::build(plan, vectors, true, false)
     }
 
+    /// [`TangentStep::with_state`] with the time ops' terms read from the
+    /// table ([`TangentStep::tabled`]): one program that moves the state
+    /// and the vectors, each stage's sin and cos computed once for both.
+    pub fn with_state_tabled(plan: &StepSpec, vectors: usize) -> Result<TangentStep, PlanError> {
+        TangentStep::build(plan, vectors, true, true)
+    }
+
     /// As [`TangentStep::new`], the time ops' terms read from the table of
     /// the terms the ensemble shares ([`TangentInput::TimeTerm`]) rather
     /// than computed for each trajectory, as the GPU's step reads them: the

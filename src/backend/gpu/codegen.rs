@@ -392,7 +392,8 @@ fn indicator_functions(
     // trajectory: Kepler's equation for each spin–orbit orbit and step).
     let (vectors, spec) = (ind.tangent.vectors, plan.step_spec());
     let built = match (moves_state, tabled) {
-        (true, _) => Some(TangentStep::with_state(&spec, vectors)),
+        (true, true) => Some(TangentStep::with_state_tabled(&spec, vectors)),
+        (true, false) => Some(TangentStep::with_state(&spec, vectors)),
         (false, true) => Some(TangentStep::tabled(&spec, vectors)),
         (false, false) => None,
     };
@@ -477,10 +478,12 @@ pub fn generate(plan: &Plan, precision: Precision) -> Result<Kernel, CodegenErro
         None => TimeTable::of(plan),
     };
     // With chaos indicators, the tangent program moves the state too (it
-    // computes the step anyway), where the step is a built-in model's and
-    // computes its time terms itself.
-    let moves_state =
-        plan.indicators.is_some() && plan.model.formula().is_none() && time_table.is_none();
+    // computes the step anyway), where the step is a built-in model's, its
+    // time terms its own or the window's table's: the step's sin and cos
+    // (the spin–orbit kick's of 2q) are then computed once, not once for
+    // the step and again for the tangent (lavapipe, spin–orbit cost scene,
+    // one exponent: 0.8× the time in f32 and f64).
+    let moves_state = plan.indicators.is_some() && plan.model.formula().is_none();
     let shared = shared_text(
         plan,
         precision,
@@ -836,6 +839,9 @@ impl Gen<'_> {
             }
         }
         if self.moves_state {
+            if let Some(tt) = self.time_table.filter(|tt| !tt.ops().is_empty()) {
+                step.push_str(&Self::table_terms(tt));
+            }
             step.push_str(&self.call("tangent_step"));
         }
         step
