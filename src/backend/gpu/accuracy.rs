@@ -1,7 +1,8 @@
 //! The adapter's f32 `exp` measured against f64's: the kernels' `exp_r`
 //! evaluated on the device over a sweep of arguments (`reeb doctor`, the
-//! tests; the f64 `log_r` too, for the tests). The hardware form's error is the driver's exp2's plus under one
-//! ULP, and nothing but running it says what the driver's is.
+//! tests; the f64 `log_r` too, for the tests). The hardware form's error
+//! is the driver's exp2's plus under one ULP, and nothing but running it
+//! says what the driver's is.
 
 use super::codegen::{math_source, ExpForm, Forms};
 use super::context::{GpuContext, GpuError};
