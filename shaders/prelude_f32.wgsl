@@ -28,6 +28,12 @@ fn inf() -> f32 {
     return bitcast<f32>(0x7f800000u);
 }
 
+// The quiet NaN, a constant (CPU twin: Prims::quiet_nan): lavapipe folds ∞·0
+// to 0, so a NaN made by arithmetic is lost there.
+fn quiet_nan() -> f32 {
+    return bitcast<f32>(0x7fc00000u);
+}
+
 // Finite test on the bits, so no compiler assumption about NaN/inf removes it.
 fn finite(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;

@@ -42,6 +42,12 @@ fn inf() -> f64 {
     return f64(bitcast<f32>(0x7f800000u));
 }
 
+// The quiet NaN, a constant (CPU twin: Prims::quiet_nan): lavapipe folds ∞·0
+// to 0, so a NaN made by arithmetic is lost there.
+fn quiet_nan() -> f64 {
+    return f64(bitcast<f32>(0x7fc00000u));
+}
+
 fn finite(x: f64) -> bool {
     return abs(x) <= 1.7976931348623157e308;
 }

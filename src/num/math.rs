@@ -227,8 +227,8 @@ crate::shared_fns! {
     /// positive and finite): `log_core_f32`, then the cases of 0, < 0, ∞.
     fn log_kernel_f32(x: f32, m0: f32, e0: f32) -> f32 {
         let res: f32 = log_core_f32(m0, e0);
-        // ln 0 = −∞, ln x = NaN below 0 (∞·0 at run time), ln ∞ = ∞, NaN stays.
-        let neg: f32 = f32::inf() * 0.0;
+        // ln 0 = −∞, ln x = NaN below 0, ln ∞ = ∞, NaN stays.
+        let neg: f32 = f32::quiet_nan();
         let r1: f32 = f32::select(res, x, x > 3.40282347e38);
         let r2: f32 = f32::select(r1, -f32::inf(), x == 0.0);
         return f32::select(r2, neg, x < 0.0);
@@ -259,7 +259,7 @@ crate::shared_fns! {
     /// ln x from `res`, its kernel's value where x is positive and finite:
     /// the cases of 0, < 0, ∞ and NaN as in `log_kernel_f32`.
     fn sample_log_cases_f32(x: f32, res: f32) -> f32 {
-        let neg: f32 = f32::inf() * 0.0;
+        let neg: f32 = f32::quiet_nan();
         let r1: f32 = f32::select(x, res, x > 0.0 && x <= 3.40282347e38);
         let r2: f32 = f32::select(r1, -f32::inf(), x == 0.0);
         return f32::select(r2, neg, x < 0.0);
@@ -386,7 +386,7 @@ crate::shared_fns! {
     /// ln x from x = 2^e·m, as `log_kernel_f32`.
     fn log_kernel_f64(x: f64, m0: f64, e0: f64) -> f64 {
         let res: f64 = log_core_f64(m0, e0);
-        let neg: f64 = f64::inf() * 0.0;
+        let neg: f64 = f64::quiet_nan();
         let r1: f64 = f64::select(res, x, x > 1.7976931348623157e308);
         let r2: f64 = f64::select(r1, -f64::inf(), x == 0.0);
         return f64::select(r2, neg, x < 0.0);
@@ -478,7 +478,7 @@ crate::shared_fns! {
         let none: R = 0.0;
         let up: R = 20.0;
         let down: R = -20.0;
-        let nan: R = R::inf() * 0.0;
+        let nan: R = R::quiet_nan();
         let a: R = R::select(R::select(none, up, n2 < 9.094947017729282e-13), down, n2 > 1099511627776.0);
         return R::select(nan, a, n2 > 0.0);
     }

@@ -25,6 +25,10 @@ pub trait Prims: Sized {
     fn from_i32(n: i32) -> Self;
     /// Positive infinity.
     fn inf() -> Self;
+    /// The quiet NaN, a constant (the bits rustc gave the shared functions'
+    /// ∞·0, which it folded): lavapipe's shader compiler folds ∞·0 to 0
+    /// (its x·0 → 0 rewrite), so a NaN made by arithmetic is lost there.
+    fn quiet_nan() -> Self;
     /// `a·b + c` with one rounding (WGSL's `fma`): the polynomials use it,
     /// so the AVX2/FMA kernels and GPUs evaluate them in fused steps.
     fn fma(a: Self, b: Self, c: Self) -> Self;
@@ -72,6 +76,10 @@ impl Prims for f32 {
         f32::INFINITY
     }
     #[inline(always)]
+    fn quiet_nan() -> f32 {
+        f32::NAN
+    }
+    #[inline(always)]
     fn fma(a: f32, b: f32, c: f32) -> f32 {
         a.mul_add(b, c)
     }
@@ -113,6 +121,10 @@ impl Prims for f64 {
     #[inline(always)]
     fn inf() -> f64 {
         f64::INFINITY
+    }
+    #[inline(always)]
+    fn quiet_nan() -> f64 {
+        f64::NAN
     }
     #[inline(always)]
     fn fma(a: f64, b: f64, c: f64) -> f64 {

@@ -47,6 +47,16 @@ pub fn exp_f32_on(ctx: &GpuContext, form: ExpForm, xs: &[f32]) -> Result<Vec<f32
     evaluate(ctx, Precision::F32, forms, "exp_r", xs)
 }
 
+/// The f32 `name` (`log_r` or the indicators' `sample_log_r`) of each of
+/// `xs`, on `ctx`.
+pub fn log_f32_on(ctx: &GpuContext, name: &str, xs: &[f32]) -> Result<Vec<f32>, BackendError> {
+    let forms = Forms {
+        int64: ctx.shader_int64,
+        exp: ExpForm::Exact,
+    };
+    evaluate(ctx, Precision::F32, forms, name, xs)
+}
+
 /// `log_r` in f64 of each of `xs`, on `ctx` (needs SHADER_F64), the
 /// split of x = 2^e·m from the bits where `int64` (and the adapter has
 /// SHADER_INT64), else by the ladder of scalings.
