@@ -99,12 +99,11 @@ pub fn van_der_pol_a_p<R: Real>(x: &Lane<R>, d: &mut Lane<R>) {
     let v16: R = x.p - v15;
     let v17: R = x.q * R::from_f64(2.0);
     let v18: R = d.q * v17;
-    let v19: R = -v18;
-    let v20: R = v0 * v19;
-    let v21: R = v4 * v20;
-    let v22: R = v16 * v21;
-    let v23: R = v14 + v22;
-    let o0: R = v23;
+    let v19: R = v0 * v18;
+    let v20: R = v4 * v19;
+    let v21: R = v16 * v20;
+    let v22: R = v14 - v21;
+    let o0: R = v22;
     d.p = o0;
 }
 
@@ -119,12 +118,11 @@ pub fn van_der_pol_a_s<R: Real>(x: &Lane<R>, d: &mut Lane<R>) {
     let v5: R = v4 * d.s;
     let v6: R = x.q * R::from_f64(2.0);
     let v7: R = d.q * v6;
-    let v8: R = -v7;
-    let v9: R = v0 * v8;
-    let v10: R = v4 * v9;
-    let v11: R = x.s * v10;
-    let v12: R = v5 + v11;
-    let o0: R = v12;
+    let v8: R = v0 * v7;
+    let v9: R = v4 * v8;
+    let v10: R = x.s * v9;
+    let v11: R = v5 - v10;
+    let o0: R = v11;
     d.s = o0;
 }
 
@@ -271,11 +269,10 @@ pub fn lienard_a_p<R: Real>(x: &Lane<R>, d: &mut Lane<R>) {
     let v97: R = x.q * v59;
     let v98: R = v96 + v97;
     let v99: R = x.tau * v98;
-    let v100: R = -v99;
-    let v101: R = v20 * v100;
-    let v102: R = v95 * v101;
-    let v103: R = v93 + v102;
-    let o0: R = v103;
+    let v100: R = v20 * v99;
+    let v101: R = v95 * v100;
+    let v102: R = v93 - v101;
+    let o0: R = v102;
     d.p = o0;
 }
 
@@ -330,11 +327,10 @@ pub fn lienard_a_s<R: Real>(x: &Lane<R>, d: &mut Lane<R>) {
     let v45: R = x.q * v44;
     let v46: R = v22 + v45;
     let v47: R = x.tau * v46;
-    let v48: R = -v47;
-    let v49: R = v20 * v48;
-    let v50: R = x.s * v49;
-    let v51: R = v21 + v50;
-    let o0: R = v51;
+    let v48: R = v20 * v47;
+    let v49: R = x.s * v48;
+    let v50: R = v21 - v49;
+    let o0: R = v50;
     d.s = o0;
 }
 
@@ -523,18 +519,17 @@ pub fn kepler_b_p<R: Real>(x: &Lane<R>, d: &mut Lane<R>) {
     let v17: R = v12 + v16;
     let v18: R = v5 * v17;
     let v19: R = v18 / v4;
-    let v20: R = -v19;
-    let v21: R = x.q1 * v20;
-    let v22: R = v6 + v21;
-    let v23: R = x.tau * v22;
-    let v24: R = d.p1 - v23;
-    let v25: R = v5 * d.q2;
-    let v26: R = x.q2 * v20;
-    let v27: R = v25 + v26;
-    let v28: R = x.tau * v27;
-    let v29: R = d.p2 - v28;
-    let o0: R = v24;
-    let o1: R = v29;
+    let v20: R = x.q1 * v19;
+    let v21: R = v6 - v20;
+    let v22: R = x.tau * v21;
+    let v23: R = d.p1 - v22;
+    let v24: R = v5 * d.q2;
+    let v25: R = x.q2 * v19;
+    let v26: R = v24 - v25;
+    let v27: R = x.tau * v26;
+    let v28: R = d.p2 - v27;
+    let o0: R = v23;
+    let o1: R = v28;
     d.p1 = o0;
     d.p2 = o1;
 }
@@ -557,10 +552,9 @@ pub fn kepler_b_s<R: Real>(x: &Lane<R>, d: &mut Lane<R>) {
     let v12: R = v9 * v11;
     let v13: R = v4 * v12;
     let v14: R = v13 / v3;
-    let v15: R = -v14;
-    let v16: R = x.tau * v15;
-    let v17: R = d.s - v16;
-    let o0: R = v17;
+    let v15: R = x.tau * v14;
+    let v16: R = d.s + v15;
+    let o0: R = v16;
     d.s = o0;
 }
 
@@ -618,19 +612,18 @@ pub fn spin_orbit_b_p<R: Real>(x: &Lane<R>, d: &mut Lane<R>) {
     let _ = x;
     let v0: R = x.epsilon * x.pref;
     let v1: R = x.q * R::from_f64(2.0);
-    let v2: R = R::cos_r(v1);
+    let (mut v6, mut v2): (R, R) = (R::from_f64(0.0), R::from_f64(0.0));
+    R::sincos_r(v1, &mut v6, &mut v2);
     let v3: R = R::from_f64(2.0) * d.q;
     let v4: R = v2 * v3;
     let v5: R = x.cw * v4;
-    let v6: R = R::sin_r(v1);
-    let v7: R = -v6;
-    let v8: R = v3 * v7;
-    let v9: R = x.sw * v8;
-    let v10: R = v5 - v9;
-    let v11: R = v0 * v10;
-    let v12: R = x.tau * v11;
-    let v13: R = d.p - v12;
-    let o0: R = v13;
+    let v7: R = v3 * v6;
+    let v8: R = x.sw * v7;
+    let v9: R = v5 + v8;
+    let v10: R = v0 * v9;
+    let v11: R = x.tau * v10;
+    let v12: R = d.p - v11;
+    let o0: R = v12;
     d.p = o0;
 }
 
@@ -641,21 +634,20 @@ pub fn spin_orbit_b_s<R: Real>(x: &Lane<R>, d: &mut Lane<R>) {
     let v1: R = x.pref * v0;
     let v2: R = R::from_f64(2.0) * d.q;
     let v3: R = x.q * R::from_f64(2.0);
-    let v4: R = R::sin_r(v3);
-    let v5: R = -v4;
-    let v6: R = v2 * v5;
-    let v7: R = x.cw * v6;
-    let v8: R = R::cos_r(v3);
-    let v9: R = v8 * v2;
-    let v10: R = x.sw * v9;
-    let v11: R = v7 + v10;
-    let v12: R = v1 * v11;
-    let v13: R = x.tidal_k * x.tidal_eta;
-    let v14: R = v13 * d.q;
-    let v15: R = v12 - v14;
-    let v16: R = x.tau * v15;
-    let v17: R = d.s - v16;
-    let o0: R = v17;
+    let (mut v4, mut v7): (R, R) = (R::from_f64(0.0), R::from_f64(0.0));
+    R::sincos_r(v3, &mut v4, &mut v7);
+    let v5: R = v2 * v4;
+    let v6: R = x.cw * v5;
+    let v8: R = v7 * v2;
+    let v9: R = x.sw * v8;
+    let v10: R = v9 - v6;
+    let v11: R = v1 * v10;
+    let v12: R = x.tidal_k * x.tidal_eta;
+    let v13: R = v12 * d.q;
+    let v14: R = v11 - v13;
+    let v15: R = x.tau * v14;
+    let v16: R = d.s - v15;
+    let o0: R = v16;
     d.s = o0;
 }
 

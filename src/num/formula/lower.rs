@@ -100,6 +100,86 @@ impl Prim {
     }
 }
 
+impl Lowered {
+    /// The same values with negations carried outward through products and
+    /// quotients into the sums that take them, where `a + (−b)` and
+    /// `a − (−b)` become `a − b` and `a + b`: fewer instructions (LLVM, given
+    /// `x·(−sin y)`, pushes the negation into the clamps of `sin_r`'s selects
+    /// and keeps two copies of them). Every rewrite is exact, signed zeros
+    /// included (−x·y = −(x·y), and IEEE's a − b is a + (−b)); a negated
+    /// value that only a call, a sum of two negated values or an output
+    /// takes is negated as before.
+    pub fn signs_outward(&self) -> Lowered {
+        let mut s = Signs {
+            out: Lowered::default(),
+            rep: vec![],
+            negs: HashMap::new(),
+        };
+        for i in &self.instrs {
+            let (a, b) = (s.get(i.a), s.get(i.b));
+            let r = s.rewrite(i.op, a, b);
+            s.rep.push(r);
+        }
+        let outputs = self.outputs.iter().map(|o| s.get(*o)).collect::<Vec<_>>();
+        s.out.outputs = outputs.into_iter().map(|r| s.plain(r)).collect();
+        s.out
+    }
+}
+
+/// [`Lowered::signs_outward`]'s work: each old instruction's value as
+/// (operand, negated) in the new program.
+struct Signs {
+    out: Lowered,
+    rep: Vec<(Operand, bool)>,
+    /// The negation emitted of each operand, so that it is made once.
+    negs: HashMap<u64, Operand>,
+}
+
+impl Signs {
+    fn get(&self, o: Operand) -> (Operand, bool) {
+        match o {
+            Operand::Val(k) => self.rep[k as usize],
+            _ => (o, false),
+        }
+    }
+    fn emit(&mut self, op: Prim, a: Operand, b: Operand) -> Operand {
+        self.out.instrs.push(Instr { op, a, b });
+        Operand::Val(self.out.instrs.len() as u32 - 1)
+    }
+    /// The value of `r` as one operand: its negation emitted where needed.
+    fn plain(&mut self, (o, neg): (Operand, bool)) -> Operand {
+        if !neg {
+            return o;
+        }
+        if let Some(n) = self.negs.get(&key(o)) {
+            return *n;
+        }
+        let n = self.emit(Prim::Neg, o, Operand::Const(0.0));
+        self.negs.insert(key(o), n);
+        n
+    }
+    fn rewrite(&mut self, op: Prim, a: (Operand, bool), b: (Operand, bool)) -> (Operand, bool) {
+        let (x, y) = (a.0, b.0);
+        match (op, a.1, b.1) {
+            (Prim::Neg, n, _) => (x, !n),
+            (Prim::Mul | Prim::Div, na, nb) => (self.emit(op, x, y), na != nb),
+            (Prim::Add, false, true) | (Prim::Sub, false, false) => {
+                (self.emit(Prim::Sub, x, y), false)
+            }
+            (Prim::Add, true, false) | (Prim::Sub, true, true) => {
+                (self.emit(Prim::Sub, y, x), false)
+            }
+            (Prim::Add, false, false) | (Prim::Sub, false, true) => {
+                (self.emit(Prim::Add, x, y), false)
+            }
+            _ => {
+                let (pa, pb) = (self.plain(a), self.plain(b));
+                (self.emit(op, pa, pb), false)
+            }
+        }
+    }
+}
+
 /// Lowers `roots` of `dag` into one program (shared nodes computed once).
 pub fn lower(dag: &Dag, roots: &[Id]) -> Lowered {
     let mut l = Lowering {
@@ -270,6 +350,39 @@ mod tests {
             });
         }
         l.outputs.iter().map(|o| get(&vals, *o)).collect()
+    }
+
+    /// Negations go outward into the sums, the values the same bits, signed
+    /// zeros included.
+    #[test]
+    fn signs_outward_is_exact_and_shorter() {
+        let mut d = Dag::new();
+        let names = ["q", "p", "u"];
+        let roots = [
+            compile(&mut d, "u - p*(q*(-sin(q)))", &names).unwrap(),
+            compile(&mut d, "(-q)*(-p) - (-u)/p", &names).unwrap(),
+            compile(&mut d, "exp(-(q*p)) + (-q)*p", &names).unwrap(),
+            compile(&mut d, "-(q*u)", &names).unwrap(),
+        ];
+        let l = lower(&d, &roots);
+        let o = l.signs_outward();
+        let negs = |l: &Lowered| l.instrs.iter().filter(|i| i.op == Prim::Neg).count();
+        assert!(negs(&o) < negs(&l), "{:#?}", o.instrs);
+        let zero = [0.0, -0.0];
+        for x in [
+            [1.3, -0.4, 0.7],
+            [-2.0, 0.5, -0.0],
+            [zero[0], zero[1], 0.0],
+            [0.0, 2.0, 0.0],
+        ] {
+            let (a, b) = (run(&l, &x), run(&o, &x));
+            for (a, b) in a.iter().zip(&b) {
+                assert!(
+                    a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
+                    "{a} vs {b} at {x:?}"
+                );
+            }
+        }
     }
 
     #[test]
