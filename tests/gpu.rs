@@ -626,8 +626,8 @@ fn f32_log_cases_are_the_cpus() {
         0.75,
     ];
     let same = |a: f32, b: f32| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
-    let cpu: [(&str, fn(f32) -> f32); 2] =
-        [("log_r", log_f32_bits), ("sample_log_r", sample_log_f32)];
+    type Log = fn(f32) -> f32;
+    let cpu: [(&str, Log); 2] = [("log_r", log_f32_bits), ("sample_log_r", sample_log_f32)];
     for (name, f) in cpu {
         let ys = accuracy::log_f32_on(ctx, name, &xs).unwrap();
         for (&x, &y) in xs.iter().zip(&ys) {
