@@ -451,3 +451,25 @@ fn verify_measures_the_orders_of_the_duffing_scene() {
         );
     }
 }
+
+/// ln of a negative number is NaN on every backend, so an orbit whose
+/// force takes one stops at the same step on the GPU as on the CPU (in
+/// lavapipe's programs the NaN was once ∞·0, which its compiler folds to
+/// 0: those orbits ran on). V′ = q + 0.01·(log(q + 2) + q/(q + 2)): NaN or
+/// ±∞ from q ≤ −2 (the first three orbits), finite above.
+#[test]
+fn a_logarithm_of_a_negative_number_stops_the_orbit_on_every_backend() {
+    let text = "model = \"mechanical\"\n[formula]\npotential = \"q^2/2 + 0.01*q*log(q + 2)\"\n[initial]\nq = { linspace = [-3.0, 1.0, 9] }\n[integrator]\nscheme = \"s2\"\ndt = 0.01\nsteps = 10\n";
+    let f = plan(text);
+    let cpu64 = cpu::run::<f64>(&f, None).nonfinite_step;
+    assert!(cpu64[..3].iter().all(|&s| s == 1), "{cpu64:?}");
+    assert!(cpu64[3..].iter().all(|&s| s == 0), "{cpu64:?}");
+    assert_eq!(cpu::run::<f32>(&f, None).nonfinite_step, cpu64);
+    let Some(ctx) = common::gpu() else { return };
+    let g32 = gpu::run::<f32>(ctx, &f, None).unwrap().observations;
+    assert_eq!(g32.nonfinite_step, cpu64, "GPU f32");
+    match gpu::run::<f64>(ctx, &f, None) {
+        Ok(g) => assert_eq!(g.observations.nonfinite_step, cpu64, "GPU f64"),
+        Err(e) => println!("no f64 on this adapter: {e}"),
+    }
+}
