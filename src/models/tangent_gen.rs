@@ -101,18 +101,18 @@ pub(crate) fn rust_operand(o: Operand, input: &dyn Fn(u32) -> String) -> String 
 /// calls left LLVM two copies of its selects (spin–orbit tangent stage,
 /// AVX2 f32: 126 → 120 instructions per 8 lanes).
 pub(crate) fn rust_lets(l: &Lowered, input: &dyn Fn(u32) -> String, indent: &str) -> String {
-    let trig = |k: usize, f: Func| {
-        let i = &l.instrs[k];
+    // The instruction calling `f` on operand `a`, if any.
+    let call_of = |f: Func, a: Operand| {
         l.instrs
             .iter()
-            .position(|j| j.op == Prim::Call(f) && j.a == i.a)
+            .position(|j| j.op == Prim::Call(f) && j.a == a)
     };
     let mut s = String::new();
     for (k, i) in l.instrs.iter().enumerate() {
         let (a, b) = (rust_operand(i.a, input), rust_operand(i.b, input));
         let pair = match i.op {
-            Prim::Call(Func::Sin) => trig(k, Func::Cos).map(|c| (k, c)),
-            Prim::Call(Func::Cos) => trig(k, Func::Sin).map(|sn| (sn, k)),
+            Prim::Call(Func::Sin) => call_of(Func::Cos, i.a).map(|c| (k, c)),
+            Prim::Call(Func::Cos) => call_of(Func::Sin, i.a).map(|sn| (sn, k)),
             _ => None,
         };
         match pair {
