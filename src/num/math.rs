@@ -367,11 +367,13 @@ crate::shared_fns! {
     /// ln(2^e·m) for m in [1, 2), as `log_core_f32`, with fdlibm's log
     /// kernel (degree 14 in s).
     fn log_core_f64(m0: f64, e0: f64) -> f64 {
-        let mut m: f64 = m0;
-        let mut e: f64 = e0;
-        let hi: bool = m > 1.4142135623730951;
-        m = f64::select(m, m * 0.5, hi);
-        e = f64::select(e, e + 1.0, hi);
+        let hi: bool = m0 > 1.4142135623730951;
+        return log_reduced_f64(f64::select(m0, m0 * 0.5, hi), f64::select(e0, e0 + 1.0, hi));
+    }
+
+    /// ln(2^e·m) for m in [√½, √2): fdlibm's kernel, which `log_core_f64`
+    /// brings m into (exactly: m/2 and e + 1 where m ≥ √2).
+    fn log_reduced_f64(m: f64, e: f64) -> f64 {
         let f: f64 = m - 1.0;
         let s: f64 = f / (2.0 + f);
         let z: f64 = s * s;
@@ -609,13 +611,23 @@ fn sample_log_split(x: f32) -> (f32, f32) {
 
 /// ln x for a positive normal finite x: the bits of [`log_f64_bits`] (the
 /// chaos indicators' logarithm in f64; a division-free one would need a
-/// polynomial of degree about 20).
+/// polynomial of degree about 20). x = 2^k·m with m in [√½, √2) read from
+/// the bits offset by √½'s mantissa, as [`sample_log_split`] does, so that
+/// `log_core_f64`'s compare, selects and halving fall away: the same m
+/// and k, exactly, so the same bits.
 #[inline(always)]
 pub fn log_normal_f64(x: f64) -> f64 {
-    let bits = x.to_bits();
-    let biased = f64::from_bits((bits >> 52 & 0x7ff) | 0x4330_0000_0000_0000) - 4503599627370496.0;
-    let m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
-    log_core_f64(m, biased - 1023.0)
+    // √½ = 2⁻¹·1.0x6a09e667f3bcd, one ULP up: `log_core_f64` halves m
+    // only above √2's double. Its mantissa alone is subtracted, so that
+    // the subtraction never wraps for a normal x (bits ≥ 2⁵²).
+    const SQRT_HALF: u64 = 0x3fe6_a09e_667f_3bce;
+    const MANT: u64 = 0x000f_ffff_ffff_ffff;
+    let ix = x.to_bits() - (SQRT_HALF & MANT);
+    // ix's exponent field is k + 1022; as a float by the 2^52 trick (AVX2
+    // has no packed 64-bit integer conversion), exact.
+    let k = f64::from_bits((ix >> 52) | 0x4330_0000_0000_0000) - (4503599627370496.0 + 1022.0);
+    let m = f64::from_bits((ix & MANT) + SQRT_HALF);
+    log_reduced_f64(m, k)
 }
 
 impl Math for f32 {
