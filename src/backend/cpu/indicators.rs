@@ -755,10 +755,21 @@ impl<'a, R: Real> Pending<'a, R> {
             return;
         }
         let sums = &mut buf[d + 1..d + 5];
+        // Two registers of lanes per chunk in either precision on AVX2.
+        match std::mem::size_of::<R>() {
+            4 => self.flush_chunks::<16>(sums),
+            _ => self.flush_chunks::<8>(sums),
+        }
+        self.len = 0;
+    }
+
+    /// [`Pending::flush`]'s logarithms and sums into `sums`, `W` lanes at
+    /// a time.
+    #[inline(always)]
+    fn flush_chunks<const W: usize>(&self, sums: &mut [[R; LANES]]) {
         // A chunk of lanes at a time, its sums in registers through every
         // waiting sample (one array pass per sample kept them in memory),
         // each sample's logarithm beside them.
-        const W: usize = 8;
         for c in (0..LANES).step_by(W) {
             let mut r: [[R; W]; 4] = [[R::from_f64(0.0); W]; 4];
             for (to, from) in r.iter_mut().zip(sums.iter()) {
@@ -784,7 +795,6 @@ impl<'a, R: Real> Pending<'a, R> {
                 to[c..c + W].copy_from_slice(from);
             }
         }
-        self.len = 0;
     }
 }
 
