@@ -372,7 +372,7 @@ crate::shared_fns! {
     }
 
     /// ln(2^e·m) for m in [√½, √2): fdlibm's kernel, which `log_core_f64`
-    /// brings m into (exactly: m/2 and e + 1 where m ≥ √2).
+    /// brings m into (exactly: m/2 and e + 1 where m is above √2's double).
     fn log_reduced_f64(m: f64, e: f64) -> f64 {
         let f: f64 = m - 1.0;
         let s: f64 = f / (2.0 + f);
@@ -617,12 +617,12 @@ fn sample_log_split(x: f32) -> (f32, f32) {
 /// and k, exactly, so the same bits.
 #[inline(always)]
 pub fn log_normal_f64(x: f64) -> f64 {
-    // √½ = 2⁻¹·1.0x6a09e667f3bcd, one ULP up: `log_core_f64` halves m
+    // √½ = 0x1.6a09e667f3bcdp−1, one ULP up: `log_core_f64` halves m
     // only above √2's double. Its mantissa alone is subtracted, so that
     // the subtraction never wraps for a normal x (bits ≥ 2⁵²).
     const SQRT_HALF: u64 = 0x3fe6_a09e_667f_3bce;
     const MANT: u64 = 0x000f_ffff_ffff_ffff;
-    let ix = x.to_bits() - (SQRT_HALF & MANT);
+    let ix = x.to_bits().wrapping_sub(SQRT_HALF & MANT);
     // ix's exponent field is k + 1022; as a float by the 2^52 trick (AVX2
     // has no packed 64-bit integer conversion), exact.
     let k = f64::from_bits((ix >> 52) | 0x4330_0000_0000_0000) - (4503599627370496.0 + 1022.0);
