@@ -332,34 +332,52 @@ macro_rules! steps_variant {
     };
 }
 
-steps_variant! {
-    /// [`fused_steps_body`] for any x86-64 (or other) CPU.
-    ///
-    /// # Safety
-    /// None required; `unsafe` only to share [`StepsFn`] with the wide variants.
-    fused_steps, 16
+// Each level in a module of its own, so that each gets a codegen unit of
+// its own: rustc places a generic function's instances by the module that
+// defines it, and the three levels in one unit were the largest module
+// LLVM held (a third of the crate's optimised IR) while it worked on it.
+mod baseline {
+    use super::*;
+    steps_variant! {
+        /// [`fused_steps_body`] for any x86-64 (or other) CPU.
+        ///
+        /// # Safety
+        /// None required; `unsafe` only to share [`StepsFn`] with the wide variants.
+        fused_steps, 16
+    }
 }
+pub use baseline::fused_steps;
 
-steps_variant! {
-    /// [`fused_steps_body`] compiled for AVX2 and FMA (x86-64-v3).
-    ///
-    /// # Safety
-    /// The CPU must support AVX2 and FMA.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fused_steps_v3, 32
+#[cfg(target_arch = "x86_64")]
+mod v3 {
+    use super::*;
+    steps_variant! {
+        /// [`fused_steps_body`] compiled for AVX2 and FMA (x86-64-v3).
+        ///
+        /// # Safety
+        /// The CPU must support AVX2 and FMA.
+        #[target_feature(enable = "avx2,fma")]
+        fused_steps_v3, 32
+    }
 }
+#[cfg(target_arch = "x86_64")]
+pub use v3::fused_steps_v3;
 
-steps_variant! {
-    /// [`fused_steps_body`] compiled for AVX-512 (x86-64-v4): twice the lanes
-    /// per instruction and 32 vector registers, so constants stay in registers.
-    ///
-    /// # Safety
-    /// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
-    fused_steps_v4, 64
+#[cfg(target_arch = "x86_64")]
+mod v4 {
+    use super::*;
+    steps_variant! {
+        /// [`fused_steps_body`] compiled for AVX-512 (x86-64-v4): twice the lanes
+        /// per instruction and 32 vector registers, so constants stay in registers.
+        ///
+        /// # Safety
+        /// The CPU must support AVX-512 F, VL, DQ and BW, AVX2 and FMA.
+        #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
+        fused_steps_v4, 64
+    }
 }
+#[cfg(target_arch = "x86_64")]
+pub use v4::fused_steps_v4;
 
 /// The values `REEB_CPU_ISA` may take.
 pub const ISA_CAPS: &[&str] = &["baseline", "v3", "v4"];
