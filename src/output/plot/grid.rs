@@ -280,3 +280,59 @@ pub(super) fn class_map_impl(
         Ok(())
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every pixel as the colour of its own cell, called per pixel.
+    fn per_pixel(f: &Frame, xa: &Axis, ya: &Axis, cx: &Cells, cy: &Cells) -> Vec<u8> {
+        let (w, h) = (f.w(), f.h());
+        let mut buf = vec![255u8; 3 * w * h];
+        for j in 0..h {
+            for i in 0..w {
+                let x = cx.find(xa.lo + (i as f64 + 0.5) / w as f64 * xa.span());
+                let y = cy.find(ya.hi - (j as f64 + 0.5) / h as f64 * ya.span());
+                if let (Some(ix), Some(iy)) = (x, y) {
+                    put(&mut buf, j * w + i, colour_of(ix, iy));
+                }
+            }
+        }
+        buf
+    }
+
+    fn colour_of(ix: usize, iy: usize) -> Rgb {
+        (
+            (7 * ix + 3 * iy) as u8,
+            (ix * iy) as u8,
+            (ix + 11 * iy) as u8,
+        )
+    }
+
+    /// The runs of pixels of one cell and the copied rows are the colours
+    /// each pixel would get by itself: grids coarser and finer than the
+    /// image, the y axis wider than its cells (rows outside every cell).
+    #[test]
+    fn grid_raster_is_every_pixel_its_cell() {
+        let frame = Frame {
+            x0: 0,
+            x1: 97,
+            y0: 0,
+            y1: 61,
+        };
+        for (nx, ny) in [(5, 3), (40, 17), (300, 200)] {
+            let xs: Vec<f64> = (0..nx).map(|i| i as f64 * 0.5).collect();
+            let ys: Vec<f64> = (0..ny).map(|i| 1.0 + (i * i) as f64).collect();
+            let (cx, cy) = (
+                Cells::new(&xs, false).unwrap(),
+                Cells::new(&ys, false).unwrap(),
+            );
+            let cells = cy.axis(false);
+            let wider = (cells.lo - 0.3 * cells.span(), cells.hi + 0.1 * cells.span());
+            let (xa, ya) = (cx.axis(false), Axis::new(false, Some(wider), 0.0));
+            let fast = grid_raster(&frame, &xa, &ya, &cx, &cy, colour_of);
+            assert_eq!(fast, per_pixel(&frame, &xa, &ya, &cx, &cy), "{nx} x {ny}");
+            assert!(fast.iter().any(|&b| b != 255), "{nx} x {ny}: no cell drawn");
+        }
+    }
+}
