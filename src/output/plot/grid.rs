@@ -88,24 +88,15 @@ fn grid_raster(
     cell: impl Fn(usize, usize) -> Rgb,
 ) -> Vec<u8> {
     let (w, h) = (f.w(), f.h());
-    let cols: Vec<Option<usize>> = (0..w)
-        .map(|i| cx.find(xa.lo + (i as f64 + 0.5) / w as f64 * xa.span()))
-        .collect();
-    let rows: Vec<Option<usize>> = (0..h)
-        .map(|j| cy.find(ya.hi - (j as f64 + 0.5) / h as f64 * ya.span()))
-        .collect();
+    let (cols, rows) = pixel_cells(f, xa, ya, cx, cy);
     // A cell spans several pixels where the image is finer than the grid:
     // its colour is computed once per run of pixels and a row of the same
     // cells is copied (per pixel, the colour map was 3 % of a 64 × 64
     // MEGNO run).
     let mut buf = vec![255u8; 3 * w * h];
-    let mut above = None;
     for (j, row) in rows.iter().enumerate() {
-        let Some(iy) = *row else {
-            above = None;
-            continue;
-        };
-        if above == Some(iy) {
+        let Some(iy) = *row else { continue };
+        if j > 0 && rows[j - 1] == Some(iy) {
             buf.copy_within(3 * (j - 1) * w..3 * j * w, 3 * j * w);
             continue;
         }
@@ -119,9 +110,27 @@ fn grid_raster(
             last = Some((ix, c));
             put(&mut buf, j * w + i, c);
         }
-        above = Some(iy);
     }
     buf
+}
+
+/// The grid cell under each pixel's centre: by column (x) and by row (y,
+/// top down); `None` outside every cell.
+fn pixel_cells(
+    f: &Frame,
+    xa: &Axis,
+    ya: &Axis,
+    cx: &Cells,
+    cy: &Cells,
+) -> (Vec<Option<usize>>, Vec<Option<usize>>) {
+    let (w, h) = (f.w(), f.h());
+    let cols = (0..w)
+        .map(|i| cx.find(xa.lo + (i as f64 + 0.5) / w as f64 * xa.span()))
+        .collect();
+    let rows = (0..h)
+        .map(|j| cy.find(ya.hi - (j as f64 + 0.5) / h as f64 * ya.span()))
+        .collect();
+    (cols, rows)
 }
 
 fn check_grid(nx: usize, ny: usize, n: usize, what: &str) -> Result<(), PlotError> {
@@ -288,12 +297,11 @@ mod tests {
     /// Every pixel as the colour of its own cell, called per pixel.
     fn per_pixel(f: &Frame, xa: &Axis, ya: &Axis, cx: &Cells, cy: &Cells) -> Vec<u8> {
         let (w, h) = (f.w(), f.h());
+        let (cols, rows) = pixel_cells(f, xa, ya, cx, cy);
         let mut buf = vec![255u8; 3 * w * h];
-        for j in 0..h {
-            for i in 0..w {
-                let x = cx.find(xa.lo + (i as f64 + 0.5) / w as f64 * xa.span());
-                let y = cy.find(ya.hi - (j as f64 + 0.5) / h as f64 * ya.span());
-                if let (Some(ix), Some(iy)) = (x, y) {
+        for (j, y) in rows.iter().enumerate() {
+            for (i, x) in cols.iter().enumerate() {
+                if let (Some(ix), Some(iy)) = (*x, *y) {
                     put(&mut buf, j * w + i, colour_of(ix, iy));
                 }
             }
