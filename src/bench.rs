@@ -3,6 +3,8 @@
 //! alone (no kernel compilation, no upload: the GPU timing is the dispatches'),
 //! as the median of several repeats.
 
+pub mod indicators;
+
 use crate::backend::BackendError;
 use crate::backend::Engine;
 use crate::models::Model;
@@ -152,25 +154,7 @@ pub struct Row {
 /// Every backend × scenario × precision × size (× thread count on the CPU),
 /// in that order, handing each row to `each` as it is measured.
 pub fn run(opts: &BenchOptions, mut each: impl FnMut(&Row)) -> Result<(), String> {
-    if let Some(b) = opts
-        .backends
-        .iter()
-        .find(|b| !["cpu", "gpu"].contains(&b.as_str()))
-    {
-        return Err(format!("--backend: unknown backend `{b}` (cpu or gpu)"));
-    }
-    // A device is opened only when the GPU may be measured.
-    let asked = |b: &str| opts.backends.is_empty() || opts.backends.iter().any(|x| x == b);
-    let gpu = asked("gpu").then(|| Engine::gpu(None));
-    let backends: Vec<&str> = match (opts.backends.is_empty(), matches!(gpu, Some(Ok(_)))) {
-        (false, _) => opts.backends.iter().map(String::as_str).collect(),
-        (true, true) => vec!["cpu", "gpu"],
-        (true, false) => vec!["cpu"],
-    };
-    let gpu = match gpu {
-        Some(Err(e)) if backends.contains(&"gpu") => return Err(format!("--backend gpu: {e}")),
-        g => g.and_then(Result::ok),
-    };
+    let engines = engines(&opts.backends)?;
     let scenarios = match opts.scenarios.is_empty() {
         true => SCENARIOS.to_vec(),
         false => opts.scenarios.clone(),
@@ -181,7 +165,7 @@ pub fn run(opts: &BenchOptions, mut each: impl FnMut(&Row)) -> Result<(), String
         (true, true) => vec![1, all],
         (true, false) => vec![1],
     };
-    for b in backends {
+    for (name, engine) in engines.each() {
         for &s in &scenarios {
             for &p in &opts.precisions {
                 for &n in &opts.sizes {
@@ -195,18 +179,16 @@ pub fn run(opts: &BenchOptions, mut each: impl FnMut(&Row)) -> Result<(), String
                         threads,
                         traj_steps_per_s: r,
                     };
-                    match (b, &gpu) {
-                        ("gpu", Some(g @ Engine::Gpu(c))) => {
-                            match gpu_rate(g, &plan, p, opts.repeats) {
-                                Ok(Some((r, steps))) => each(&Row {
-                                    steps,
-                                    ..row(format!("gpu: {}", c.info.name), 0, r)
-                                }),
-                                Ok(None) => {}
-                                Err(e) => return Err(format!("gpu {}: {e}", s.label())),
-                            }
-                        }
-                        _ => {
+                    match engine {
+                        Engine::Gpu(_) => match gpu_rate(engine, &plan, p, opts.repeats) {
+                            Ok(Some((r, steps))) => each(&Row {
+                                steps,
+                                ..row(name.clone(), 0, r)
+                            }),
+                            Ok(None) => {}
+                            Err(e) => return Err(format!("gpu {}: {e}", s.label())),
+                        },
+                        Engine::Cpu => {
                             for &t in &threads {
                                 each(&row("cpu".into(), t, cpu_rate(&plan, p, t, opts.repeats)));
                             }
@@ -217,6 +199,54 @@ pub fn run(opts: &BenchOptions, mut each: impl FnMut(&Row)) -> Result<(), String
         }
     }
     Ok(())
+}
+
+/// The engines a benchmark runs on, in the order asked for.
+pub struct Engines {
+    cpu: Engine,
+    gpu: Option<Engine>,
+    order: Vec<String>,
+}
+
+/// The engines `backends` names ("cpu", "gpu"); none named: the CPU, and
+/// the GPU when an adapter exists.
+pub fn engines(backends: &[String]) -> Result<Engines, String> {
+    if let Some(b) = backends
+        .iter()
+        .find(|b| !["cpu", "gpu"].contains(&b.as_str()))
+    {
+        return Err(format!("--backend: unknown backend `{b}` (cpu or gpu)"));
+    }
+    // A device is opened only when the GPU may be measured.
+    let asked = |b: &str| backends.is_empty() || backends.iter().any(|x| x == b);
+    let gpu = match asked("gpu").then(|| Engine::gpu(None)) {
+        Some(Ok(g)) => Some(g),
+        Some(Err(e)) if !backends.is_empty() => return Err(format!("--backend gpu: {e}")),
+        _ => None,
+    };
+    let order = match (backends.is_empty(), gpu.is_some()) {
+        (false, _) => backends.to_vec(),
+        (true, true) => vec!["cpu".into(), "gpu".into()],
+        (true, false) => vec!["cpu".into()],
+    };
+    Ok(Engines {
+        cpu: Engine::Cpu,
+        gpu,
+        order,
+    })
+}
+
+impl Engines {
+    /// Each engine with its name in the rows: "cpu", "gpu: <adapter>".
+    pub fn each(&self) -> impl Iterator<Item = (String, &Engine)> {
+        self.order
+            .iter()
+            .filter_map(|b| match (b.as_str(), &self.gpu) {
+                ("gpu", Some(g @ Engine::Gpu(c))) => Some((format!("gpu: {}", c.info.name), g)),
+                ("gpu", _) => None,
+                _ => Some(("cpu".to_string(), &self.cpu)),
+            })
+    }
 }
 
 /// Van der Pol as a Liénard scene's formulas.

@@ -107,12 +107,12 @@ enum Command {
         /// Precisions.
         #[arg(long, value_delimiter = ',', default_value = "f32,f64")]
         precision: Vec<Precision>,
-        /// Ensemble sizes.
-        #[arg(long, value_delimiter = ',', default_value = "100000,1000000")]
+        /// Ensemble sizes (default: 100000,1000000).
+        #[arg(long, value_delimiter = ',')]
         n: Vec<usize>,
-        /// Steps per run.
-        #[arg(long, default_value_t = 1000)]
-        steps: u64,
+        /// Steps per run (default: 1000; with --indicators, each cost scene's own).
+        #[arg(long)]
+        steps: Option<u64>,
         /// CPU thread counts (default: 1 and all).
         #[arg(long, value_delimiter = ',')]
         threads: Vec<usize>,
@@ -122,6 +122,11 @@ enum Command {
         /// Also write the rows as JSON lines to this file.
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Instead of throughput: what each chaos indicator costs, as a multiple of the
+        /// same scene's plain run (van der Pol and spin–orbit cost scenes, in
+        /// alternating pairs; --repeats pairs, the median ratio).
+        #[arg(long)]
+        indicators: bool,
     },
     /// Check and measure the GPU backend on this machine: the adapters, `verify` on the
     /// GPU in f32 and f64, the CPU–GPU agreement of every model, throughput on both
@@ -250,6 +255,20 @@ fn main() -> ExitCode {
             threads,
             repeats,
             json,
+            indicators: true,
+        } => bench_indicators(
+            backend, scenario, precision, n, steps, threads, repeats, json,
+        ),
+        Command::Bench {
+            backend,
+            scenario,
+            precision,
+            n,
+            steps,
+            threads,
+            repeats,
+            json,
+            indicators: false,
         } => bench(
             backend, scenario, precision, n, steps, threads, repeats, json,
         ),
@@ -454,12 +473,17 @@ fn bench(
     scenarios: Vec<String>,
     precisions: Vec<Precision>,
     sizes: Vec<usize>,
-    steps: u64,
+    steps: Option<u64>,
     threads: Vec<usize>,
     repeats: usize,
     json: Option<PathBuf>,
 ) -> Result<ExitCode> {
     use reeb::bench::{BenchOptions, Scenario};
+    let sizes = match sizes.is_empty() {
+        true => vec![100_000, 1_000_000],
+        false => sizes,
+    };
+    let steps = steps.unwrap_or(1000);
     check_bench_args(&sizes, steps, &threads, repeats)?;
     let scenarios = scenarios
         .iter()
@@ -496,6 +520,84 @@ fn bench(
     .map_err(anyhow::Error::msg)?;
     written?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// `reeb bench --indicators`: each indicator's cost on each cost scene,
+/// backend and precision, a row as it is measured.
+#[allow(clippy::too_many_arguments)]
+fn bench_indicators(
+    backends: Vec<String>,
+    scenarios: Vec<String>,
+    precisions: Vec<Precision>,
+    sizes: Vec<usize>,
+    steps: Option<u64>,
+    threads: Vec<usize>,
+    repeats: usize,
+    json: Option<PathBuf>,
+) -> Result<ExitCode> {
+    use reeb::bench::indicators::{cost, COST_SCENES, INDICATORS};
+    let fixed =
+        "with --indicators: the cost scenes' grids are fixed, and the CPU takes every thread";
+    for (flag, given) in [
+        ("--n", !sizes.is_empty()),
+        ("--scenario", !scenarios.is_empty()),
+        ("--threads", !threads.is_empty()),
+    ] {
+        if given {
+            anyhow::bail!("{flag}: not used {fixed}");
+        }
+    }
+    check_bench_args(&[], steps.unwrap_or(1), &[], repeats)?;
+    let engines = reeb::bench::engines(&backends).map_err(anyhow::Error::msg)?;
+    let mut out = json
+        .map(|p| std::fs::File::create(&p).with_context(|| format!("--json {}", p.display())))
+        .transpose()?;
+    println!(
+        "reeb {} bench --indicators: each run against its plain run, median of {repeats} alternating pairs",
+        env!("CARGO_PKG_VERSION"),
+    );
+    println!(
+        "{:<40} {:<26} {:>9} {:<28} {:>8} {:>9} {:>9} {:>7} {:>5}",
+        "backend", "scene", "precision", "indicator", "steps", "plain s", "with s", "ratio", "goal"
+    );
+    for (name, engine) in engines.each() {
+        for scene in COST_SCENES {
+            for &p in precisions.iter().filter(|&&p| engine.runs(p)) {
+                for ind in INDICATORS {
+                    let n = steps.unwrap_or(scene.steps());
+                    let r = cost(engine, &name, scene, ind, p, n, repeats)
+                        .map_err(|e| anyhow::anyhow!("{name} {}: {e}", scene.label()))?;
+                    print_cost_row(&r, out.as_mut())?;
+                }
+            }
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// One line of `reeb bench --indicators`, and its JSON line.
+fn print_cost_row(
+    r: &reeb::bench::indicators::CostRow,
+    json: Option<&mut std::fs::File>,
+) -> Result<()> {
+    use std::io::Write;
+    let verdict = if r.ratio <= r.goal { "" } else { " over" };
+    println!(
+        "{:<40} {:<26} {:>9} {:<28} {:>8} {:>9.3} {:>9.3} {:>7.2} {:>5}{verdict}",
+        r.backend,
+        r.scene,
+        r.precision.name(),
+        r.indicator,
+        r.steps,
+        r.plain_s,
+        r.indicator_s,
+        r.ratio,
+        r.goal
+    );
+    if let Some(f) = json {
+        writeln!(f, "{}", serde_json::to_string(r)?)?;
+    }
+    Ok(())
 }
 
 /// `reeb doctor`: the checks and measurements of `reeb::doctor`, a table on

@@ -3,6 +3,8 @@
 
 use std::process::Command;
 
+mod common;
+
 fn reeb(args: &[&str], env: &[(&str, &str)]) -> (bool, String) {
     let mut c = Command::new(env!("CARGO_BIN_EXE_reeb"));
     c.args(args);
@@ -45,6 +47,88 @@ fn bench_refuses_arguments_it_cannot_run() {
         assert!(!ok, "{arg} {value} was accepted");
         assert!(err.contains(says), "{arg} {value}: {err}");
         assert!(!err.contains("panicked"), "{err}");
+    }
+}
+
+#[test]
+fn bench_indicators_refuses_what_it_does_not_use() {
+    for (args, says) in [
+        (&["--n", "100"][..], "--n: not used with --indicators"),
+        (
+            &["--scenario", "van_der_pol/s2"],
+            "--scenario: not used with --indicators",
+        ),
+        (&["--threads", "1"], "--threads: not used with --indicators"),
+        (&["--steps", "0"], "--steps: 0 is not between 1"),
+        (&["--repeats", "0"], "--repeats:"),
+        (&["--backend", "fpga"], "--backend: unknown backend `fpga`"),
+    ] {
+        let mut a = vec!["bench", "--indicators"];
+        a.extend(args);
+        let (ok, err) = reeb(&a, &[]);
+        assert!(!ok, "{args:?} was accepted");
+        assert!(err.contains(says), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}
+
+/// Every indicator on both cost scenes, a row each, on the CPU and (where
+/// an adapter exists) the GPU: a few steps, so only that it runs and what
+/// it reports, not the cost, which is a benchmark's.
+#[test]
+fn bench_indicators_reports_every_indicator_on_both_scenes() {
+    let dir = common::runs::tmp("cli", "bench-indicators");
+    let mut backends = vec!["cpu"];
+    if common::gpu().is_some() {
+        backends.push("gpu");
+    }
+    for backend in backends {
+        let json = dir.join(format!("{backend}.jsonl"));
+        let args = [
+            "bench",
+            "--indicators",
+            "--backend",
+            backend,
+            "--precision",
+            "f32",
+            "--steps",
+            "3",
+            "--repeats",
+            "1",
+            "--json",
+            common::runs::s(&json),
+        ];
+        let (ok, err) = reeb(&args, &[]);
+        assert!(ok, "{backend}: {err}");
+        let rows: Vec<serde_json::Value> = std::fs::read_to_string(&json)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        assert_eq!(rows.len(), 8, "{backend}: {rows:?}");
+        for (r, scene) in rows.iter().zip(
+            ["van_der_pol/triple_jump4"; 4]
+                .iter()
+                .chain(&["spin_orbit/s2"; 4]),
+        ) {
+            assert_eq!(r["scene"], *scene);
+            assert_eq!(r["steps"], 3);
+            let ratio = r["ratio"].as_f64().unwrap();
+            assert!(ratio.is_finite() && ratio > 0.0, "{r}");
+        }
+        let indicators: Vec<&str> = rows[..4]
+            .iter()
+            .map(|r| r["indicator"].as_str().unwrap())
+            .collect();
+        assert_eq!(
+            indicators,
+            [
+                "lyapunov = true",
+                "fli = true",
+                "megno = true",
+                "lyapunov = { vectors = 2 }"
+            ]
+        );
     }
 }
 

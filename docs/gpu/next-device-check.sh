@@ -27,6 +27,9 @@ for b in 1 8; do echo "### block $b"; REEB_GPU_FINITE_BLOCK=$b bn --precision f3
 # the arrays), ~1 s per run in the first session's clock trace.
 printf 'name = "wall"\nmodel = "van_der_pol"\n[params]\nepsilon = 1.0\nforcing_amplitude = 0.5\nforcing_frequency = 1.1\n[initial]\nq = { linspace = [0.5, 2.0, 10000000] }\ns = 0.0\n[integrator]\nscheme = "s2"\ndt = 0.01\nsteps = 10000\n[output]\nfinal = ["q", "s"]\n' > /tmp/wall.toml
 for p in f32 f64; do echo "### wall, $p"; TIMEFORMAT="wall %R s"; time (timeout 90 "$B" run /tmp/wall.toml --backend gpu --precision $p --out /tmp/wall-$p 2>&1 | tail -1); grep -o '"integration_seconds"[^,]*' /tmp/wall-$p/summary.json; done
+# Issue 33's point 5 on a hardware GPU: each chaos indicator against its
+# plain run (README, "Chaos indicators"; lavapipe's numbers are there).
+echo "### indicators' cost"; timeout 120 "$B" bench --indicators --backend gpu --repeats 3 --json "$OUT/indicators.jsonl"
 } 2>&1 | tee "$OUT/reeb.txt"
 wait $NV; cat /tmp/nvcc.txt
 for p in f32 f64; do timeout 30 /tmp/vdp_cuda --precision $p --n 10000000 --steps 10000 --repeat 5; done 2>&1 | tee "$OUT/peers.jsonl"

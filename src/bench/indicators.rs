@@ -1,0 +1,196 @@
+//! What the chaos indicators cost: `reeb bench --indicators`. Each
+//! indicator's run of a cost scene against the same scene without it (the
+//! plain run), in alternating pairs on one backend and precision, as the
+//! median of the pairs' ratios: a machine's drift moves both runs of a
+//! pair alike. The goals (issue 33): one exponent, the FLI and MEGNO at
+//! most 2 plain runs, the full spectrum of a 2-D system at most 3.
+
+use crate::backend::{BackendError, Engine};
+use crate::models::Model;
+use crate::num::precision::Precision;
+use crate::plan::observers::{LyapunovObs, SampledObs};
+use crate::plan::{Plan, Problem, Source};
+
+/// A scene the cost is measured on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CostScene {
+    /// Van der Pol, 4096 orbits (64 × 64 over ε ∈ [0.5, 2] and
+    /// q₀ ∈ [0.5, 2.5], s₀ = 0) × 100 000 steps of dt = 0.01,
+    /// `triple_jump4`.
+    VanDerPol,
+    /// Spin–orbit (e = 0.1, ε = 0.1), 320 × 320 orbits over
+    /// q₀ ∈ [0, π] and p₀ ∈ [0.4, 1.8] × 10 000 S2 steps of dt = π/10.
+    SpinOrbit,
+}
+
+pub const COST_SCENES: [CostScene; 2] = [CostScene::VanDerPol, CostScene::SpinOrbit];
+
+/// An indicator as a scene asks for it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Indicator {
+    /// `lyapunov = true`: the largest exponent.
+    Lyapunov,
+    /// `fli = true`.
+    Fli,
+    /// `megno = true`.
+    Megno,
+    /// `lyapunov = { vectors = 2 }`: the full spectrum of a 2-D system.
+    Spectrum,
+}
+
+pub const INDICATORS: [Indicator; 4] = [
+    Indicator::Lyapunov,
+    Indicator::Fli,
+    Indicator::Megno,
+    Indicator::Spectrum,
+];
+
+impl CostScene {
+    pub fn label(self) -> &'static str {
+        match self {
+            CostScene::VanDerPol => "van_der_pol/triple_jump4",
+            CostScene::SpinOrbit => "spin_orbit/s2",
+        }
+    }
+
+    /// Its steps per run.
+    pub fn steps(self) -> u64 {
+        match self {
+            CostScene::VanDerPol => 100_000,
+            CostScene::SpinOrbit => 10_000,
+        }
+    }
+
+    /// The plan of `steps` steps with `indicator` (`None`: the plain run).
+    pub fn plan(self, indicator: Option<Indicator>, steps: u64) -> Plan {
+        let lin = |a: f64, b: f64, n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|i| a + (b - a) * i as f64 / (n - 1) as f64)
+                .collect()
+        };
+        let mut p = match self {
+            CostScene::VanDerPol => {
+                let mut p = Problem::new(Model::VanDerPol, "triple_jump4").expect("a scheme");
+                let epsilon = p.axis("epsilon", lin(0.5, 2.0, 64));
+                let q = p.axis("q", lin(0.5, 2.5, 64));
+                p.dt = Source::Const(0.01);
+                p.param("epsilon", epsilon).initial("q", q)
+            }
+            CostScene::SpinOrbit => {
+                let mut p = Problem::new(Model::SpinOrbit, "s2").expect("a scheme");
+                let q = p.axis("q", lin(0.0, std::f64::consts::PI, 320));
+                let pp = p.axis("p", lin(0.4, 1.8, 320));
+                p.dt = Source::Const(std::f64::consts::PI / 10.0);
+                p.param("eccentricity", Source::Const(0.1))
+                    .param("epsilon", Source::Const(0.1))
+                    .initial("q", q)
+                    .initial("p", pp)
+            }
+        };
+        p.steps = steps;
+        let o = &mut p.observers;
+        match indicator {
+            None => {}
+            Some(Indicator::Lyapunov) => o.lyapunov = Some(LyapunovObs::default()),
+            Some(Indicator::Fli) => o.fli = Some(SampledObs::default()),
+            Some(Indicator::Megno) => o.megno = Some(SampledObs::default()),
+            Some(Indicator::Spectrum) => {
+                o.lyapunov = Some(LyapunovObs {
+                    vectors: 2,
+                    ..LyapunovObs::default()
+                })
+            }
+        }
+        Plan::new(&p).expect("the cost scenes are valid")
+    }
+}
+
+impl Indicator {
+    /// As a scene writes it.
+    pub fn label(self) -> &'static str {
+        match self {
+            Indicator::Lyapunov => "lyapunov = true",
+            Indicator::Fli => "fli = true",
+            Indicator::Megno => "megno = true",
+            Indicator::Spectrum => "lyapunov = { vectors = 2 }",
+        }
+    }
+
+    /// The most plain runs it should cost.
+    pub fn goal(self) -> f64 {
+        match self {
+            Indicator::Spectrum => 3.0,
+            _ => 2.0,
+        }
+    }
+}
+
+/// One indicator's cost on one scene, backend and precision.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct CostRow {
+    pub backend: String,
+    pub scene: &'static str,
+    pub precision: Precision,
+    pub indicator: &'static str,
+    pub steps: u64,
+    pub pairs: usize,
+    /// Median seconds of the plain runs and of the indicator's.
+    pub plain_s: f64,
+    pub indicator_s: f64,
+    /// Median of the pairs' ratios (indicator over plain).
+    pub ratio: f64,
+    pub goal: f64,
+}
+
+/// `pairs` alternating runs of `scene` with `indicator` and without on
+/// `engine`, after one of each that is not timed (it compiles the GPU's
+/// kernels and wakes its clocks); `steps`: per run.
+pub fn cost(
+    engine: &Engine,
+    backend: &str,
+    scene: CostScene,
+    indicator: Indicator,
+    precision: Precision,
+    steps: u64,
+    pairs: usize,
+) -> Result<CostRow, BackendError> {
+    let plain = scene.plan(None, steps);
+    let with = scene.plan(Some(indicator), steps);
+    let run = |plan: &Plan| super::seconds(engine, plan, precision);
+    run(&plain)?;
+    run(&with)?;
+    let mut times = (vec![], vec![]);
+    for _ in 0..pairs.max(1) {
+        times.0.push(run(&plain)?);
+        times.1.push(run(&with)?);
+    }
+    let ratios = times.0.iter().zip(&times.1).map(|(a, b)| b / a).collect();
+    Ok(CostRow {
+        backend: backend.to_string(),
+        scene: scene.label(),
+        precision,
+        indicator: indicator.label(),
+        steps,
+        pairs: pairs.max(1),
+        plain_s: super::median(times.0),
+        indicator_s: super::median(times.1),
+        ratio: super::median(ratios),
+        goal: indicator.goal(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_cost_scenes_are_the_readmes() {
+        let vdp = CostScene::VanDerPol.plan(Some(Indicator::Megno), 10);
+        assert_eq!(vdp.n, 4096);
+        let so = CostScene::SpinOrbit.plan(Some(Indicator::Spectrum), 10);
+        assert_eq!(so.n, 320 * 320);
+        assert_eq!(so.observers.lyapunov.as_ref().map(|l| l.vectors), Some(2));
+        assert!(so.indicators.is_some());
+        assert!(CostScene::SpinOrbit.plan(None, 10).indicators.is_none());
+    }
+}
