@@ -255,23 +255,13 @@ fn main() -> ExitCode {
             threads,
             repeats,
             json,
-            indicators: true,
-        } => bench_indicators(
-            backend, scenario, precision, n, steps, threads, repeats, json,
-        ),
-        Command::Bench {
-            backend,
-            scenario,
-            precision,
-            n,
-            steps,
-            threads,
-            repeats,
-            json,
-            indicators: false,
-        } => bench(
-            backend, scenario, precision, n, steps, threads, repeats, json,
-        ),
+            indicators,
+        } => {
+            let measure = if indicators { bench_indicators } else { bench };
+            measure(
+                backend, scenario, precision, n, steps, threads, repeats, json,
+            )
+        }
         Command::Doctor {
             out,
             adapter,
@@ -564,8 +554,8 @@ fn bench_indicators(
         for scene in COST_SCENES {
             for &p in precisions.iter().filter(|&&p| engine.runs(p)) {
                 for ind in INDICATORS {
-                    let n = steps.unwrap_or(scene.steps());
-                    let r = cost(engine, &name, scene, ind, p, n, repeats)
+                    let run_steps = steps.unwrap_or(scene.steps());
+                    let r = cost(engine, &name, scene, ind, p, run_steps, repeats)
                         .map_err(|e| anyhow::anyhow!("{name} {}: {e}", scene.label()))?;
                     print_cost_row(&r, out.as_mut())?;
                 }

@@ -154,13 +154,14 @@ pub fn cost(
     steps: u64,
     pairs: usize,
 ) -> Result<CostRow, BackendError> {
+    let pairs = pairs.max(1);
     let plain = scene.plan(None, steps);
     let with = scene.plan(Some(indicator), steps);
     let run = |plan: &Plan| super::seconds(engine, plan, precision);
     run(&plain)?;
     run(&with)?;
     let mut times = (vec![], vec![]);
-    for _ in 0..pairs.max(1) {
+    for _ in 0..pairs {
         times.0.push(run(&plain)?);
         times.1.push(run(&with)?);
     }
@@ -171,7 +172,7 @@ pub fn cost(
         precision,
         indicator: indicator.label(),
         steps,
-        pairs: pairs.max(1),
+        pairs,
         plain_s: super::median(times.0),
         indicator_s: super::median(times.1),
         ratio: super::median(ratios),
