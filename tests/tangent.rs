@@ -482,6 +482,7 @@ fn bits<R: Copy + Into<f64>>(v: &[R]) -> Vec<u64> {
 /// Asserts that `runs` and `steps` give the same indicators, bit for bit;
 /// returns how many trajectories diverged.
 fn same<R: reeb::models::Flows + Into<f64>>(name: &str, runs: &Plan, steps: &Plan) -> usize {
+    let name = &format!("{name} {}", std::any::type_name::<R>());
     let a = cpu::run::<R>(runs, None);
     let b = cpu::run::<R>(steps, None);
     assert_eq!(a.nonfinite_step, b.nonfinite_step, "{name}");
@@ -506,14 +507,17 @@ fn same<R: reeb::models::Flows + Into<f64>>(name: &str, runs: &Plan, steps: &Pla
     a.nonfinite_step.iter().filter(|s| **s != 0).count()
 }
 
-/// `p` with indicators (`k` exponents, the FLI, MEGNO if `megno`) taken
-/// by runs of steps, and the same forced step by step by a time average
-/// (an observer of every step).
+/// `p` with indicators (`k` exponents, none for 0; the FLI; MEGNO if
+/// `megno`) taken by runs of steps, and the same forced step by step by a
+/// time average (an observer of every step).
 fn runs_and_steps(p: Problem, k: usize, megno: bool, steps: u64, dt: f64) -> (Plan, Plan) {
     let var = p.model.spec().vars[0];
-    let mut runs = with_indicators(p, k, 1, 0.1, steps, dt);
+    let mut runs = with_indicators(p, k.max(1), 1, 0.1, steps, dt);
     if !megno {
         runs.observers.megno = None;
+    }
+    if k == 0 {
+        runs.observers.lyapunov = None;
     }
     let mut by_step = runs.clone();
     by_step.observers.average = Some(AverageObs {
@@ -562,8 +566,9 @@ fn runs_of_steps_are_the_steps_one_by_one() {
             vars: vec![var.to_string()],
         });
         // One exponent, and the FLI without MEGNO: their samples wait while
-        // the vectors stay in the band.
-        for (k, megno) in [(1, false), (2, true)] {
+        // the vectors stay in the band. The FLI and MEGNO alone, with and
+        // without MEGNO: one vector, the chaos sample's, in every pass.
+        for (k, megno) in [(1, false), (2, true), (0, true), (0, false)] {
             let (runs, steps) = runs_and_steps(p.clone(), k, megno, 400, 0.01);
             let avx2 = cpu::isa() != cpu::Isa::Baseline;
             assert_eq!(takes_runs(&runs), avx2, "{name} takes runs of steps");
@@ -590,6 +595,9 @@ fn deferred_samples_are_taken_where_the_vector_leaves_the_band() {
     .param("alpha", C(1.0))
     .initial("q", C(1.0));
     let (runs, steps) = runs_and_steps(p.clone(), 1, true, 3000, 0.1);
+    same::<f64>("damped_oscillator", &runs, &steps);
+    same::<f32>("damped_oscillator", &runs, &steps);
+    let (runs, steps) = runs_and_steps(p.clone(), 0, true, 3000, 0.1);
     same::<f64>("damped_oscillator", &runs, &steps);
     same::<f32>("damped_oscillator", &runs, &steps);
     let (runs, steps) = runs_and_steps(p, 1, false, 3000, 0.1);
