@@ -582,7 +582,7 @@ fn runs_of_steps_are_the_steps_one_by_one() {
 
 /// A damped oscillator's vectors shrink like e^{−αt/2}: over t = 300 the
 /// Lyapunov and FLI vectors leave the band where their samples may wait
-/// (‖u‖² in [2⁻³⁹, 2³⁹]) a few times and are brought back; the bits are
+/// (‖u‖² in [2⁻³⁹, 2⁵⁹]) a few times and are brought back; the bits are
 /// still those of sampling every step. So with MEGNO, whose samples in
 /// the band take their logarithms step by step and their sums later.
 #[test]

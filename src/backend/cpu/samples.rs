@@ -256,15 +256,15 @@ mod tests {
     /// vector's ‖u‖² is in the band of `in_band_r`, at every level this CPU
     /// runs (each compiled with the same contraction as the whole program),
     /// and the whole program leaves the vector and its octaves as they
-    /// are there: vectors of every ‖u‖² from 2⁻³⁹ to 2³⁹, in every
+    /// are there: vectors of every ‖u‖² from 2⁻³⁹ to 2⁵⁹, in every
     /// direction.
     fn band_parts_are_the_program<R: Real>() {
         for d in 2..=4 {
             let shape = SampleShape::Chaos { d };
             let mut x = inputs::<R>(shape);
             for i in 0..LANES {
-                // ‖u‖² = 2^(−39 + 78·i/63) along a direction turning with i.
-                let n2 = 2f64.powf(-39.0 + 78.0 * i as f64 / (LANES - 1) as f64);
+                // ‖u‖² = 2^(−39 + 98·i/63) along a direction turning with i.
+                let n2 = 2f64.powf(-39.0 + 98.0 * i as f64 / (LANES - 1) as f64);
                 let dir: Vec<f64> = (0..d)
                     .map(|j| ((i * 7 + j * 3) as f64).sin() + 0.1)
                     .collect();
