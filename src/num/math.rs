@@ -471,16 +471,18 @@ crate::shared_fns! {
     }
     /// The power of two a that brings a vector of squared norm n2 back
     /// inside [2⁻⁴⁰, 2⁶⁰] when multiplied by 2^a: −30 above that band, 20
-    /// below it, else 0 (one rung: growth by more than 2³⁰ from sample to
-    /// sample drifts out of the band, without harm until ‖u‖ nears the
-    /// precision's range); NaN unless n2 > 0 (a vector collapsed to 0, or
-    /// NaN). The chaos indicators keep their vectors in range with it. The
-    /// band reaches higher than it reaches lower, since chaotic vectors
-    /// grow: a vector that leaves it is rescaled, and a block of lanes
-    /// with one such lane takes the slower path (spin–orbit's cost scene,
-    /// f32: one exponent 1.73 → 1.57 plain runs, the FLI 2.01 → 1.76 with
-    /// the upper edge at 2⁶⁰ rather than 2⁴⁰). Higher still would eat f32's
-    /// headroom between samples (‖u‖ may grow by 2³⁴ from the edge).
+    /// below it, else 0 (one rung: a vector that grows by more than 2³⁰ or
+    /// shrinks by more than 2²⁰ from sample to sample drifts out of the
+    /// band, without harm until ‖u‖ nears the precision's range); NaN
+    /// unless n2 > 0 (a vector collapsed to 0, or NaN). The chaos
+    /// indicators keep their vectors in range with it. The band reaches
+    /// higher than it reaches lower, since chaotic vectors grow and a
+    /// block of lanes with one lane out of the band takes the slower path:
+    /// with the upper edge at 2⁶⁰ rather than 2⁴⁰, spin–orbit's cost scene
+    /// in f32 ran in 0.93× the time with the FLI, 0.96× with one exponent
+    /// (whole runs, 7 alternating pairs, Zen 3 AVX2). Higher still would
+    /// eat f32's headroom between samples (‖u‖ may grow by 2³⁴ from the
+    /// edge before ‖u‖² overflows).
     fn octave_r(n2: R) -> R {
         // Typed constants: WGSL's select takes no abstract literal for f64.
         let none: R = 0.0;
