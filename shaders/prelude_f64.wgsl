@@ -60,10 +60,11 @@ fn log_r(x: f64) -> f64 {
     return log_split_f64(x);
 }
 
-// The chaos indicators' ln x: log_r in f64, as on the CPU.
-fn sample_log_r(x: f64) -> f64 {
-    return log_split_f64(x);
-}
+// The chaos indicators' ln x: log_r's bits, as on the CPU. Filled in per
+// adapter (src/backend/gpu/codegen.rs): with SHADER_INT64, 2^k·m with m in
+// [√½, √2) read from the bits offset by √½'s (the CPU's log_normal_f64),
+// so that log_core_f64's compare, selects and halving fall away.
+{{SAMPLE_LOG_F64}}
 
 // ln x, log_f64's kernel on x = 2^e·m (m in [1, 2)): filled in per
 // adapter (src/backend/gpu/codegen.rs, `launched`): with SHADER_INT64

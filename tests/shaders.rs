@@ -9,6 +9,7 @@ use reeb::num::precision::Precision;
 use reeb::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
 use reeb::plan::scheme::{Scheme, SCHEME_NAMES};
 use reeb::plan::{Plan, Problem, Source};
+use reeb::verify::indicators::{full_problem, with_indicators};
 
 mod common;
 use common::{first_var, problem};
@@ -97,6 +98,43 @@ fn every_kernel_validates() {
         }
     }
     assert!(count > 300, "{count}");
+}
+
+/// Every model's kernel with chaos indicators — one exponent, the FLI
+/// and MEGNO; the FLI alone, whose sample leaves MEGNO's sums out — is
+/// valid WGSL in both precisions, with and without 64-bit integers (the
+/// f64 samples' logarithm reads its 2^k·m from the bits with them).
+#[test]
+fn indicator_kernels_validate() {
+    let mut count = 0;
+    for model in MODEL_NAMES {
+        let Some(p) = full_problem(model, "triple_jump4") else {
+            continue;
+        };
+        let all = with_indicators(p, 1, 1, 0.0, 10, 0.01);
+        let mut alone = all.clone();
+        alone.observers.lyapunov = None;
+        alone.observers.megno = None;
+        for p in [all, alone] {
+            let plan = Plan::new(&p).unwrap_or_else(|e| panic!("{model}: {e}"));
+            for precision in [Precision::F32, Precision::F64] {
+                let k = generate(&plan, precision).unwrap_or_else(|e| panic!("{model}: {e}"));
+                for int64 in [false, true] {
+                    let forms = Forms {
+                        int64,
+                        exp: ExpForm::Exact,
+                    };
+                    let source = k.source_for(&Launch::default(), forms);
+                    let f64 = precision == Precision::F64;
+                    if let Err(e) = validate(&source, f64) {
+                        panic!("{model} {precision} int64 {int64}:\n{e}");
+                    }
+                    count += 1;
+                }
+            }
+        }
+    }
+    assert!(count >= 40, "{count}");
 }
 
 #[test]

@@ -284,10 +284,25 @@ fn indicators_agree_between_cpu_and_gpu() {
             every: 100,
             vars: vec!["t".into()],
         });
-        let plan = indicators(p, k, 4, 2000, 0.01);
+        let plan = indicators(p.clone(), k, 4, 2000, 0.01);
         let c = cpu::run::<f64>(&plan, None);
         let g = gpu::run::<f64>(ctx, &plan, None).unwrap().observations;
         assert_eq!(c.frames, 21);
+        // The FLI alone, whose GPU sample leaves MEGNO's sums out: the
+        // same FLI, to the bit.
+        let mut alone = with_indicators(p, k, 4, 0.0, 2000, 0.01);
+        alone.observers.megno = None;
+        let a = gpu::run::<f64>(ctx, &Plan::new(&alone).unwrap(), None)
+            .unwrap()
+            .observations;
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert!(a.megno.is_empty(), "{name}");
+        assert_eq!(bits(&a.fli), bits(&g.fli), "{name} FLI alone");
+        assert_eq!(
+            bits(&a.trajectory_fli),
+            bits(&g.trajectory_fli),
+            "{name} FLI alone"
+        );
         for (what, a, b) in [
             ("lyapunov", &c.lyapunov, &g.lyapunov),
             ("fli", &c.fli, &g.fli),

@@ -347,6 +347,19 @@ fn lyapunov_lowered(d: usize, k: usize, starts: bool) -> Lowered {
 /// two parts with the same operations ([`chaos_n2_program`],
 /// [`chaos_ln_sums_program`]).
 pub fn chaos_program(d: usize) -> Lowered {
+    chaos_lowered(d, true)
+}
+
+/// [`chaos_program`] where MEGNO is not asked for: the same vector,
+/// octaves, `fli_log` and `fli_max`, MEGNO's sums passed through as they
+/// are (nothing reads them). The GPU runs it for the FLI alone: there
+/// every sample runs whole, so the sums' eight operations per trajectory
+/// and sample were paid for nothing.
+pub fn chaos_fli_program(d: usize) -> Lowered {
+    chaos_lowered(d, false)
+}
+
+fn chaos_lowered(d: usize, megno: bool) -> Lowered {
     let mut g = Dag::new();
     let x: Vec<Id> = (0..d + 7).map(|i| g.var(i as u32)).collect();
     let [octave, log0, max0, sum0, mean0, count, inv_count] = x[d..] else {
@@ -355,7 +368,10 @@ pub fn chaos_program(d: usize) -> Lowered {
     let u = &x[..d];
     let n2 = dot(&mut g, u, u);
     let ln = ln_norm(&mut g, octave, n2);
-    let sums = megno_sums(&mut g, ln, [log0, max0, sum0, mean0], count, inv_count);
+    let sums = match megno {
+        true => megno_sums(&mut g, ln, [log0, max0, sum0, mean0], count, inv_count),
+        false => [ln, g.call2(Func2::Max, max0, ln), sum0, mean0],
+    };
     let (mut roots, e, _) = rescale(&mut g, u, octave, n2);
     roots.push(e);
     roots.extend(sums);

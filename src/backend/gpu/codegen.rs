@@ -20,7 +20,7 @@ use crate::num::math::{
     ELEMENTARY_WGSL, LOG_ATAN_F32_WGSL, LOG_ATAN_F64_WGSL, MATH_F32_WGSL, MATH_F64_WGSL,
 };
 use crate::num::precision::Precision;
-use crate::plan::indicators::{Indicators, SampleInput};
+use crate::plan::indicators::{chaos_fli_program, Indicators, SampleInput};
 use crate::plan::section::{Recorded, SectionKind, SectionStep};
 use crate::plan::slots;
 use crate::plan::tangent::{TangentInput, TangentStep};
@@ -64,6 +64,27 @@ const LOG_SPLIT_F64_INT64: &str = "fn log_split_f64(x: f64) -> f64 {
 /// The f64 prelude's `log_split_f64` without 64-bit integers.
 const LOG_SPLIT_F64_PORTABLE: &str = "fn log_split_f64(x: f64) -> f64 {
     return log_f64(x);
+}";
+/// The f64 prelude's `sample_log_r` from the bits: x = 2^k·m with m in
+/// [√½, √2) read from the bits offset by √½'s mantissa (the CPU's
+/// `log_normal_f64`, after subnormals are scaled as `log_split_f64` scales
+/// them), into fdlibm's kernel on that m: the m and k `log_core_f64`
+/// makes, so the same bits, without its compare, selects and halving; then
+/// the cases of 0, < 0, ∞ and NaN as `log_kernel_f64` takes them.
+const SAMPLE_LOG_F64_INT64: &str = "fn sample_log_r(x: f64) -> f64 {
+    let tiny = x < 2.2250738585072014e-308;
+    let ix = bitcast<u64>(select(x, x * 1.8446744073709552e19, tiny)) - 0x0006a09e667f3bcelu;
+    let k = f64(u32(ix >> 52u)) - select(f64(1022.0), f64(1086.0), tiny);
+    let m = bitcast<f64>((ix & 0x000ffffffffffffflu) + 0x3fe6a09e667f3bcelu);
+    let res = log_reduced_f64(m, k);
+    let r1 = select(x, res, x > 0.0 && x <= 1.7976931348623157e308);
+    let r2 = select(r1, -inf(), x == 0.0);
+    return select(r2, quiet_nan(), x < 0.0);
+}";
+
+/// The f64 prelude's `sample_log_r` without 64-bit integers: `log_r`'s.
+const SAMPLE_LOG_F64_PORTABLE: &str = "fn sample_log_r(x: f64) -> f64 {
+    return log_split_f64(x);
 }";
 const DRIVER: &str = include_str!("../../../shaders/driver.wgsl");
 
@@ -439,9 +460,20 @@ fn indicator_functions(
                 SampleInput::AtSkip => "at_skip".into(),
             })
             .collect();
+        // The FLI alone takes the program without MEGNO's sums. Every
+        // sample runs whole here: the CPU's wait in the band (the largest
+        // ‖u‖² kept, one logarithm when `fli_max` is read) took 1.2–1.5×
+        // the time on lavapipe (whole runs of the cost scenes), van der
+        // Pol's too, whose vectors never leave the band: lavapipe seems to
+        // run both sides of a branch its invocations may disagree on.
+        let fli_alone = name == "chaos_sample" && plan.observers.megno.is_none();
+        let program = match fli_alone {
+            true => chaos_fli_program(ind.tangent.space.len()),
+            false => s.program.clone(),
+        };
         text.push_str(&function_text(
             name,
-            &s.program,
+            &program,
             &strs(&inputs),
             &strs(&outputs(&s.outputs)),
         ));
@@ -594,9 +626,13 @@ fn launched(template: &str, parts: Option<&BlockParts>, launch: &Launch, forms: 
 /// `text` with the adapter's forms of `pow2` and the log's split (f64)
 /// and `exp` (f32).
 fn fill_forms(text: &str, forms: Forms) -> String {
-    let (pow2, log) = match forms.int64 {
-        true => (POW2_F64_INT64, LOG_SPLIT_F64_INT64),
-        false => (POW2_F64_PORTABLE, LOG_SPLIT_F64_PORTABLE),
+    let (pow2, log, sample_log) = match forms.int64 {
+        true => (POW2_F64_INT64, LOG_SPLIT_F64_INT64, SAMPLE_LOG_F64_INT64),
+        false => (
+            POW2_F64_PORTABLE,
+            LOG_SPLIT_F64_PORTABLE,
+            SAMPLE_LOG_F64_PORTABLE,
+        ),
     };
     let exp = match forms.exp {
         ExpForm::Exact => EXP_F32_EXACT,
@@ -604,6 +640,7 @@ fn fill_forms(text: &str, forms: Forms) -> String {
     };
     text.replace("{{POW2_F64}}", pow2)
         .replace("{{LOG_SPLIT_F64}}", log)
+        .replace("{{SAMPLE_LOG_F64}}", sample_log)
         .replace("{{EXP_F32}}", exp)
 }
 
