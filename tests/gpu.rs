@@ -636,10 +636,11 @@ fn f32_log_cases_are_the_cpus() {
     }
 }
 
-/// The f64 `log_r` (every formula's and indicator's logarithm) with its
-/// x = 2^e·m from the bits (SHADER_INT64) and by the ladder of scalings
-/// gives the same bits, the CPU's (`log_f64_bits`) wherever x is not
-/// subnormal (an adapter may flush those): around every power of two,
+/// The f64 `log_r` (every formula's logarithm) and `sample_log_r` (the
+/// indicators', whose x = 2^k·m from the bits has m in [√½, √2)), each
+/// with its split from the bits (SHADER_INT64) and by the ladder of
+/// scalings, give the same bits, the CPU's (`log_f64_bits`) wherever x is
+/// not subnormal (an adapter may flush those): around every power of two,
 /// where the split changes, at the ends of the range and the cases, NaN
 /// below 0 (a constant: lavapipe folded the ∞·0 it once was to 0).
 #[test]
@@ -682,19 +683,21 @@ fn f64_log_forms_are_the_cpus_bits() {
             xs.push(x);
         }
     }
-    let bits = accuracy::log_f64_on(ctx, true, &xs).unwrap();
-    let ladder = accuracy::log_f64_on(ctx, false, &xs).unwrap();
     let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
-    for ((&x, &a), &b) in xs.iter().zip(&bits).zip(&ladder) {
-        assert!(
-            same(a, b),
-            "ln {x:e}: {a:e} from the bits, {b:e} by the ladder"
-        );
-        assert!(
-            same(a, log_f64_bits(x)),
-            "ln {x:e}: {a:e}, the CPU's {:e}",
-            log_f64_bits(x)
-        );
+    for name in ["log_r", "sample_log_r"] {
+        let bits = accuracy::log_f64_on(ctx, name, true, &xs).unwrap();
+        let ladder = accuracy::log_f64_on(ctx, name, false, &xs).unwrap();
+        for ((&x, &a), &b) in xs.iter().zip(&bits).zip(&ladder) {
+            assert!(
+                same(a, b),
+                "{name} {x:e}: {a:e} from the bits, {b:e} by the ladder"
+            );
+            assert!(
+                same(a, log_f64_bits(x)),
+                "{name} {x:e}: {a:e}, the CPU's {:e}",
+                log_f64_bits(x)
+            );
+        }
     }
 }
 

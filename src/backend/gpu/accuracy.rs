@@ -57,15 +57,21 @@ pub fn log_f32_on(ctx: &GpuContext, name: &str, xs: &[f32]) -> Result<Vec<f32>, 
     evaluate(ctx, Precision::F32, forms, name, xs)
 }
 
-/// `log_r` in f64 of each of `xs`, on `ctx` (needs SHADER_F64), the
-/// split of x = 2^e·m from the bits where `int64` (and the adapter has
-/// SHADER_INT64), else by the ladder of scalings.
-pub fn log_f64_on(ctx: &GpuContext, int64: bool, xs: &[f64]) -> Result<Vec<f64>, BackendError> {
+/// The f64 `name` (`log_r` or the indicators' `sample_log_r`) of each of
+/// `xs`, on `ctx` (needs SHADER_F64), the split of x = 2^e·m from the bits
+/// where `int64` (and the adapter has SHADER_INT64), else by the ladder of
+/// scalings.
+pub fn log_f64_on(
+    ctx: &GpuContext,
+    name: &str,
+    int64: bool,
+    xs: &[f64],
+) -> Result<Vec<f64>, BackendError> {
     let forms = Forms {
         int64: int64 && ctx.shader_int64,
         exp: ExpForm::Exact,
     };
-    evaluate(ctx, Precision::F64, forms, "log_r", xs)
+    evaluate(ctx, Precision::F64, forms, name, xs)
 }
 
 /// The kernels' one-argument function `name` of each of `xs` (of the
