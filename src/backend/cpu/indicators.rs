@@ -870,9 +870,9 @@ fn rescale<R: Real>(
 /// [`Peak::keep`]). A run of steps takes those samples only where the vector leaves the
 /// band, at the skip step and at the run's end, with the same bits as
 /// every step: the one-exponent run 2.39× → 1.99× the plain run, the FLI
-/// 2.91× → 2.34× (AVX-512 f32). The GPU kernel samples every step: there
-/// the samples cost little beside the tangent program, which recomputes
-/// the step (lavapipe: the one-exponent run the same).
+/// 2.91× → 2.34× (AVX-512 f32). The GPU kernel samples every step: the
+/// FLI's wait made lavapipe slower (`gpu/codegen.rs`, where the FLI alone
+/// takes a sample without MEGNO's sums instead).
 #[inline(always)]
 fn in_band<R: Real>(s: &TangentScratch<R>, vectors: &[(usize, usize, usize)]) -> bool {
     let mut n2 = [R::from_f64(0.0); LANES];
