@@ -127,6 +127,10 @@ enum Command {
         /// alternating pairs; --repeats pairs, the median ratio).
         #[arg(long)]
         indicators: bool,
+        /// With --indicators: the indicators sampled every N steps, as a scene's
+        /// `every = N` (default 1, the setting the goals are stated for).
+        #[arg(long, value_name = "N")]
+        every: Option<u64>,
     },
     /// Check and measure the GPU backend on this machine: the adapters, `verify` on the
     /// GPU in f32 and f64, the CPU–GPU agreement of every model, throughput on both
@@ -256,11 +260,18 @@ fn main() -> ExitCode {
             repeats,
             json,
             indicators,
+            every,
         } => {
-            let measure = if indicators { bench_indicators } else { bench };
-            measure(
-                backend, scenario, precision, n, steps, threads, repeats, json,
-            )
+            if indicators {
+                let args = (backend, scenario, precision, n, steps, threads);
+                bench_indicators(args, repeats, json, every)
+            } else if every.is_some() {
+                Err(anyhow::anyhow!("--every: only with --indicators"))
+            } else {
+                bench(
+                    backend, scenario, precision, n, steps, threads, repeats, json,
+                )
+            }
         }
         Command::Doctor {
             out,
@@ -512,20 +523,27 @@ fn bench(
     Ok(ExitCode::SUCCESS)
 }
 
+/// `reeb bench`'s backends, scenarios, precisions, sizes, steps and threads.
+type BenchArgs = (
+    Vec<String>,
+    Vec<String>,
+    Vec<Precision>,
+    Vec<usize>,
+    Option<u64>,
+    Vec<usize>,
+);
+
 /// `reeb bench --indicators`: each indicator's cost on each cost scene,
-/// backend and precision, a row as it is measured.
-#[allow(clippy::too_many_arguments)]
+/// backend and precision, a row as it is measured; the indicators sampled
+/// every `every` steps (default 1).
 fn bench_indicators(
-    backends: Vec<String>,
-    scenarios: Vec<String>,
-    precisions: Vec<Precision>,
-    sizes: Vec<usize>,
-    steps: Option<u64>,
-    threads: Vec<usize>,
+    args: BenchArgs,
     repeats: usize,
     json: Option<PathBuf>,
+    every: Option<u64>,
 ) -> Result<ExitCode> {
     use reeb::bench::indicators::{cost, COST_SCENES, INDICATORS};
+    let (backends, scenarios, precisions, sizes, steps, threads) = args;
     let fixed =
         "with --indicators: the cost scenes' grids are fixed, and the CPU takes every thread";
     for (flag, given) in [
@@ -538,16 +556,30 @@ fn bench_indicators(
         }
     }
     check_bench_args(&[], steps.unwrap_or(1), &[], repeats)?;
+    let every = every.unwrap_or(1);
+    for scene in COST_SCENES {
+        let run_steps = steps.unwrap_or(scene.steps());
+        if every == 0 || every > run_steps {
+            anyhow::bail!(
+                "--every: {every} is not between 1 and the {run_steps} steps of {}",
+                scene.label()
+            );
+        }
+    }
     let engines = reeb::bench::engines(&backends).map_err(anyhow::Error::msg)?;
     let mut out = json
         .map(|p| std::fs::File::create(&p).with_context(|| format!("--json {}", p.display())))
         .transpose()?;
     println!(
-        "reeb {} bench --indicators: each run against its plain run, median of {repeats} alternating pairs",
+        "reeb {} bench --indicators: each run against its plain run, median of {repeats} alternating pairs{}",
         env!("CARGO_PKG_VERSION"),
+        match every {
+            1 => String::new(),
+            m => format!(", the indicators sampled every {m} steps"),
+        }
     );
     println!(
-        "{:<40} {:<26} {:>9} {:<28} {:>8} {:>9} {:>9} {:>7} {:>5}",
+        "{:<40} {:<26} {:>9} {:<38} {:>8} {:>9} {:>9} {:>7} {:>5}",
         "backend", "scene", "precision", "indicator", "steps", "plain s", "with s", "ratio", "goal"
     );
     for (name, engine) in engines.each() {
@@ -555,7 +587,7 @@ fn bench_indicators(
             for &p in precisions.iter().filter(|&&p| engine.runs(p)) {
                 for ind in INDICATORS {
                     let run_steps = steps.unwrap_or(scene.steps());
-                    let r = cost(engine, &name, scene, ind, p, run_steps, repeats)
+                    let r = cost(engine, &name, scene, (ind, every), p, run_steps, repeats)
                         .map_err(|e| anyhow::anyhow!("{name} {}: {e}", scene.label()))?;
                     print_cost_row(&r, out.as_mut())?;
                 }
@@ -573,7 +605,7 @@ fn print_cost_row(
     use std::io::Write;
     let verdict = if r.ratio <= r.goal { "" } else { " over" };
     println!(
-        "{:<40} {:<26} {:>9} {:<28} {:>8} {:>9.3} {:>9.3} {:>7.2} {:>5}{verdict}",
+        "{:<40} {:<26} {:>9} {:<38} {:>8} {:>9.3} {:>9.3} {:>7.2} {:>5}{verdict}",
         r.backend,
         r.scene,
         r.precision.name(),

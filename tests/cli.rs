@@ -31,6 +31,7 @@ fn bench_refuses_arguments_it_cannot_run() {
         ("--threads", "0", "--threads:"),
         ("--threads", "100000", "--threads: 100000 threads on"),
         ("--repeats", "0", "--repeats:"),
+        ("--every", "2", "--every: only with --indicators"),
     ] {
         let (ok, err) = reeb(
             &[
@@ -62,6 +63,11 @@ fn bench_indicators_refuses_what_it_does_not_use() {
         (&["--steps", "0"], "--steps: 0 is not between 1"),
         (&["--repeats", "0"], "--repeats:"),
         (&["--backend", "fpga"], "--backend: unknown backend `fpga`"),
+        (&["--every", "0"], "--every: 0 is not between 1 and the"),
+        (
+            &["--steps", "3", "--every", "5"],
+            "--every: 5 is not between 1 and the 3 steps",
+        ),
     ] {
         let mut a = vec!["bench", "--indicators"];
         a.extend(args);
@@ -84,28 +90,7 @@ fn bench_indicators_reports_every_indicator_on_both_scenes() {
     }
     for backend in backends {
         let json = dir.join(format!("{backend}.jsonl"));
-        let args = [
-            "bench",
-            "--indicators",
-            "--backend",
-            backend,
-            "--precision",
-            "f32",
-            "--steps",
-            "3",
-            "--repeats",
-            "1",
-            "--json",
-            common::runs::s(&json),
-        ];
-        let (ok, err) = reeb(&args, &[]);
-        assert!(ok, "{backend}: {err}");
-        let rows: Vec<serde_json::Value> = std::fs::read_to_string(&json)
-            .unwrap()
-            .lines()
-            .map(|l| serde_json::from_str(l).unwrap())
-            .collect();
-        assert_eq!(rows.len(), 8, "{backend}: {rows:?}");
+        let rows = bench_indicator_rows(backend, &json, &["--steps", "3"]);
         for (r, scene) in rows.iter().zip(
             ["van_der_pol/triple_jump4"; 4]
                 .iter()
@@ -207,4 +192,52 @@ fn surprising_scenes_are_refused_with_the_field() {
         assert!(!ok, "{name} was accepted");
         assert!(err.contains(says), "{name}: {err}");
     }
+}
+
+/// `--every M` samples every indicator every M steps, and says so in its
+/// rows (on the CPU: the sampling is the same code on either backend).
+#[test]
+fn bench_indicators_samples_every_m_steps() {
+    let dir = common::runs::tmp("cli", "bench-indicators-every");
+    let json = dir.join("cpu.jsonl");
+    let rows = bench_indicator_rows("cpu", &json, &["--steps", "4", "--every", "2"]);
+    let indicators: Vec<&str> = rows[4..]
+        .iter()
+        .map(|r| r["indicator"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        indicators,
+        [
+            "lyapunov = { every = 2 }",
+            "fli = { every = 2 }",
+            "megno = { every = 2 }",
+            "lyapunov = { vectors = 2, every = 2 }"
+        ]
+    );
+    for r in &rows {
+        assert_eq!(r["every"], 2, "{r}");
+        assert!(r["ratio"].as_f64().is_some_and(|x| x > 0.0), "{r}");
+    }
+}
+
+/// The 8 JSON rows of `reeb bench --indicators` in f32 on `backend`, one
+/// pair each, with `args`, written through `json`.
+fn bench_indicator_rows(
+    backend: &str,
+    json: &std::path::Path,
+    args: &[&str],
+) -> Vec<serde_json::Value> {
+    let mut a = vec!["bench", "--indicators", "--backend", backend];
+    a.extend(["--precision", "f32", "--repeats", "1"]);
+    a.extend(["--json", common::runs::s(json)]);
+    a.extend(args);
+    let (ok, err) = reeb(&a, &[]);
+    assert!(ok, "{backend}: {err}");
+    let rows: Vec<serde_json::Value> = std::fs::read_to_string(json)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(rows.len(), 8, "{backend}: {rows:?}");
+    rows
 }

@@ -61,8 +61,9 @@ impl CostScene {
         }
     }
 
-    /// The plan of `steps` steps with `indicator` (`None`: the plain run).
-    pub fn plan(self, indicator: Option<Indicator>, steps: u64) -> Plan {
+    /// The plan of `steps` steps with `indicator` sampled every `every`
+    /// steps (`None`: the plain run).
+    pub fn plan(self, indicator: Option<Indicator>, steps: u64, every: u64) -> Plan {
         let lin = |a: f64, b: f64, n: usize| -> Vec<f64> {
             (0..n)
                 .map(|i| a + (b - a) * i as f64 / (n - 1) as f64)
@@ -91,12 +92,18 @@ impl CostScene {
         let o = &mut p.observers;
         match indicator {
             None => {}
-            Some(Indicator::Lyapunov) => o.lyapunov = Some(LyapunovObs::default()),
-            Some(Indicator::Fli) => o.fli = Some(SampledObs::default()),
-            Some(Indicator::Megno) => o.megno = Some(SampledObs::default()),
+            Some(Indicator::Lyapunov) => {
+                o.lyapunov = Some(LyapunovObs {
+                    every,
+                    ..LyapunovObs::default()
+                })
+            }
+            Some(Indicator::Fli) => o.fli = Some(SampledObs { every }),
+            Some(Indicator::Megno) => o.megno = Some(SampledObs { every }),
             Some(Indicator::Spectrum) => {
                 o.lyapunov = Some(LyapunovObs {
                     vectors: 2,
+                    every,
                     ..LyapunovObs::default()
                 })
             }
@@ -106,13 +113,19 @@ impl CostScene {
 }
 
 impl Indicator {
-    /// As a scene writes it.
-    pub fn label(self) -> &'static str {
-        match self {
-            Indicator::Lyapunov => "lyapunov = true",
-            Indicator::Fli => "fli = true",
-            Indicator::Megno => "megno = true",
-            Indicator::Spectrum => "lyapunov = { vectors = 2 }",
+    /// As a scene writes it, sampled every `every` steps.
+    pub fn label(self, every: u64) -> String {
+        let key = match self {
+            Indicator::Lyapunov => "lyapunov",
+            Indicator::Fli => "fli",
+            Indicator::Megno => "megno",
+            Indicator::Spectrum => "lyapunov",
+        };
+        match (self, every) {
+            (Indicator::Spectrum, 1) => "lyapunov = { vectors = 2 }".into(),
+            (Indicator::Spectrum, m) => format!("lyapunov = {{ vectors = 2, every = {m} }}"),
+            (_, 1) => format!("{key} = true"),
+            (_, m) => format!("{key} = {{ every = {m} }}"),
         }
     }
 
@@ -131,7 +144,9 @@ pub struct CostRow {
     pub backend: String,
     pub scene: &'static str,
     pub precision: Precision,
-    pub indicator: &'static str,
+    pub indicator: String,
+    /// Steps between the indicator's samples.
+    pub every: u64,
     pub steps: u64,
     pub pairs: usize,
     /// Median seconds of the plain runs and of the indicator's.
@@ -142,21 +157,22 @@ pub struct CostRow {
     pub goal: f64,
 }
 
-/// `pairs` alternating runs of `scene` with `indicator` and without on
-/// `engine`, after one of each that is not timed (it compiles the GPU's
-/// kernels and wakes its clocks); `steps`: per run.
+/// `pairs` alternating runs of `scene` with `indicator` (sampled every
+/// `every` steps) and without on `engine`, after one of each that is not
+/// timed (it compiles the GPU's kernels and wakes its clocks); `steps`:
+/// per run.
 pub fn cost(
     engine: &Engine,
     backend: &str,
     scene: CostScene,
-    indicator: Indicator,
+    (indicator, every): (Indicator, u64),
     precision: Precision,
     steps: u64,
     pairs: usize,
 ) -> Result<CostRow, BackendError> {
     let pairs = pairs.max(1);
-    let plain = scene.plan(None, steps);
-    let with = scene.plan(Some(indicator), steps);
+    let plain = scene.plan(None, steps, every);
+    let with = scene.plan(Some(indicator), steps, every);
     let run = |plan: &Plan| super::seconds(engine, plan, precision);
     run(&plain)?;
     run(&with)?;
@@ -170,7 +186,8 @@ pub fn cost(
         backend: backend.to_string(),
         scene: scene.label(),
         precision,
-        indicator: indicator.label(),
+        indicator: indicator.label(every),
+        every,
         steps,
         pairs,
         plain_s: super::median(times.0),
@@ -186,12 +203,35 @@ mod tests {
 
     #[test]
     fn the_cost_scenes_are_the_readmes() {
-        let vdp = CostScene::VanDerPol.plan(Some(Indicator::Megno), 10);
+        let vdp = CostScene::VanDerPol.plan(Some(Indicator::Megno), 10, 1);
         assert_eq!(vdp.n, 4096);
-        let so = CostScene::SpinOrbit.plan(Some(Indicator::Spectrum), 10);
+        let so = CostScene::SpinOrbit.plan(Some(Indicator::Spectrum), 10, 1);
         assert_eq!(so.n, 320 * 320);
         assert_eq!(so.observers.lyapunov.as_ref().map(|l| l.vectors), Some(2));
         assert!(so.indicators.is_some());
-        assert!(CostScene::SpinOrbit.plan(None, 10).indicators.is_none());
+        assert!(CostScene::SpinOrbit.plan(None, 10, 1).indicators.is_none());
+    }
+
+    #[test]
+    fn every_reaches_the_observers_and_the_labels() {
+        let o = CostScene::SpinOrbit
+            .plan(Some(Indicator::Spectrum), 20, 5)
+            .observers;
+        assert_eq!(o.lyapunov.map(|l| (l.vectors, l.every)), Some((2, 5)));
+        let o = CostScene::VanDerPol
+            .plan(Some(Indicator::Megno), 20, 5)
+            .observers;
+        assert_eq!(o.megno.map(|m| m.every), Some(5));
+        let labels = INDICATORS.map(|i| i.label(10));
+        assert_eq!(
+            labels,
+            [
+                "lyapunov = { every = 10 }",
+                "fli = { every = 10 }",
+                "megno = { every = 10 }",
+                "lyapunov = { vectors = 2, every = 10 }",
+            ]
+        );
+        assert_eq!(Indicator::Fli.label(1), "fli = true");
     }
 }
