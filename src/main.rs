@@ -263,8 +263,9 @@ fn main() -> ExitCode {
             every,
         } => {
             if indicators {
-                let args = (backend, scenario, precision, n, steps, threads);
-                bench_indicators(args, repeats, json, every)
+                bench_indicators(
+                    backend, scenario, precision, n, steps, threads, repeats, json, every,
+                )
             } else if every.is_some() {
                 Err(anyhow::anyhow!("--every: only with --indicators"))
             } else {
@@ -523,27 +524,22 @@ fn bench(
     Ok(ExitCode::SUCCESS)
 }
 
-/// `reeb bench`'s backends, scenarios, precisions, sizes, steps and threads.
-type BenchArgs = (
-    Vec<String>,
-    Vec<String>,
-    Vec<Precision>,
-    Vec<usize>,
-    Option<u64>,
-    Vec<usize>,
-);
-
 /// `reeb bench --indicators`: each indicator's cost on each cost scene,
 /// backend and precision, a row as it is measured; the indicators sampled
 /// every `every` steps (default 1).
+#[allow(clippy::too_many_arguments)]
 fn bench_indicators(
-    args: BenchArgs,
+    backends: Vec<String>,
+    scenarios: Vec<String>,
+    precisions: Vec<Precision>,
+    sizes: Vec<usize>,
+    steps: Option<u64>,
+    threads: Vec<usize>,
     repeats: usize,
     json: Option<PathBuf>,
     every: Option<u64>,
 ) -> Result<ExitCode> {
     use reeb::bench::indicators::{cost, COST_SCENES, INDICATORS};
-    let (backends, scenarios, precisions, sizes, steps, threads) = args;
     let fixed =
         "with --indicators: the cost scenes' grids are fixed, and the CPU takes every thread";
     for (flag, given) in [
@@ -587,7 +583,7 @@ fn bench_indicators(
             for &p in precisions.iter().filter(|&&p| engine.runs(p)) {
                 for ind in INDICATORS {
                     let run_steps = steps.unwrap_or(scene.steps());
-                    let r = cost(engine, &name, scene, (ind, every), p, run_steps, repeats)
+                    let r = cost(engine, &name, scene, ind, every, p, run_steps, repeats)
                         .map_err(|e| anyhow::anyhow!("{name} {}: {e}", scene.label()))?;
                     print_cost_row(&r, out.as_mut())?;
                 }

@@ -113,19 +113,21 @@ impl CostScene {
 }
 
 impl Indicator {
-    /// As a scene writes it, sampled every `every` steps.
+    /// As a scene writes it, sampled every `every` steps (the default 1
+    /// left out).
     pub fn label(self, every: u64) -> String {
-        let key = match self {
-            Indicator::Lyapunov => "lyapunov",
-            Indicator::Fli => "fli",
-            Indicator::Megno => "megno",
-            Indicator::Spectrum => "lyapunov",
+        let (key, mut fields) = match self {
+            Indicator::Lyapunov => ("lyapunov", vec![]),
+            Indicator::Fli => ("fli", vec![]),
+            Indicator::Megno => ("megno", vec![]),
+            Indicator::Spectrum => ("lyapunov", vec!["vectors = 2".to_string()]),
         };
-        match (self, every) {
-            (Indicator::Spectrum, 1) => "lyapunov = { vectors = 2 }".into(),
-            (Indicator::Spectrum, m) => format!("lyapunov = {{ vectors = 2, every = {m} }}"),
-            (_, 1) => format!("{key} = true"),
-            (_, m) => format!("{key} = {{ every = {m} }}"),
+        if every != 1 {
+            fields.push(format!("every = {every}"));
+        }
+        match fields.is_empty() {
+            true => format!("{key} = true"),
+            false => format!("{key} = {{ {} }}", fields.join(", ")),
         }
     }
 
@@ -161,11 +163,13 @@ pub struct CostRow {
 /// `every` steps) and without on `engine`, after one of each that is not
 /// timed (it compiles the GPU's kernels and wakes its clocks); `steps`:
 /// per run.
+#[allow(clippy::too_many_arguments)]
 pub fn cost(
     engine: &Engine,
     backend: &str,
     scene: CostScene,
-    (indicator, every): (Indicator, u64),
+    indicator: Indicator,
+    every: u64,
     precision: Precision,
     steps: u64,
     pairs: usize,
