@@ -866,7 +866,7 @@ fn tune(
 /// `reeb info`'s tuning lines: the cached launches of each adapter, and
 /// the environment's overrides.
 fn print_tuning(adapters: &[reeb::backend::gpu::AdapterSummary]) {
-    use reeb::backend::gpu::tuning::{cache_dir, Cache, Overrides, CACHE_FILE, ENV};
+    use reeb::backend::gpu::tuning::{cache_dir, Cache, Overrides, CACHE_FILE};
     let cache = Cache::load();
     let file = cache_dir().map_or("(no cache directory)".into(), |d| {
         d.join(CACHE_FILE).display().to_string()
@@ -891,7 +891,7 @@ fn print_tuning(adapters: &[reeb::backend::gpu::AdapterSummary]) {
     match Overrides::from_env() {
         Ok(o) if o == Overrides::default() => {}
         Ok(o) => println!("  overridden by the environment: {}", o.describe()),
-        Err(e) => println!("  error in the environment: {e} ({})", ENV.join(", ")),
+        Err(e) => println!("  error in the environment: {e}"),
     }
 }
 

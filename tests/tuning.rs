@@ -190,6 +190,7 @@ fn the_environment_overrides_the_launch_and_bad_values_are_refused() {
         .contains("exp2"));
     for (var, value, says) in [
         ("REEB_GPU_WORKGROUP", "100000", "this adapter allows"),
+        ("REEB_GPU_WORKGROUP", "0", "a workgroup of 0 invocations"),
         ("REEB_GPU_PER_THREAD", "0", "per invocation"),
         ("REEB_GPU_WINDOW", "abc", "REEB_GPU_WINDOW"),
         ("REEB_GPU_DISPATCH_SECONDS", "-1", "per dispatch"),
@@ -207,6 +208,14 @@ fn the_environment_overrides_the_launch_and_bad_values_are_refused() {
             &["run", s(&scene), "--out", s(&out)],
         ));
         assert!(e.contains(says), "{var}={value}: {e}");
+        // The variable at fault, and no other.
+        assert!(e.contains(var), "{var}={value}: {e}");
+        let others = reeb::backend::gpu::tuning::ENV
+            .iter()
+            .filter(|o| **o != var);
+        for other in others {
+            assert!(!e.contains(other), "{var}={value} names {other}: {e}");
+        }
         assert!(!out.exists() && !Path::new(&format!("{}.partial", s(&out))).exists());
     }
 }

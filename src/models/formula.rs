@@ -134,6 +134,19 @@ pub struct FormulaModel {
     pub unused: Vec<String>,
     dag: Dag,
     roots: HashMap<&'static str, Vec<Id>>,
+    /// The scene's functions and the derivatives the pieces use, each
+    /// with its field: what must be finite where a trajectory starts.
+    functions: Vec<Function>,
+}
+
+/// One of a model's functions: its field, its name (`V`, `∂V/∂q1`) and
+/// the lane fields it reads ([`FormulaModel::functions`]).
+#[derive(Debug)]
+pub struct Function {
+    pub field: String,
+    pub name: String,
+    pub inputs: Vec<&'static str>,
+    root: Id,
 }
 
 impl PartialEq for FormulaModel {
@@ -187,6 +200,22 @@ impl FormulaModel {
             }
         }
         true
+    }
+
+    /// The scene's functions and the derivatives the pieces take: what
+    /// must be finite where a trajectory starts.
+    pub fn functions(&self) -> &[Function] {
+        &self.functions
+    }
+
+    /// The value of `f` (one of [`Self::functions`]) at the inputs `x`.
+    pub fn value(&self, f: &Function, x: &Lane<f64>) -> f64 {
+        let vars: Vec<f64> = self
+            .inputs
+            .iter()
+            .map(|n| x.get(n).unwrap_or(0.0))
+            .collect();
+        self.dag.eval(&[f.root], &vars)[0]
     }
 
     /// The WGSL functions of every op.
@@ -411,12 +440,14 @@ fn build(source: &Source) -> Result<FormulaModel, ModelError> {
         names: &names,
         source,
         ops: vec![],
+        functions: vec![],
     };
     match source.kind {
         Kind::Mechanical { dof } => b.mechanical(dof)?,
         Kind::Lienard => b.lienard()?,
     }
     let ops = std::mem::take(&mut b.ops);
+    let functions = std::mem::take(&mut b.functions);
     let used: Vec<u32> = {
         let mut u: Vec<u32> = ops
             .iter()
@@ -447,6 +478,14 @@ fn build(source: &Source) -> Result<FormulaModel, ModelError> {
         });
         roots.insert(name, r);
     }
+    let mut functions = functions;
+    for f in &mut functions {
+        f.inputs = dag
+            .uses(f.root)
+            .into_iter()
+            .map(|v| inputs[v as usize])
+            .collect();
+    }
     let spec = spec(source, &names, time, &formula_ops);
     Ok(FormulaModel {
         source: source.clone(),
@@ -456,6 +495,7 @@ fn build(source: &Source) -> Result<FormulaModel, ModelError> {
         unused,
         dag,
         roots,
+        functions,
     })
 }
 
@@ -519,9 +559,20 @@ struct Builder<'a> {
     source: &'a Source,
     /// `(op name, roots, output lanes)`, optional-variable ops first in a piece.
     ops: Vec<(&'static str, Vec<Id>, Vec<&'static str>)>,
+    functions: Vec<Function>,
 }
 
 impl Builder<'_> {
+    /// Records `root` as function `name` of formula `key`.
+    fn function(&mut self, key: &str, name: String, root: Id) {
+        self.functions.push(Function {
+            field: format!("formula.{key}"),
+            name,
+            inputs: vec![],
+            root,
+        });
+    }
+
     /// Formula `key` (or `default`) over the names, using only `allowed`
     /// variables beyond the parameters.
     fn formula(&mut self, key: &str, default: &str, allowed: &[&str]) -> Result<Id, ModelError> {
@@ -626,6 +677,15 @@ impl Builder<'_> {
         let pi: Vec<u32> = ps.iter().map(|n| self.names.index(n)).collect();
         let grad_v = self.dag.gradient(v, &qi);
         let grad_k = self.dag.gradient(k, &pi);
+        self.function("potential", "V".into(), v);
+        for (q, d) in qs.iter().zip(&grad_v) {
+            self.function("potential", format!("∂V/∂{q}"), *d);
+        }
+        self.function("kinetic", "K".into(), k);
+        for (p, d) in ps.iter().zip(&grad_k) {
+            self.function("kinetic", format!("∂K/∂{p}"), *d);
+        }
+        self.function("damping", "f".into(), f);
         let (pv, qv, s) = (
             ps.iter().map(|n| self.var(n)).collect::<Vec<_>>(),
             qs.iter().map(|n| self.var(n)).collect::<Vec<_>>(),
@@ -879,6 +939,14 @@ impl Builder<'_> {
         let qk = self.names.index("q");
         let df = self.dag.diff(f, qk);
         let dg = self.dag.diff(g, qk);
+        for (key, name, root) in [
+            ("f", "f", f),
+            ("f", "∂f/∂q", df),
+            ("g", "g", g),
+            ("g", "∂g/∂q", dg),
+        ] {
+            self.function(key, name.into(), root);
+        }
         let (q, s, p) = (self.var("q"), self.var("s"), self.var("p"));
         let tau = self.tau();
         // C: q ← q + τ s, p ← p/(1 + τ p).

@@ -136,6 +136,12 @@ impl Claim {
         Ok(())
     }
 
+    /// Records this process as the partial's owner (a resumed run, once
+    /// it is known to continue the run the partial holds).
+    pub fn own(&self) -> Result<()> {
+        write_owner(&self.partial)
+    }
+
     /// Leaves the partial in place when the claim ends uncommitted (its
     /// finished chunks are kept for `--resume` or `reeb merge`).
     pub fn keep(&mut self) {
@@ -418,7 +424,9 @@ fn lock_partial(partial: &Path, mode: Mode) -> Result<File> {
 fn take_over(partial: &Path, empty: bool) -> Result<File> {
     let (lock, owner) = stale_partial(partial)?;
     if !empty {
-        write_owner(partial)?;
+        // The owner's line stays the earlier run's until this one is
+        // known to continue it (`Claim::own`): a refused resume leaves
+        // the partial as it found it.
         return Ok(lock);
     }
     eprintln!(
@@ -469,7 +477,12 @@ fn stale_partial(partial: &Path) -> Result<(File, String)> {
             owner.as_deref().map(str::trim).unwrap_or("owner unknown")
         );
     };
-    let owner = owner.ok_or_else(|| not_reeb(partial))?;
+    let Some(owner) = owner else {
+        return Err(match listed_files(partial) {
+            Some(_) => left_output(partial),
+            None => not_reeb(partial),
+        });
+    };
     Ok((lock, owner))
 }
 
@@ -488,6 +501,17 @@ fn must_be_folder(partial: &Path) -> Result<()> {
 fn not_reeb(partial: &Path) -> anyhow::Error {
     anyhow::anyhow!(
         "{} exists but was not made by reeb (no {OWNER_FILE}); remove it or choose another output folder",
+        partial.display()
+    )
+}
+
+/// The refusal of a `partial` that holds a complete reeb output: the
+/// previous output of `DIR`, which a failed removal left when a new one
+/// replaced it ([`remove_old`]).
+fn left_output(partial: &Path) -> anyhow::Error {
+    anyhow::anyhow!(
+        "{} holds an earlier reeb output that could not be removed when a newer one replaced it; remove it by hand (rm -r {}), or choose another output folder",
+        partial.display(),
         partial.display()
     )
 }

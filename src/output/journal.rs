@@ -135,7 +135,7 @@ impl Record {
     }
 
     /// Refuses to continue `old` as `self`, saying what changed.
-    pub fn check_same(&self, old: &Record, dir: &Path) -> Result<()> {
+    pub fn check_same(&self, old: &Record, dir: &Path, advice: &str) -> Result<()> {
         let mut changes = vec![];
         for (what, a, b) in [
             ("precision", &old.precision, &self.precision),
@@ -170,7 +170,7 @@ impl Record {
             return Ok(());
         }
         bail!(
-            "{} holds part of a different run: {}; run it again without --resume to start over, or choose another --out",
+            "{} holds part of a different run: {}; {advice}",
             dir.display(),
             changes.join("; ")
         )

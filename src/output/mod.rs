@@ -4,8 +4,10 @@
 pub mod arrays;
 pub mod chunks;
 pub mod directory;
+pub mod doubts;
 pub mod journal;
 pub mod npy;
+pub mod owned;
 pub mod pictures;
 pub mod plot;
 pub mod progress;

@@ -9,6 +9,7 @@ use std::path::Path;
 use anyhow::Result;
 
 use crate::num::precision::Real;
+use crate::output::doubts::Doubts;
 use crate::output::plot::{self, fmt_significant, Figure, HeatMap, Rgb, Series};
 use crate::plan::observations::Observations;
 use crate::plan::observers::ResonanceObs;
@@ -49,13 +50,18 @@ fn envelope(x: &[f64], y: impl Fn(usize) -> f64) -> (Vec<f64>, Vec<f64>) {
 }
 
 /// Draws the pictures into `dir`; returns the file names written.
-pub fn draw<R: Real>(scene: &Scene, dir: &Path, d: &Observations<R>) -> Result<Vec<String>> {
+pub fn draw<R: Real>(
+    scene: &Scene,
+    dir: &Path,
+    d: &Observations<R>,
+    doubts: &Doubts,
+) -> Result<Vec<String>> {
     let title = scene
         .title
         .clone()
         .unwrap_or_else(|| format!("{} ({}, {})", scene.name, scene.model.name(), scene.scheme));
     let pictures = Pictures::new(scene, dir, &title, (R::NAME, R::UNIT_ROUNDOFF));
-    let stats = statistics(d);
+    let stats = statistics(d, doubts);
     // The first two axes with more than one value span the maps; the others
     // are held at their first value.
     let mut files = match pictures.varying[..] {
@@ -87,13 +93,25 @@ enum Undefined {
     NoCycle,
     /// `status_step` of a trajectory that never stopped.
     RanToEnd,
+    /// A chaos indicator of a trajectory the stop condition ended: it
+    /// measures only the time before.
+    Stopped,
+    /// A chaos indicator lost: the deviation vectors left the precision's
+    /// range between two samples.
+    Lost,
+    /// A Lyapunov exponent the spacing of the re-orthonormalisations does
+    /// not resolve (`doubts.rs`).
+    Unresolved,
 }
 
 /// What each `Undefined` means, and its grey.
-const UNDEFINED: [(&str, Rgb); 3] = [
+const UNDEFINED: [(&str, Rgb); 6] = [
     ("non-finite (stopped)", (100, 100, 100)),
     ("no cycle found", (200, 200, 200)),
     ("ran to the end", (200, 200, 200)),
+    ("stopped (output.stop)", (150, 150, 150)),
+    ("vectors overflowed", (175, 175, 175)),
+    ("not resolved (every too large)", (230, 230, 230)),
 ];
 
 /// A statistic's value for trajectory `i`, or why it has none.
@@ -110,7 +128,7 @@ type Stat<'a> = (String, String, Value<'a>);
 /// A trajectory that became non-finite has no final value and no cycle; one
 /// whose cycle variable did not cross its level twice has no cycle (its
 /// amplitude array still holds the half-range of a transient or a rest).
-fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
+fn statistics<'a, R: Real>(d: &'a Observations<R>, doubts: &'a Doubts) -> Vec<Stat<'a>> {
     let stopped = move |i: usize| d.nonfinite_step[i] != 0;
     let ended = move |i: usize| d.nonfinite_step[i].max(d.stop_step[i]);
     let mut stats: Vec<Stat> = vec![];
@@ -139,7 +157,7 @@ fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
         ));
     }
     stats.extend(per_variable(d, "mean", &d.mean));
-    stats.extend(indicators(d));
+    stats.extend(indicators(d, doubts));
     if (0..d.n).any(|i| ended(i) != 0) {
         let step = move |i| match ended(i) {
             0 => Err(Undefined::RanToEnd),
@@ -156,19 +174,26 @@ fn statistics<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
 
 /// The chaos indicators: each Lyapunov exponent (`lyapunov_1` the
 /// largest), the FLI and MEGNO; none for a trajectory that became
-/// non-finite.
-fn indicators<R: Real>(d: &Observations<R>) -> Vec<Stat<'_>> {
-    let value = move |i: usize, x: R| match d.nonfinite_step[i] {
-        0 => Ok(x.to_f64()),
+/// non-finite, one the stop condition ended, one whose vectors overflowed,
+/// nor an exponent the samples do not resolve.
+fn indicators<'a, R: Real>(d: &'a Observations<R>, doubts: &'a Doubts) -> Vec<Stat<'a>> {
+    let value = move |i: usize, x: R| match (d.nonfinite_step[i], d.stop_step[i]) {
+        (0, 0) if x.finite() => Ok(x.to_f64()),
+        (0, 0) => Err(Undefined::Lost),
+        (0, _) => Err(Undefined::Stopped),
         _ => Err(Undefined::NonFinite),
     };
     let k = d.exponents;
+    let exponent = move |i: usize, j: usize| match doubts.resolved(i, j, k) {
+        true => value(i, d.lyapunov[i * k + j]),
+        false => Err(Undefined::Unresolved),
+    };
     let mut stats: Vec<Stat> = (0..k)
         .map(|j| -> Stat {
             (
                 format!("lyapunov_{}", j + 1),
                 format!("Lyapunov exponent λ{}", j + 1),
-                Box::new(move |i| value(i, d.lyapunov[i * k + j])),
+                Box::new(move |i| exponent(i, j)),
             )
         })
         .collect();

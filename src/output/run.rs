@@ -23,6 +23,7 @@ use crate::output::arrays::write_axes;
 pub use crate::output::arrays::write_npy;
 use crate::output::chunks::{self, Chunks};
 use crate::output::directory::{self, Claim, Mode};
+use crate::output::doubts;
 use crate::output::journal::{self, Record};
 use crate::output::stream::{self, Target, Watch};
 use crate::output::zarr;
@@ -383,6 +384,9 @@ fn run_typed<R: Flows>(
 ) -> Result<RunReport> {
     let dir = claim.dir().to_path_buf();
     let record = record_of(scene, subs, opts, made, &dir)?;
+    if opts.resume && opts.shard.is_none() {
+        claim.own()?;
+    }
     // From here on a failure keeps the finished chunks for --resume.
     claim.keep();
     let all = 0..record.chunks.count();
@@ -464,7 +468,11 @@ fn record_of(
     if opts.task.chunk_trajectories.is_none() && old.chunks.shape == record.chunks.shape {
         record.chunks = old.chunks.clone();
     }
-    record.check_same(&old, dir)?;
+    let advice = match opts.shard {
+        Some(_) => "the shards of one run must run the same scene with the same options: run this shard with those, or give this run another --out",
+        None => "run it again without --resume to start over, or choose another --out",
+    };
+    record.check_same(&old, dir, advice)?;
     Ok(record)
 }
 
@@ -491,6 +499,7 @@ pub fn merge(out: &Path, force: bool) -> Result<RunReport> {
     let claim = directory::claim_as(out, &[], force, Mode::Resume)?;
     let dir = claim.dir().to_path_buf();
     let record = Record::read(&dir)?.context("the run's record vanished")?;
+    claim.own()?;
     let mut scene = Scene::parse(Path::new(&record.scene_path), &record.scene_text)
         .with_context(|| format!("the scene recorded in {}", dir.display()))?;
     if let Some((values, steps)) = record.preview {
@@ -609,13 +618,18 @@ fn finish<R: Flows>(
         }
         Format::Zarr => files.push(zarr::STORE.into()),
     }
-    match crate::output::pictures::draw(scene, &dir, &observations) {
+    let doubts = doubts::of(scene, subs, &observations);
+    match crate::output::pictures::draw(scene, &dir, &observations, &doubts) {
         Ok(p) => files.extend(p),
         Err(e) => eprintln!("warning: pictures not drawn: {e:#}"),
     }
     let max_steps = subs.iter().map(|s| s.plan.steps).max().unwrap_or(0);
     let levels = cpu_levels(&done);
     let mut warnings: Vec<String> = made.warnings.iter().map(|w| w.to_string()).collect();
+    for w in &doubts.warnings {
+        eprintln!("warning: {w}");
+        warnings.push(w.clone());
+    }
     if levels.len() > 1 {
         let w = format!(
             "the chunks were integrated at different CPU instruction-set levels ({}): they agree to round-off, not bit for bit (set REEB_CPU_ISA to one level on every node for bitwise results)",
@@ -638,6 +652,9 @@ fn finish<R: Flows>(
     };
     let mut summary = summary(scene, subs, made, record, &ran, &files);
     summary["dims"] = dims_of::<R>(scene, subs)?;
+    for (key, value) in doubts.summary {
+        summary[key] = value;
+    }
     if let Some(r) = &scene.resonance {
         summary["resonance"] = capture(r, &crate::output::arrays::resonance(r, &observations)?);
     }

@@ -2,12 +2,19 @@
 //! `reeb run … --shard K/N --resume` (a requeued or restarted task resumes
 //! its chunks), and `reeb merge` as a job that waits for the whole array
 //! (`--dependency=afterok`). The scripts and the tasks' logs go into
-//! `DIR.slurm/`; the run itself into `DIR.partial`, then `DIR`.
+//! `DIR.slurm/`; the run itself into `DIR.partial`, then `DIR`. The
+//! scripts replace only scripts reeb wrote there (`owned.rs`).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{bail, Context, Result};
+
+use crate::output::owned::Owned;
+
+/// The batch scripts in `DIR.slurm/`: the job array, and the merge after it.
+const SHARDS: &str = "shards.sbatch";
+const MERGE: &str = "merge.sbatch";
 
 /// What `reeb slurm` was asked for.
 pub struct SlurmOptions {
@@ -41,12 +48,13 @@ pub fn submit(scene: &Path, name: &str, o: &SlurmOptions) -> Result<Jobs> {
     let mut dir = out.clone().into_os_string();
     dir.push(".slurm");
     let dir = PathBuf::from(dir);
-    std::fs::create_dir_all(dir.join("logs"))
-        .with_context(|| format!("creating {}", dir.join("logs").display()))?;
-    let array = dir.join("shards.sbatch");
-    let merge = dir.join("merge.sbatch");
-    write(&array, &array_script(&reeb, &scene, &out, &dir, name, o))?;
-    write(&merge, &merge_script(&reeb, &out, &dir, name, o))?;
+    if let Some(parent) = dir.parent() {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("creating {}", parent.display()))?;
+    }
+    let mut folder = Owned::claim(&dir, &[SHARDS, MERGE], &["logs"])?;
+    let array = folder.write(SHARDS, &array_script(&reeb, &scene, &out, &dir, name, o))?;
+    let merge = folder.write(MERGE, &merge_script(&reeb, &out, &dir, name, o))?;
     if o.dry_run {
         let line = format!(
             "wrote {} and {}; submit with: sbatch --parsable {} and then sbatch --dependency=afterok:<its id> {}",
@@ -221,10 +229,6 @@ fn merge_script(reeb: &Path, out: &Path, dir: &Path, name: &str, o: &SlurmOption
 /// `s` as one shell word.
 fn quote(s: &str) -> String {
     format!("'{}'", s.replace('\'', r"'\''"))
-}
-
-fn write(path: &Path, text: &str) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
 }
 
 /// Submits `script` with `args`; returns the job id.

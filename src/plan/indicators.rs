@@ -115,8 +115,7 @@ impl Indicators {
         };
         s.slots = s.deviation_inits(k, chaos.is_some());
         if let Some(l) = &observers.lyapunov {
-            let skip = (l.skip * steps as f64).ceil() as u64;
-            s.skip_step = skip.div_ceil(l.every) * l.every;
+            s.skip_step = l.skip_step(steps);
             s.lyapunov = Some(s.lyapunov_sampler(k, l.every));
         }
         if let Some(every) = chaos {

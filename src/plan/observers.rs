@@ -127,6 +127,15 @@ pub struct LyapunovObs {
     pub skip: f64,
 }
 
+impl LyapunovObs {
+    /// The step of the sample the sums start from, in a run of `steps`:
+    /// the first sample at or after the skipped fraction.
+    pub fn skip_step(&self, steps: u64) -> u64 {
+        let skip = (self.skip * steps as f64).ceil() as u64;
+        skip.div_ceil(self.every) * self.every
+    }
+}
+
 impl Default for LyapunovObs {
     fn default() -> Self {
         LyapunovObs {
@@ -282,6 +291,17 @@ impl Observers {
                     "must be in [0, 1): the fraction of the run skipped before summing".into(),
                 ));
             }
+            let start = l.skip_step(steps);
+            if start + l.every > steps {
+                return Err((
+                    "output.lyapunov.skip".into(),
+                    format!(
+                        "{} of the {steps} steps leaves no sample to sum: the sums start at the sample of step {start} and the next is at step {}, after the run; lower skip or every",
+                        l.skip,
+                        start + l.every
+                    ),
+                ));
+            }
         }
         for (name, obs) in [("fli", &self.fli), ("megno", &self.megno)] {
             if let Some(o) = obs {
@@ -326,7 +346,35 @@ fn validate_resonance(r: &ResonanceObs) -> Result<(), (String, String)> {
             format!("{} must be a number > 0", r.tolerance),
         );
     }
+    for (j, [p, q]) in r.ratios.iter().enumerate() {
+        let same =
+            |[a, b]: &[i64; 2]| i128::from(*a) * i128::from(*q) == i128::from(*p) * i128::from(*b);
+        if let Some([a, b]) = r.ratios[..j].iter().find(|x| same(x)) {
+            return e(
+                "output.resonance.ratios",
+                format!("{p}:{q} is the same ratio as {a}:{b}, given before it, so it could never be chosen: give each ratio once, in lowest terms"),
+            );
+        }
+    }
     Ok(())
+}
+
+impl ResonanceObs {
+    /// The pairs of ratios whose windows `p/q ± tolerance` overlap (the
+    /// earlier one of a pair takes the means in both), in the order given.
+    pub fn overlaps(&self) -> Vec<(usize, usize)> {
+        let value = |[p, q]: [i64; 2]| p as f64 / q as f64;
+        let mut out = vec![];
+        for j in 0..self.ratios.len() {
+            for k in 0..j {
+                let gap = (value(self.ratios[j]) - value(self.ratios[k])).abs();
+                if gap <= 2.0 * self.tolerance {
+                    out.push((k, j));
+                }
+            }
+        }
+        out
+    }
 }
 
 /// Is the stroboscopic section of `plan` sampled exactly (period and phase

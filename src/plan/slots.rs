@@ -176,6 +176,10 @@ pub fn indicators_at<R: Flows>(
     };
     let first = indicator_first(plan);
     let slot = |k: usize| slot(first + k);
+    // A deviation vector that left the finite numbers (its growth between
+    // two samples beyond the precision's range) stays out of them: the
+    // trajectory keeps its state and loses its indicators.
+    let ok = ok && ind.deviation_slots.iter().all(|&k| slot(k).finite());
     let exponents = lyapunov_finish(ind, dt.to_f64(), last, ok, |k| slot(k).to_f64());
     let sampled = ok && plan.observers.chaos_every().is_some_and(|e| last >= e);
     let value = |name: &str| match (sampled, ind.slot_of(name)) {

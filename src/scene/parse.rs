@@ -930,6 +930,7 @@ fn poincare(
 ) -> Result<(Section, Vec<OutVar>, usize), SceneError> {
     let span = pc.span();
     let Table(pc) = pc.into_inner();
+    other_sections_keys(p, &pc)?;
     let section = match (&pc.period, &pc.crossing) {
         (Some(per), None) => stroboscopic(p, model, &pc, per)?,
         (None, Some(c)) => crossing(p, ov, &pc, c)?,
@@ -947,6 +948,30 @@ fn poincare(
     };
     let max_points = pc.max_points.map_or(1000, |m| m.into_inner().0 as usize);
     Ok((section, vars, max_points))
+}
+
+/// Refuses a key of the other kind of section, which would be ignored: a
+/// crossing section has no period to phase or skip whole periods of, a
+/// stroboscopic one no crossing value or direction.
+fn other_sections_keys(p: &Parser, pc: &tables::Poincare) -> Result<(), SceneError> {
+    fn span<T>(f: &Option<Spanned<T>>) -> Option<Range<usize>> {
+        f.as_ref().map(|s| s.span())
+    }
+    let (keys, why) = match (&pc.period, &pc.crossing) {
+        (None, Some(_)) => (
+            [("phase", span(&pc.phase)), ("skip", span(&pc.skip))],
+            "belongs to a stroboscopic section (period = T): a crossing section records every crossing from the start of the run; to leave out a transient, drop the first points of poincare_*.npy (poincare_count.npy counts them per trajectory)",
+        ),
+        (Some(_), None) => (
+            [("value", span(&pc.value)), ("direction", span(&pc.direction))],
+            "belongs to a crossing section (crossing = \"q\"); a stroboscopic section samples at t0 + phase + k·period",
+        ),
+        _ => return Ok(()),
+    };
+    match keys.into_iter().find_map(|(k, s)| s.map(|s| (k, s))) {
+        Some((key, s)) => Err(p.err(&format!("output.poincare.{key}"), Some(&s), why)),
+        None => Ok(()),
+    }
 }
 
 /// A stroboscopic section: a period (or each trajectory's forcing period),

@@ -3,11 +3,14 @@
 //! problem with those axes held fixed.
 
 use crate::num::precision::Precision;
-use crate::plan::observers::{AverageObs, Observers, PoincareObs, TrajectoryObs};
+use crate::plan::observers::{AverageObs, Observers, PoincareObs, Section, TrajectoryObs};
 use crate::plan::precision::{self as fits, apart, short, Limits};
 use crate::plan::{Plan, PlanError, PlanWarning, Problem, Source};
 
 use super::{Horizon, Input, OutVar, Scene, SceneError, SceneWarning, SubRun};
+use crate::models::formula::{FormulaModel, Function};
+use crate::models::lanes::Lane;
+use crate::reference::truth::lane_of;
 
 impl Scene {
     pub(crate) fn t0_input(&self) -> Input {
@@ -75,9 +78,22 @@ impl Scene {
         for sub in &subs {
             per_plan.push(fits::check(&sub.plan, precision).map_err(|e| self.plan_error(e))?);
         }
+        self.formulas_defined(&subs)?;
         found.extend(self.merged(per_plan));
         found.extend(self.equal_in(lim));
         found.extend(self.t_end_missed(&subs)?);
+        if let Some(r) = &self.resonance {
+            found.extend(r.overlaps().into_iter().map(|(k, j)| PlanWarning {
+                field: "output.resonance.ratios".into(),
+                message: format!(
+                    "the windows of {} and {} (each ± tolerance {}) overlap: a mean in both is counted as {}, the earlier one",
+                    r.label(k),
+                    r.label(j),
+                    r.tolerance,
+                    r.label(k)
+                ),
+            }));
+        }
         if let Some(m) = self.model.formula() {
             found.extend(m.unused.iter().map(|u| PlanWarning {
                 field: format!("params.{u}"),
@@ -202,6 +218,43 @@ impl Scene {
         out
     }
 
+    /// Refuses a formula model whose functions (the formulas and the
+    /// derivatives its pieces take) are not finite where some trajectory
+    /// starts: its steps would be NaN, or silently outside the model's domain
+    /// (`log(q - 1)` at q = 0.5 has a finite gradient).
+    fn formulas_defined(&self, subs: &[SubRun]) -> Result<(), SceneError> {
+        let Some(m) = self.model.formula() else {
+            return Ok(());
+        };
+        for sub in subs {
+            for f in m.functions() {
+                if let Some(x) = first_nonfinite(m, f, &sub.plan) {
+                    let lane = |v: &str| x.get(v).unwrap_or(f64::NAN);
+                    let state = sub.plan.vars.iter().chain(&["t"]).map(|v| (*v, lane(v)));
+                    let params = m
+                        .source
+                        .params
+                        .iter()
+                        .map(|p| (p.as_str(), m.param_lane(p).map_or(f64::NAN, lane)));
+                    let at: Vec<String> = state
+                        .chain(params)
+                        .map(|(name, v)| format!("{name} = {v}"))
+                        .collect();
+                    return Err(self.error(
+                        &f.field,
+                        format!(
+                            "{} is {} where a trajectory starts ({}): the formula is not defined there; change the formula or the initial values",
+                            f.name,
+                            m.value(f, &x),
+                            at.join(", ")
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// `t_end` that a whole number of steps `dt` from `t0` does not reach:
     /// the run ends at `t0 + steps·dt`, the nearest (for the plan with the
     /// largest miss, when `dt` or `t0` runs along an axis).
@@ -317,10 +370,14 @@ impl Scene {
                 _ => unreachable!("dt and t0 are fixed in every sub-run when t_end is given"),
             },
         };
-        if let Some(cap) = self.step_cap {
-            problem.steps = problem.steps.min(cap);
-        }
         problem.observers = self.observers();
+        if let Some(cap) = self.step_cap.filter(|cap| problem.steps > *cap) {
+            let fraction = cap as f64 / problem.steps as f64;
+            problem.steps = cap;
+            if let Some(p) = &mut problem.observers.poincare {
+                p.section = preview_section(&p.section, fraction);
+            }
+        }
         Plan::new(&problem).map_err(|e| self.error(&e.field, e.message))
     }
 
@@ -403,4 +460,53 @@ impl Scene {
             megno: self.megno.clone(),
         }
     }
+}
+
+/// A stroboscopic section of a preview that keeps `fraction` of a plan's
+/// steps: the whole periods skipped shrink alike (rounded down), so that
+/// the section starts where it would in the whole run, relative to its
+/// length, instead of after the preview's end. Other skips are fractions
+/// of the run already.
+fn preview_section(section: &Section, fraction: f64) -> Section {
+    let fewer = |periods: f64| (periods * fraction).floor();
+    match *section {
+        Section::Forced { skip } => Section::Forced { skip: fewer(skip) },
+        Section::Stroboscopic { period, phase } if phase >= period => {
+            let whole = (phase / period).floor();
+            Section::Stroboscopic {
+                period,
+                phase: phase - whole * period + fewer(whole) * period,
+            }
+        }
+        ref other => other.clone(),
+    }
+}
+
+/// The inputs of the first trajectory of `plan` at whose start the model's
+/// function `f` is not finite (`t` at `t0`). Only the axes `f` reads are
+/// walked: its value is the same along the others.
+fn first_nonfinite(m: &FormulaModel, f: &Function, plan: &Plan) -> Option<Lane<f64>> {
+    let reads = |name: &str| f.inputs.contains(&name) || (name == "t0" && f.inputs.contains(&"t"));
+    let mut axes: Vec<usize> = plan
+        .bindings
+        .iter()
+        .filter(|(name, _)| reads(name))
+        .filter_map(|(_, src)| match src {
+            Source::Axis { axis, .. } => Some(*axis),
+            Source::Const(_) => None,
+        })
+        .collect();
+    axes.sort_unstable();
+    axes.dedup();
+    let count: usize = axes.iter().map(|a| plan.axes[*a].len).product();
+    (0..count).find_map(|mut k| {
+        let mut traj = 0;
+        for a in &axes {
+            traj += (k % plan.axes[*a].len) * plan.strides[*a];
+            k /= plan.axes[*a].len;
+        }
+        let mut x = lane_of(plan, traj);
+        x.t = x.t0;
+        (!m.value(f, &x).is_finite()).then_some(x)
+    })
 }

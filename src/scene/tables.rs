@@ -132,9 +132,15 @@ impl Leaf for Num {
 impl Leaf for Int {
     const WHAT: &'static str = "an integer";
     fn from_int(v: i128) -> Result<Int, String> {
-        u64::try_from(v)
-            .map(Int)
-            .map_err(|_| "expected a non-negative integer".into())
+        u64::try_from(v).map(Int).map_err(|_| not_u64(v > 0))
+    }
+}
+
+/// Why an integer of the scene is refused: negative, or too large (`big`).
+pub fn not_u64(big: bool) -> String {
+    match big {
+        true => format!("is too large: at most {}", u64::MAX),
+        false => "expected a non-negative integer".into(),
     }
 }
 

@@ -203,13 +203,15 @@ impl<'a> Parser<'a> {
         };
         match x {
             Some(x) if x.is_finite() => Ok(x),
-            _ => Err(self.err(field, Some(&v.span()), "expected a finite number")),
+            _ => Err(self.err(field, Some(&v.span()), out_of_range(v))),
         }
     }
     pub fn integer(&self, field: &str, v: &Spanned<DeValue>) -> Result<u64, SceneError> {
         match v.get_ref() {
-            DeValue::Integer(i) => u64::from_str_radix(i.as_str(), i.radix())
-                .map_err(|_| self.err(field, Some(&v.span()), "expected a non-negative integer")),
+            DeValue::Integer(i) => u64::from_str_radix(i.as_str(), i.radix()).map_err(|_| {
+                let big = !i.as_str().starts_with('-');
+                self.err(field, Some(&v.span()), crate::scene::tables::not_u64(big))
+            }),
             _ => Err(self.mismatch(field, v, "an integer")),
         }
     }
@@ -302,6 +304,24 @@ impl<'a> Parser<'a> {
 /// The span of a table's entries (for "missing" errors at its lines).
 pub fn integ_span(entries: &[Entry]) -> Range<usize> {
     entries.first().map(|(k, _)| k.span()).unwrap_or(0..0)
+}
+
+/// Why a number of the scene is refused: beyond the range of f64, or not a
+/// number at all (`nan`, `inf`).
+fn out_of_range(v: &Spanned<DeValue>) -> String {
+    match v.get_ref() {
+        DeValue::Float(f)
+            if f.as_str().parse::<f64>().is_ok_and(f64::is_infinite)
+                && f.as_str().chars().any(|c| c.is_ascii_digit()) =>
+        {
+            format!(
+                "{} is out of range: expected a finite number (at most {:e} in magnitude)",
+                f.as_str(),
+                f64::MAX
+            )
+        }
+        _ => "expected a finite number".into(),
+    }
 }
 
 #[cfg(test)]

@@ -149,8 +149,6 @@ pub struct RunOutcome {
     /// some state variable non-finite (the caller marks those lanes first,
     /// then samples, as after any step).
     pub sampled: bool,
-    /// The lanes whose vectors became non-finite, as bits.
-    pub bad: u64,
 }
 
 impl<R: Real> IndicatorTapes<R> {
@@ -265,8 +263,9 @@ impl<R: Real> IndicatorTapes<R> {
     /// samples: the same operations as [`IndicatorTapes::step`] and
     /// [`IndicatorTapes::after_step`] step by step, so the same bits, with
     /// the vectors in `scratch` and the samples' sums in `regs` until the
-    /// run ends. It ends early after a step that leaves a state variable or
-    /// a vector non-finite.
+    /// run ends. It ends early after a step that leaves a state variable
+    /// non-finite (a vector that leaves the finite numbers only loses its
+    /// trajectory's indicators: `slots::indicators_at`).
     #[allow(clippy::too_many_arguments)]
     pub fn steps(
         &self,
@@ -294,8 +293,7 @@ impl<R: Real> IndicatorTapes<R> {
 
     /// After step `n1` (1 for the first): the deviation vectors of the
     /// `running` lanes (bits) through the step's tangent map (compiled,
-    /// on `scratch`, where there is one), then the samples due. Returns
-    /// the running lanes whose vectors became non-finite, as bits.
+    /// on `scratch`, where there is one), then the samples due.
     #[allow(clippy::too_many_arguments)]
     pub fn after_step(
         &self,
@@ -307,7 +305,7 @@ impl<R: Real> IndicatorTapes<R> {
         n1: u64,
         running: u64,
         isa: Isa,
-    ) -> u64 {
+    ) {
         let at = Call { running, isa };
         let scalars = Scalars {
             step: R::from_f64((n1 - 1) as f64),
@@ -329,8 +327,6 @@ impl<R: Real> IndicatorTapes<R> {
         for s in self.samples.iter().filter(|s| sampled_after(s.every, n1)) {
             run(s, l, prev, real, regs, self.sample_scalars(s.every, n1), at);
         }
-        let real: &[[R; LANES]] = real;
-        nonfinite_bits(|| self.tangent.outputs.iter().map(|&k| &real[k])) & running
     }
 }
 
@@ -496,12 +492,10 @@ steps_variant! {
 ///
 /// As the fused stages do (`kernels::fused_steps_body`), a run of several
 /// steps first goes unchecked and is looked at once, at its end: a state
-/// variable or a vector that leaves the finite numbers stays out (the
-/// pieces add to or scale a variable; the tangent maps are linear in the
-/// vectors with the state's finite coefficients; a sample scales a vector
-/// by a power of two or subtracts multiples of the others). Only when
-/// something is non-finite then is the run taken again from its start,
-/// which is still in `l` and `real`, checking after each step: the same
+/// variable that leaves the finite numbers stays out (the pieces add to or
+/// scale a variable). Only when one is non-finite then is the run taken
+/// again from its start, which is still in `l` and `real`, checking after
+/// each step: the same
 /// operations, so the same bits and verdict as checking every step.
 #[inline(always)]
 fn steps_body<R: Real>(
@@ -537,8 +531,7 @@ fn steps_body<R: Real>(
             }
         }
         let out = run_steps(ind, c, s, &mut bufs, rest, run, check);
-        let bad =
-            !check && (super::any_nonfinite(&s.x, &ind.var_lanes) || nonfinite_vectors(c, s) != 0);
+        let bad = !check && super::any_nonfinite(&s.x, &ind.var_lanes);
         if !bad {
             break out;
         }
@@ -603,7 +596,6 @@ fn run_steps_pending<R: Real>(
             return RunOutcome {
                 done: j + 1,
                 sampled: false,
-                bad: 0,
             };
         }
         let n1 = run.n + j + 1;
@@ -639,22 +631,10 @@ fn run_steps_pending<R: Real>(
             pending.flush(i, buf);
             ind.sample_in_run(p, loc, s, buf, n1);
         }
-        let bad = match check {
-            true => nonfinite_vectors(c, s),
-            false => 0,
-        };
-        if bad != 0 {
-            return RunOutcome {
-                done: j + 1,
-                sampled: true,
-                bad: bad & run.running,
-            };
-        }
     }
     RunOutcome {
         done: run.k,
         sampled: true,
-        bad: 0,
     }
 }
 
@@ -985,40 +965,6 @@ impl<R: Real> Peak<R> {
         sample_ops::chaos_fold(&mut high[0], &low[octave], &self.n2);
         *self.n2 = [zero; LANES];
     }
-}
-
-/// The lanes whose deviation vectors in `s` are non-finite, as bits.
-#[inline(always)]
-fn nonfinite_vectors<R: Real>(c: &CompiledTangent<R>, s: &TangentScratch<R>) -> u64 {
-    nonfinite_bits(|| {
-        s.d.iter()
-            .flat_map(|v| c.space.iter().map(move |&lane| v.at(lane)))
-    })
-}
-
-/// The lanes where any of the `arrays` is non-finite, as bits: one
-/// vectorised OR-reduction finds whether any is (rare); only then are the
-/// lanes told apart.
-#[inline(always)]
-fn nonfinite_bits<'a, R: Real + 'a, I: Iterator<Item = &'a [R; LANES]>>(
-    arrays: impl Fn() -> I,
-) -> u64 {
-    let mut any = false;
-    for a in arrays() {
-        for i in 0..LANES {
-            any |= !a[i].finite();
-        }
-    }
-    if !any {
-        return 0;
-    }
-    let mut bad = 0u64;
-    for a in arrays() {
-        for i in 0..LANES {
-            bad |= u64::from(!a[i].finite()) << i;
-        }
-    }
-    bad
 }
 
 /// Where each sample's inputs and outputs are in a run of steps: `None`

@@ -438,7 +438,7 @@ fn run_block<R: Flows>(
             eval_field(p, l, &mut regs, 0);
         }
         obs.observe(&after!(0));
-        obs.indicator_frame(&after!(0), 0);
+        obs.indicator_frame(&after!(0));
     }
 
     let mut reported = n0;
@@ -468,9 +468,8 @@ fn run_block<R: Flows>(
                 dprev[k] = *l.at(p.dvar[k]);
             }
         }
-        // The vectors of lanes gone non-finite in a run of steps, when the
-        // run took the samples of its last step.
-        let mut sampled = None;
+        // Whether a run of steps took the samples of its last step.
+        let mut sampled = false;
         let (done, any) = match (&p.indicators, tangent.as_mut()) {
             // Runs of steps no other observer looks at, in one call.
             (Some(ind), Some(scratch)) if indicator_runs => {
@@ -478,7 +477,7 @@ fn run_block<R: Flows>(
                 let k = quiet_run(p, &obs, n, count, true);
                 let (real, mask) = (obs.slots_mut(), running | padding);
                 let out = ind.steps(l, scratch, real, &mut regs, n, k, mask, p.isa);
-                sampled = out.sampled.then_some(out.bad & running);
+                sampled = out.sampled;
                 (out.done, !out.sampled)
             }
             // The compiled tangent step moves state and vectors at once.
@@ -511,15 +510,10 @@ fn run_block<R: Flows>(
         obs.observe(&view);
         obs.cycle(&view);
         obs.average(&view);
-        let bad = match sampled {
-            Some(bad) => bad,
-            None => obs.indicators(&view, &mut regs, tangent.as_mut()),
-        };
-        if bad != 0 {
-            let bad: [bool; LANES] = std::array::from_fn(|i| bad >> i & 1 == 1);
-            alive -= mark_nonfinite(&bad, &mut status, count, n - 1);
+        if !sampled {
+            obs.indicators(&view, &mut regs, tangent.as_mut());
         }
-        obs.indicator_frame(&after!(n), bad);
+        obs.indicator_frame(&after!(n));
         if let Some(stop) = &p.stop {
             let real = obs.slots();
             alive -= stop_lanes(

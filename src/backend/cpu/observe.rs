@@ -223,30 +223,20 @@ impl<R: Flows> BlockObservers<R> {
         &self.real
     }
 
-    /// The chaos indicators after the step: the lanes whose deviation
-    /// vectors became non-finite, as bits.
+    /// The chaos indicators after the step.
     pub fn indicators(
         &mut self,
         s: &BlockStep<R>,
         regs: &mut [[R; LANES]],
         scratch: Option<&mut TangentScratch<R>>,
-    ) -> u64 {
+    ) {
         let Some(ind) = &s.p.indicators else {
-            return 0;
+            return;
         };
         let (running, padding) = running_lanes(&s.status[..s.count]);
         let (l, prev, real) = (s.l, s.prev, &mut self.real);
-        running
-            & ind.after_step(
-                l,
-                prev,
-                real,
-                regs,
-                scratch,
-                s.n1,
-                running | padding,
-                s.p.isa,
-            )
+        let lanes = running | padding;
+        ind.after_step(l, prev, real, regs, scratch, s.n1, lanes, s.p.isa);
     }
 
     /// The observers' real slots, mutable (the compiled tangent step moves
@@ -326,10 +316,8 @@ impl<R: Flows> BlockObservers<R> {
         }
     }
 
-    /// The indicators' running values, if step `n1` is a trajectory frame;
-    /// the lanes in `bad` (non-finite deviation vectors at this step) lose
-    /// the frame's state too, as on the GPU, whose thread leaves its loop.
-    pub fn indicator_frame(&self, s: &BlockStep<R>, bad: u64) {
+    /// The indicators' running values, if step `n1` is a trajectory frame.
+    pub fn indicator_frame(&self, s: &BlockStep<R>) {
         let p = s.p;
         let (Some(_), Some((frame, frames))) = (&p.indicators, frame_at(s)) else {
             return;
@@ -343,11 +331,6 @@ impl<R: Flows> BlockObservers<R> {
         ];
         for i in 0..s.count {
             let row = (s.base + i) * frames + frame;
-            if bad >> i & 1 == 1 {
-                for column in &s.sink.trajectory {
-                    column.set(row, R::nan());
-                }
-            }
             let slot = |k: usize| self.real[k][i];
             let values = slots::indicators_at(p.plan, slot, dt[i], s.status[i] == 0, s.n1);
             put_indicators(p.plan, columns, row, values);

@@ -1170,27 +1170,17 @@ impl Gen<'_> {
     }
 
     /// The chaos indicators after the step: the deviation vectors through
-    /// the tangent map (a non-finite one ends the trajectory like a
-    /// non-finite state), then the samples due.
+    /// the tangent map, then the samples due. A vector that leaves the
+    /// finite numbers stays out of them and loses its trajectory's
+    /// indicators (`slots::indicators_at`), never its state.
     fn indicators(&self) -> String {
         let Some(ind) = &self.plan.indicators else {
             return String::new();
         };
-        let finite: Vec<String> = ind
-            .deviation_slots
-            .iter()
-            .map(|k| format!("finite({})", ind.slots[*k].0))
-            .collect();
         let mut s = match self.moves_state {
             true => String::new(),
             false => self.tangent_call(),
         };
-        writeln!(
-            s,
-            "        if !({}) {{\n            st = n + 1u;\n            break;\n        }}",
-            finite.join(" & ")
-        )
-        .unwrap();
         // Only MEGNO's running mean reads 1/n: where the FLI is sampled
         // without it, its slot is never read and the division per
         // trajectory and sample goes (lavapipe, spin–orbit FLI f64: 0.93×

@@ -65,31 +65,39 @@ impl Default for Launch {
 impl Launch {
     /// Refuses a launch the adapter's limits forbid (it is never tried).
     pub fn check(&self, limits: &wgpu::Limits) -> Result<(), String> {
+        self.knob_at_fault(limits).map_err(|(_, e)| e)
+    }
+
+    /// [`Self::check`], with the index into [`ENV`] of the knob at fault.
+    fn knob_at_fault(&self, limits: &wgpu::Limits) -> Result<(), (usize, String)> {
         let most = limits
             .max_compute_invocations_per_workgroup
             .min(limits.max_compute_workgroup_size_x);
         if self.workgroup == 0 || self.workgroup > most {
-            return Err(format!(
-                "a workgroup of {} invocations: this adapter allows 1 to {most}",
-                self.workgroup
+            return Err((
+                0,
+                format!(
+                    "a workgroup of {} invocations: this adapter allows 1 to {most}",
+                    self.workgroup
+                ),
             ));
         }
         if !(1..=64).contains(&self.per_thread) {
-            return Err(format!(
-                "{} trajectories per invocation: 1 to 64",
-                self.per_thread
-            ));
-        }
-        if !(1..=8).contains(&self.finite_block) {
-            return Err(format!(
-                "a finite test every {} steps: 1 to 8",
-                self.finite_block
+            return Err((
+                1,
+                format!("{} trajectories per invocation: 1 to 64", self.per_thread),
             ));
         }
         if !(0.001..=10.0).contains(&self.dispatch_seconds) {
-            return Err(format!(
-                "{} s per dispatch: 0.001 to 10",
-                self.dispatch_seconds
+            return Err((
+                2,
+                format!("{} s per dispatch: 0.001 to 10", self.dispatch_seconds),
+            ));
+        }
+        if !(1..=8).contains(&self.finite_block) {
+            return Err((
+                4,
+                format!("a finite test every {} steps: 1 to 8", self.finite_block),
             ));
         }
         Ok(())
@@ -188,8 +196,19 @@ impl Overrides {
             window: self.window.or(launch.window),
             finite_block: self.finite_block.unwrap_or(launch.finite_block),
         };
-        l.check(limits)
-            .map_err(|e| format!("{} ({})", e, ENV.join(", ")))?;
+        l.knob_at_fault(limits).map_err(|(knob, e)| {
+            let set = [
+                self.workgroup.is_some(),
+                self.per_thread.is_some(),
+                self.dispatch_seconds.is_some(),
+                self.window.is_some(),
+                self.finite_block.is_some(),
+            ];
+            match set[knob] {
+                true => format!("{}: {e}", ENV[knob]),
+                false => format!("{e} (the tuned launch with {})", self.describe()),
+            }
+        })?;
         Ok(l)
     }
 }
@@ -287,8 +306,16 @@ impl Cache {
         let path = dir.join(CACHE_FILE);
         let tmp = dir.join(format!("{CACHE_FILE}.{}.partial", std::process::id()));
         let text = serde_json::to_string_pretty(&cache).map_err(std::io::Error::other)?;
-        std::fs::write(&tmp, text + "\n")?;
-        std::fs::rename(&tmp, &path)?;
+        // Never leave the private copy behind (a folder or a read-only
+        // file in the cache's place makes the rename fail at every run).
+        let written = std::fs::write(&tmp, text + "\n").and_then(|()| std::fs::rename(&tmp, &path));
+        if let Err(e) = written {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(std::io::Error::new(
+                e.kind(),
+                format!("{}: {e}", path.display()),
+            ));
+        }
         Ok(path)
     }
 }

@@ -98,6 +98,15 @@ fn tokens(text: &str) -> Result<Vec<(Tok, usize)>, FormulaError> {
                 column: start,
                 message: format!("`{s}` is not a number"),
             })?;
+            if !v.is_finite() {
+                return Err(FormulaError {
+                    column: start,
+                    message: format!(
+                        "`{s}` is out of range: expected a finite number (at most {:e} in magnitude)",
+                        f64::MAX
+                    ),
+                });
+            }
             out.push((Tok::Num(v), start));
         } else if c.is_alphabetic() || c == '_' {
             while i < chars.len() && (chars[i].is_alphanumeric() || chars[i] == '_') {
