@@ -159,6 +159,14 @@ pub fn indicators_finish<R: Flows>(
     ok: bool,
     stop_step: u32,
 ) -> (Vec<R>, R, R) {
+    // A deviation vector that left the finite numbers (its growth between
+    // two samples beyond the precision's range) stays out of them: the
+    // trajectory keeps its state and loses its indicators. (The frames
+    // record the indicators' slots, not the vectors: their running values
+    // after such a loss are NaN where they are read from the sums.)
+    let first = indicator_first(plan);
+    let mut vectors = plan.indicators.iter().flat_map(|i| &i.deviation_slots);
+    let ok = ok && vectors.all(|&k| slot(first + k).finite());
     indicators_at(plan, slot, dt, ok, last_step(plan, stop_step))
 }
 
@@ -176,10 +184,6 @@ pub fn indicators_at<R: Flows>(
     };
     let first = indicator_first(plan);
     let slot = |k: usize| slot(first + k);
-    // A deviation vector that left the finite numbers (its growth between
-    // two samples beyond the precision's range) stays out of them: the
-    // trajectory keeps its state and loses its indicators.
-    let ok = ok && ind.deviation_slots.iter().all(|&k| slot(k).finite());
     let exponents = lyapunov_finish(ind, dt.to_f64(), last, ok, |k| slot(k).to_f64());
     let sampled = ok && plan.observers.chaos_every().is_some_and(|e| last >= e);
     let value = |name: &str| match (sampled, ind.slot_of(name)) {

@@ -265,7 +265,7 @@ impl<R: Real> IndicatorTapes<R> {
     /// the vectors in `scratch` and the samples' sums in `regs` until the
     /// run ends. It ends early after a step that leaves a state variable
     /// non-finite (a vector that leaves the finite numbers only loses its
-    /// trajectory's indicators: `slots::indicators_at`).
+    /// trajectory's indicators: `slots::indicators_finish`).
     #[allow(clippy::too_many_arguments)]
     pub fn steps(
         &self,

@@ -1172,7 +1172,7 @@ impl Gen<'_> {
     /// The chaos indicators after the step: the deviation vectors through
     /// the tangent map, then the samples due. A vector that leaves the
     /// finite numbers stays out of them and loses its trajectory's
-    /// indicators (`slots::indicators_at`), never its state.
+    /// indicators (`slots::indicators_finish`), never its state.
     fn indicators(&self) -> String {
         let Some(ind) = &self.plan.indicators else {
             return String::new();
