@@ -362,14 +362,22 @@ fn bad_formulas_are_refused_at_their_line_with_a_caret() {
 #[test]
 fn an_unused_parameter_is_a_warning_and_a_non_finite_value_a_stopped_trajectory() {
     let text = "model = \"mechanical\"\n[formula]\npotential = \"q^2/2 + sqrt(q)\"\n[params]\nunused = 2.0\n[initial]\nq = { linspace = [-1.0, 1.0, 3] }\n[integrator]\nscheme = \"s2\"\ndt = 0.1\nsteps = 10\n";
-    let s = Scene::parse(Path::new("w.toml"), text).unwrap();
-    let w = s.checks(reeb::num::precision::Precision::F64).unwrap();
+    let checks = |text: &str| {
+        let s = Scene::parse(Path::new("w.toml"), text).unwrap();
+        s.checks(reeb::num::precision::Precision::F64)
+    };
+    let w = checks(&text.replace(" + sqrt(q)", "")).unwrap();
     assert!(
         w.iter()
             .any(|w| w.field == "params.unused" && w.line == Some(5)),
         "{w:?}"
     );
-    // √q at q = −1 (NaN) and its derivative at 0 (∞): those stop, q = 1 runs on.
+    // √q is not defined where q = −1 starts: the scene is refused…
+    let e = checks(text).unwrap_err();
+    assert_eq!((e.field.as_str(), e.line), ("formula.potential", Some(3)));
+    assert!(e.message.starts_with("V is NaN where a trajectory starts (q = -1"), "{e}");
+    // …and a plan run anyway stops there: √q at q = −1 (NaN) and its
+    // derivative at 0 (∞) stop, q = 1 runs on.
     let o = cpu::run::<f64>(&plan(text), None);
     assert_eq!(o.nonfinite_step[..2], [1, 1]);
     assert_eq!(o.nonfinite_step[2], 0);

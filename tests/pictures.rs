@@ -121,7 +121,7 @@ final = ["q"]
     let mut d = observations(15);
     let row: Vec<f64> = (0..15).map(|i| (i % 5) as f64 + 1.0).collect();
     d.final_values.push(("q".into(), row));
-    pictures::draw(&s, &dir, &d).unwrap();
+    pictures::draw(&s, &dir, &d, &Default::default()).unwrap();
     let p = Picture::read(&dir.join("final_q.png"));
     let runs = coloured_runs(&p, p.w * 2 / 5);
     assert_eq!(runs.len(), 5, "{runs:?}");
@@ -194,7 +194,7 @@ cycle = true
 "#,
     );
     let d = cycle_observations();
-    pictures::draw(&s, &dir, &d).unwrap();
+    pictures::draw(&s, &dir, &d, &Default::default()).unwrap();
     for file in ["cycle_amplitude.png", "cycle_period.png"] {
         let p = Picture::read(&dir.join(file));
         // The map: three cells of about 6 % of the image each, and one.
@@ -267,7 +267,7 @@ poincare = { period = 1.0, max_points = 5000, vars = ["q", "s"] }
         (q[k], p[k]) = (r * a.cos(), r * a.sin());
     }
     d.poincare = vec![("q".into(), q), ("s".into(), p)];
-    pictures::draw(&s, &dir, &d).unwrap();
+    pictures::draw(&s, &dir, &d, &Default::default()).unwrap();
     let pic = Picture::read(&dir.join("poincare.png"));
     let colours: Vec<[u8; 3]> = (0..10).map(|k| palette(k).into()).collect();
     let seen: Vec<usize> = colours

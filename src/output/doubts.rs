@@ -11,7 +11,6 @@ use serde_json::{json, Map, Value};
 
 use crate::num::precision::Real;
 use crate::plan::observations::Observations;
-use crate::reference::truth::lane_of;
 use crate::scene::{Scene, SubRun};
 
 /// How many digits an exponent's sample may lose and still count as
@@ -167,12 +166,14 @@ fn unresolved_exponents<R: Real>(
         let Some(every) = sub.plan.observers.lyapunov.as_ref().map(|l| l.every) else {
             continue;
         };
+        let dt = sub.plan.binding("dt");
         for j in 0..sub.plan.n {
             let i = sub.scene_row(j, &shape, &strides);
-            let dt = lane_of(&sub.plan, j).dt;
-            let lambda = |m: usize| d.lyapunov[i * k + m].to_f64();
-            for m in 1..k {
-                let gap = (lambda(0) - lambda(m)) * dt;
+            let dt = dt.value_at(sub.plan.first + j, &sub.plan.strides);
+            let exponents = &d.lyapunov[i * k..(i + 1) * k];
+            let lambda1 = exponents[0].to_f64();
+            for (m, lambda) in exponents.iter().enumerate().skip(1) {
+                let gap = (lambda1 - lambda.to_f64()) * dt;
                 if gap * every as f64 > limit {
                     out.resolved[i * k + m] = false;
                     count[m] += 1;

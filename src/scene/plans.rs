@@ -499,7 +499,8 @@ fn first_nonfinite(m: &FormulaModel, f: &Function, plan: &Plan) -> Option<Lane<f
     axes.sort_unstable();
     axes.dedup();
     let count: usize = axes.iter().map(|a| plan.axes[*a].len).product();
-    (0..count).find_map(|mut k| {
+    use rayon::prelude::*;
+    (0..count).into_par_iter().find_map_first(|mut k| {
         let mut traj = 0;
         for a in &axes {
             traj += (k % plan.axes[*a].len) * plan.strides[*a];
