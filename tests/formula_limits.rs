@@ -191,5 +191,8 @@ fn the_command_line_refuses_or_takes_them_without_aborting() {
     // scene's negative q is not a real number where the trajectory starts.
     let (code, out) = check("tower", &vec!["q"; 5_000].join("^"));
     assert_eq!(code, Some(1), "tower: {out}");
-    assert!(out.contains("formula.potential: V is NaN where a trajectory starts (q = -0.7"), "{out}");
+    assert!(
+        out.contains("formula.potential: V is NaN where a trajectory starts (q = -0.7"),
+        "{out}"
+    );
 }

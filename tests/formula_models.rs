@@ -375,7 +375,11 @@ fn an_unused_parameter_is_a_warning_and_a_non_finite_value_a_stopped_trajectory(
     // √q is not defined where q = −1 starts: the scene is refused…
     let e = checks(text).unwrap_err();
     assert_eq!((e.field.as_str(), e.line), ("formula.potential", Some(3)));
-    assert!(e.message.starts_with("V is NaN where a trajectory starts (q = -1"), "{e}");
+    assert!(
+        e.message
+            .starts_with("V is NaN where a trajectory starts (q = -1"),
+        "{e}"
+    );
     // …and a plan run anyway stops there: √q at q = −1 (NaN) and its
     // derivative at 0 (∞) stop, q = 1 runs on.
     let o = cpu::run::<f64>(&plan(text), None);

@@ -47,8 +47,10 @@ pub fn of<R: Real>(scene: &Scene, subs: &[SubRun], d: &Observations<R>) -> Doubt
     let mut out = Doubts::default();
     dropped_points(scene, d, &mut out);
     let mut indicators = Map::new();
-    stopped_indicators(scene, d, &mut indicators, &mut out);
-    lost_indicators(scene, d, &mut indicators, &mut out);
+    if has_indicators(scene) {
+        stopped_indicators(d, &mut indicators, &mut out);
+        lost_indicators(d, &mut indicators, &mut out);
+    }
     unresolved_exponents::<R>(scene, subs, d, &mut indicators, &mut out);
     if !indicators.is_empty() {
         out.summary.insert("indicators".into(), indicators.into());
@@ -90,14 +92,10 @@ fn has_indicators(scene: &Scene) -> bool {
 
 /// Trajectories the stop condition ended: their indicators cover less time.
 fn stopped_indicators<R: Real>(
-    scene: &Scene,
     d: &Observations<R>,
     indicators: &mut Map<String, Value>,
     out: &mut Doubts,
 ) {
-    if !has_indicators(scene) {
-        return;
-    }
     let stopped = d.stop_step.iter().filter(|s| **s != 0).count();
     indicators.insert("stopped".into(), stopped.into());
     if stopped > 0 {
@@ -118,14 +116,10 @@ fn indicators_finite<R: Real>(d: &Observations<R>, i: usize) -> bool {
 /// Trajectories that ran to the end with indicators that are not finite:
 /// their deviation vectors left the precision's range between samples.
 fn lost_indicators<R: Real>(
-    scene: &Scene,
     d: &Observations<R>,
     indicators: &mut Map<String, Value>,
     out: &mut Doubts,
 ) {
-    if !has_indicators(scene) {
-        return;
-    }
     let ran = |i: usize| d.nonfinite_step[i] == 0 && d.stop_step[i] == 0;
     let lost = (0..d.n)
         .filter(|&i| ran(i) && !indicators_finite(d, i))

@@ -2,15 +2,15 @@
 //! count (`dt` or `t0` with `t_end`), each a [`Plan`] of the scene's
 //! problem with those axes held fixed.
 
+use crate::models::formula::{FormulaModel, Function};
+use crate::models::lanes::Lane;
 use crate::num::precision::Precision;
 use crate::plan::observers::{AverageObs, Observers, PoincareObs, Section, TrajectoryObs};
 use crate::plan::precision::{self as fits, apart, short, Limits};
 use crate::plan::{Plan, PlanError, PlanWarning, Problem, Source};
+use crate::reference::truth::lane_of;
 
 use super::{Horizon, Input, OutVar, Scene, SceneError, SceneWarning, SubRun};
-use crate::models::formula::{FormulaModel, Function};
-use crate::models::lanes::Lane;
-use crate::reference::truth::lane_of;
 
 impl Scene {
     pub(crate) fn t0_input(&self) -> Input {

@@ -495,8 +495,8 @@ steps_variant! {
 /// variable that leaves the finite numbers stays out (the pieces add to or
 /// scale a variable). Only when one is non-finite then is the run taken
 /// again from its start, which is still in `l` and `real`, checking after
-/// each step: the same
-/// operations, so the same bits and verdict as checking every step.
+/// each step: the same operations, so the same bits and verdict as
+/// checking every step.
 #[inline(always)]
 fn steps_body<R: Real>(
     ind: &IndicatorTapes<R>,
