@@ -418,47 +418,98 @@ pub fn isa() -> Isa {
     }
 }
 
+/// The piece order the fused kernels are compiled for in every shape:
+/// every model's default, `CBABC` (`D = C`, then B, then A in the middle).
+/// The other five orders of S2, which no shipped scene uses, have kernels
+/// for AVX2/FMA alone, for ensembles that share their time ([`other_order`]), and run
+/// through the plan's ops elsewhere (`cpu::run_ops`): every order in every
+/// shape at every level was 1512 kernels and three quarters of the
+/// library's machine code (now 252 + 140).
+pub const FUSED_ORDER: [char; 3] = ['C', 'B', 'A'];
+
 /// The fused steps for a piece order, optional variable and time, or `None`
-/// for an order that is not a permutation of A, B, C.
+/// where none is compiled: an order that is not a permutation of A, B, C,
+/// or one other than [`FUSED_ORDER`] in a shape [`other_order`] does not
+/// take.
 pub fn steps_fn<R: Real, P: Pieces<R>>(
     order: [char; 3],
     opt: bool,
     time: u8,
     isa: Isa,
 ) -> Option<StepsFn<R>> {
-    macro_rules! pick {
-        ($($a:literal $b:literal $c:literal),*) => {
-            match (order, opt, time) {
-                $(
-                    ([$a, $b, $c], false, 0) => Some(variant!($a, $b, $c, false, 0)),
-                    ([$a, $b, $c], true, 0) => Some(variant!($a, $b, $c, true, 0)),
-                    ([$a, $b, $c], false, 1) => Some(variant!($a, $b, $c, false, 1)),
-                    ([$a, $b, $c], true, 1) => Some(variant!($a, $b, $c, true, 1)),
-                    ([$a, $b, $c], false, 2) => Some(variant!($a, $b, $c, false, 2)),
-                    ([$a, $b, $c], true, 2) => Some(variant!($a, $b, $c, true, 2)),
-                )*
-                _ => None,
-            }
-        };
+    match order == FUSED_ORDER {
+        true => default_order::<R, P>(opt, time, isa),
+        false => other_order::<R, P>(order, opt, time, isa),
     }
+}
+
+/// The kernels of another piece order than [`FUSED_ORDER`] for the plans
+/// sweeps make, whose ensemble shares `t0` and `dt` ([`time::SHARED`]: the
+/// time terms once per block), in AVX2/FMA. Any other plan, and any below
+/// AVX2, runs the ops (their lane loops compiled for the baseline, without
+/// FMA: spin–orbit 3 · 10⁷ trajectory-steps/s against 3 · 10⁸ with its time
+/// terms per trajectory in this kernel).
+fn other_order<R: Real, P: Pieces<R>>(
+    order: [char; 3],
+    opt: bool,
+    time: u8,
+    isa: Isa,
+) -> Option<StepsFn<R>> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if isa == Isa::Baseline || time != time::SHARED {
+            return None;
+        }
+        macro_rules! pick {
+            ($($a:literal $b:literal $c:literal),*) => {
+                match (order, opt) {
+                    $(
+                        ([$a, $b, $c], false) => Some(fused_steps_v3::<R, P, $a, $b, $c, false, { time::SHARED }> as StepsFn<R>),
+                        ([$a, $b, $c], true) => Some(fused_steps_v3::<R, P, $a, $b, $c, true, { time::SHARED }> as StepsFn<R>),
+                    )*
+                    _ => None,
+                }
+            };
+        }
+        pick!('A' 'B' 'C', 'A' 'C' 'B', 'B' 'A' 'C', 'B' 'C' 'A', 'C' 'A' 'B')
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = (order, opt, time, isa);
+        None
+    }
+}
+
+/// The kernels of [`FUSED_ORDER`], in every shape and at every level.
+fn default_order<R: Real, P: Pieces<R>>(opt: bool, time: u8, isa: Isa) -> Option<StepsFn<R>> {
     macro_rules! variant {
-        ($a:literal, $b:literal, $c:literal, $o:literal, $t:literal) => {{
+        ($o:literal, $t:literal) => {{
             #[cfg(target_arch = "x86_64")]
             {
                 match isa {
-                    Isa::V4 => fused_steps_v4::<R, P, $a, $b, $c, $o, $t> as StepsFn<R>,
-                    Isa::V3 => fused_steps_v3::<R, P, $a, $b, $c, $o, $t> as StepsFn<R>,
-                    Isa::Baseline => fused_steps::<R, P, $a, $b, $c, $o, $t> as StepsFn<R>,
+                    Isa::V4 => fused_steps_v4::<R, P, 'C', 'B', 'A', $o, $t> as StepsFn<R>,
+                    Isa::V3 => fused_steps_v3::<R, P, 'C', 'B', 'A', $o, $t> as StepsFn<R>,
+                    Isa::Baseline => fused_steps::<R, P, 'C', 'B', 'A', $o, $t> as StepsFn<R>,
                 }
             }
             #[cfg(not(target_arch = "x86_64"))]
             {
                 let _ = isa;
-                fused_steps::<R, P, $a, $b, $c, $o, $t> as StepsFn<R>
+                fused_steps::<R, P, 'C', 'B', 'A', $o, $t> as StepsFn<R>
             }
         }};
     }
-    pick!('A' 'B' 'C', 'A' 'C' 'B', 'B' 'A' 'C', 'B' 'C' 'A', 'C' 'A' 'B', 'C' 'B' 'A')
+    // The order's letters are literals, as the const generics need.
+    debug_assert_eq!(FUSED_ORDER, ['C', 'B', 'A']);
+    match (opt, time) {
+        (false, 0) => Some(variant!(false, 0)),
+        (true, 0) => Some(variant!(true, 0)),
+        (false, 1) => Some(variant!(false, 1)),
+        (true, 1) => Some(variant!(true, 1)),
+        (false, 2) => Some(variant!(false, 2)),
+        (true, 2) => Some(variant!(true, 2)),
+        _ => None,
+    }
 }
 
 /// How a plan's fused stages get their time terms ([`time`]); `shared`:
@@ -497,7 +548,7 @@ impl<R: Real> PiecesVisitor<R> for StageBuilder {
 
 impl StageBuilder {
     /// The fused steps of `model` in precision `R`; `None` for a formula
-    /// model or an order that is not a permutation of A, B, C.
+    /// model or an order other than [`FUSED_ORDER`].
     ///
     /// Compiled through the non-generic [`kernels_f32`] and
     /// [`kernels_f64`] (see [`in_precision`]).
