@@ -25,12 +25,12 @@ use crate::verify::{largest_difference, run_all, Target};
 /// composition, and RK4 (a comparison method with its own kernels).
 pub const AGREEMENT_SCHEMES: [&str; 4] = ["s2", "yoshida6a", "kahanli8", "rk4"];
 /// CPU–GPU tolerances of the agreement check, relative to max(1, |cpu|),
-/// over 60 steps: those of `tests/gpu.rs`.
+/// over 60 steps: those of `tests/suite/gpu.rs`.
 pub const TOLERANCE_F32: f64 = 2e-4;
 pub const TOLERANCE_F64: f64 = 1e-10;
 /// The f32 tolerance where the kernels' exp is the adapter's exp2 (a
 /// different function from the CPU's, within 4 ULP): that of
-/// `tests/gpu.rs::hardware_exp_agrees_with_the_cpu`. On an H200 Kepler
+/// `tests/suite/gpu.rs::hardware_exp_agrees_with_the_cpu`. On an H200 Kepler
 /// kahanli8 differs by 2.2e-4, where the CPU's f32 is itself 1.2e-4 from
 /// its f64.
 pub const TOLERANCE_F32_HARDWARE_EXP: f64 = 1e-3;

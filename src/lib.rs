@@ -1,7 +1,7 @@
 //! reeb — contact Hamiltonian splitting integrators for large ensembles.
 //!
 //! Layers, each using only the ones above it in this list (ARCHITECTURE.md;
-//! `tests/layers.rs` keeps it so): `num` (precision, primitives, own math,
+//! `tests/suite/layers.rs` keeps it so): `num` (precision, primitives, own math,
 //! the shared-function DSL) → `models` → `plan` (problem, scheme, observers,
 //! plan, results) → `backend` (cpu, gpu, the one dispatch path) and
 //! `reference` (DOP853, exact solutions as references) → `scene` → `output`

@@ -691,7 +691,7 @@ fn check_bench_args(sizes: &[usize], steps: u64, threads: &[usize], repeats: usi
         anyhow::bail!("--threads: a thread count must be at least 1");
     }
     // More threads than cores only measures the scheduler, and a pool of
-    // 10⁵ threads takes minutes to start (found by tests/cli_fuzz.rs).
+    // 10⁵ threads takes minutes to start (found by tests/suite/cli_fuzz.rs).
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let most = 4 * cores;
     if let Some(t) = threads.iter().find(|t| **t > most) {

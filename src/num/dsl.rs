@@ -15,7 +15,7 @@
 //! `min`, `max` (inherent on `f32`/`f64`, builtins in WGSL), `select`,
 //! `pow2`, `to_i32`, `rint`, `from_i32`, `inf` ([`crate::num::prims::Prims`] on the CPU,
 //! `shaders/prelude_*.wgsl` on the GPU). Every function ends in `return`.
-//! The naga test in `tests/shaders.rs` rejects anything outside this subset.
+//! The naga test in `tests/suite/shaders.rs` rejects anything outside this subset.
 
 /// Declares shared functions; see the module documentation.
 ///

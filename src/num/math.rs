@@ -7,7 +7,7 @@
 //! calls do not vectorise. With these, both backends evaluate one formula,
 //! branch-free, so the CPU loop over lanes vectorises.
 //!
-//! Accuracy (tested in `tests/math.rs` against the platform libm in f64):
+//! Accuracy (tested in `tests/suite/math.rs` against the platform libm in f64):
 //! `exp` ≤ 2 ULP wherever its result is a normal number (f32 and f64), +∞
 //! above that, 0 below (no gradual underflow), NaN propagates. `sin`/`cos`
 //! ≤ 2 ULP for |x| ≤ 8192 (f32) and |x| ≤ 10⁶ (f64), where the Cody–Waite

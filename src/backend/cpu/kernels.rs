@@ -47,7 +47,7 @@ pub mod time {
 /// That finds every lane that left the finite numbers inside the run: every
 /// piece moves a variable by adding to it or scaling it (`v + x`, `v·x`,
 /// `(v ⊕ x)/d`), so ±∞ and NaN stay non-finite
-/// (`tests/cpu.rs::non_finite_states_stay_non_finite`). Only then is the run
+/// (`tests/suite/cpu.rs::non_finite_states_stay_non_finite`). Only then is the run
 /// repeated from a copy of its start, checking after each step, to find the
 /// step: the same operations, so the same bits and the same verdict as
 /// checking every step.

@@ -51,7 +51,7 @@ pub struct GpuRun<R> {
 }
 
 /// Keep in sync with `struct Uniforms` of `shaders/driver.wgsl` (field
-/// order and types; `tests/shaders.rs` checks the size against naga's layout).
+/// order and types; `tests/suite/shaders.rs` checks the size against naga's layout).
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct Uniforms {

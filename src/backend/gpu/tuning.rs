@@ -2,7 +2,7 @@
 //! trajectories each invocation integrates, and the wall time a dispatch (a
 //! window of steps) aims at. None of them changes a result's bits: every
 //! trajectory runs the same operations whatever the launch
-//! (`tests/gpu.rs::every_launch_gives_the_same_bits`); they change the speed.
+//! (`tests/suite/gpu.rs::every_launch_gives_the_same_bits`); they change the speed.
 //! The probe that chooses them is `backend/tune.rs`; this file holds the
 //! choice, its limits, the environment's overrides and the cache file.
 

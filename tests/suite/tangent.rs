@@ -119,7 +119,7 @@ fn tangent_spaces_are_the_dynamical_phase_spaces() {
 
 // ---- indicators: oracles ----
 
-mod common;
+use crate::common;
 
 use reeb::backend::{cpu, gpu};
 use reeb::plan::observations::Observations;

@@ -9,7 +9,7 @@ use reeb::num::precision::Precision;
 use reeb::output::run::{run_scene, RunOptions, TaskOptions};
 use reeb::scene::{BackendChoice, Scene};
 
-mod common;
+use crate::common;
 use common::gpu;
 
 fn scenes() -> Vec<PathBuf> {

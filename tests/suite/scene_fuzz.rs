@@ -22,7 +22,7 @@ use reeb::scene::Scene;
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
-mod common;
+use crate::common;
 
 use common::runs::toml_string as quoted;
 
@@ -1053,8 +1053,9 @@ fn huge_axis_counts_neither_panic_nor_abort() {
     for (k, (label, _)) in cases.iter().enumerate() {
         let out = std::process::Command::new("sh")
             .arg("-c")
-            .arg("ulimit -v 4194304 && exec \"$0\" --exact parse_one_in_a_child --nocapture --test-threads=1")
+            .arg("ulimit -v 4194304 && exec \"$0\" --exact \"$1\" --nocapture --test-threads=1")
             .arg(std::env::current_exe().unwrap())
+            .arg(child_test())
             .env(CHILD_CASE, k.to_string())
             .env("RUST_BACKTRACE", "0")
             .output()
@@ -1079,6 +1080,13 @@ fn huge_axis_counts_neither_panic_nor_abort() {
 }
 
 const CHILD_CASE: &str = "REEB_SCENE_FUZZ_CASE";
+
+/// The test the child runs, by its name in the test binary (the module
+/// path without the crate's name).
+fn child_test() -> String {
+    let module = module_path!().split_once("::").map_or("", |(_, m)| m);
+    format!("{module}::parse_one_in_a_child")
+}
 
 /// Huge axis counts, by label.
 fn huge_cases() -> Vec<(&'static str, String)> {

@@ -2,7 +2,7 @@
 //! (cell heights on a log axis, the greys of cells without a value, the
 //! colours of a portrait's groups) and the title's characters a font lacks.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

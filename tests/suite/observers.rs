@@ -11,7 +11,7 @@ use reeb::plan::observations::Observations;
 use reeb::plan::Plan;
 use reeb::scene::Scene;
 
-mod common;
+use crate::common;
 use common::runs::{reeb, s, tmp};
 
 /// A damped oscillator over 8 initial positions × 3 dampings, every step

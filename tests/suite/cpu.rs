@@ -8,7 +8,7 @@ use reeb::plan::observations::Status;
 use reeb::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
 use reeb::plan::{Plan, Problem, Source};
 
-mod common;
+use crate::common;
 
 fn vdp(eps: Source, dt: f64, steps: u64) -> Problem {
     let mut p = Problem::new(Model::VanDerPol, "s2")

@@ -11,7 +11,7 @@ use reeb::plan::scheme::{Scheme, SCHEME_NAMES};
 use reeb::plan::{Plan, Problem, Source};
 use reeb::verify::indicators::{full_problem, with_indicators};
 
-mod common;
+use crate::common;
 use common::{first_var, problem};
 
 #[test]

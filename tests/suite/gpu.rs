@@ -23,7 +23,7 @@ use reeb::plan::scheme::{Scheme, SCHEME_NAMES};
 use reeb::plan::{Plan, Problem, Source};
 use reeb::verify::indicators::with_indicators;
 
-mod common;
+use crate::common;
 use common::{first_var, gpu, problem};
 
 /// Largest disagreement between two observation sets, with where it is.

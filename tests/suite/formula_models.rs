@@ -14,7 +14,7 @@ use reeb::plan::observations::Observations;
 use reeb::plan::Plan;
 use reeb::scene::Scene;
 
-mod common;
+use crate::common;
 
 /// The single plan of a scene text.
 fn plan(text: &str) -> Plan {

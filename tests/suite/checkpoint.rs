@@ -18,7 +18,7 @@ use reeb::plan::snapshot::Header;
 use reeb::plan::Plan;
 use reeb::scene::Scene;
 
-mod common;
+use crate::common;
 
 /// The single plan of a scene text.
 fn plan(text: &str) -> Plan {
