@@ -31,8 +31,6 @@ pub trait Real:
     + MulAssign
     + DivAssign
     + bytemuck::Pod
-    + npyz::Serialize
-    + npyz::AutoSerialize
     + Prims
     + Math
     + Elementary

@@ -5,19 +5,19 @@
 //! chunk of trajectories are one contiguous slab of each (`npy.rs`).
 
 use std::borrow::Cow;
-use std::io::BufWriter;
+use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use npyz::WriterBuilder;
 
 use crate::num::precision::Real;
+use crate::output::npy;
 use crate::plan::observations::{Observations, Status};
 use crate::plan::observers::ResonanceObs;
 use crate::scene::{OutVar, Scene};
 
-/// Writes a C-order .npy array.
-pub fn write_npy<T: npyz::AutoSerialize + npyz::Serialize>(
+/// Writes a C-order .npy array of `data` (as many elements as `shape` holds).
+pub fn write_npy<T: npy::Element>(
     path: &Path,
     shape: &[u64],
     data: impl IntoIterator<Item = T>,
@@ -25,13 +25,12 @@ pub fn write_npy<T: npyz::AutoSerialize + npyz::Serialize>(
     let file =
         std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
     let write = || -> std::io::Result<()> {
-        let mut w = npyz::WriteOptions::new()
-            .default_dtype()
-            .shape(shape)
-            .writer(BufWriter::new(file))
-            .begin_nd()?;
-        w.extend(data)?;
-        w.finish()
+        let mut w = BufWriter::new(file);
+        w.write_all(&npy::header(T::DESCR, shape))?;
+        for x in data {
+            w.write_all(bytemuck::bytes_of(&x))?;
+        }
+        w.flush()
     };
     write().with_context(|| format!("writing {}", path.display()))
 }

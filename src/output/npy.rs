@@ -9,6 +9,20 @@ use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 
+/// An element type of the arrays reeb writes whole ([`crate::output::arrays::write_npy`]).
+pub trait Element: bytemuck::Pod {
+    /// Its numpy type, little-endian.
+    const DESCR: &'static str;
+}
+
+impl Element for f64 {
+    const DESCR: &'static str = "<f8";
+}
+
+impl Element for f32 {
+    const DESCR: &'static str = "<f4";
+}
+
 /// The `.npy` (version 1.0) header of a C-order array: magic, version,
 /// length, and the dict padded with spaces to a multiple of 64 bytes.
 pub fn header(descr: &str, shape: &[u64]) -> Vec<u8> {
@@ -137,7 +151,7 @@ pub fn item_size(descr: &str) -> Result<u64> {
 }
 
 /// Reads the raw little-endian data of an `.npy` file written by [`Slabs`]
-/// (or npyz): its rows `first..first + rows` of `row_bytes` each.
+/// (or [`crate::output::arrays::write_npy`]): its rows `first..first + rows` of `row_bytes` each.
 pub fn read_rows(path: &Path, first: u64, rows: u64, row_bytes: u64) -> Result<Vec<u8>> {
     let mut f = File::open(path).with_context(|| format!("opening {}", path.display()))?;
     let mut pre = [0u8; 10];

@@ -208,18 +208,12 @@ fn resonances_and_their_fractions_reach_the_files_and_the_summary() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-fn npy_body(path: &Path) -> Vec<u8> {
-    let bytes = std::fs::read(path).unwrap();
-    let header = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
-    bytes[10 + header..].to_vec()
-}
-
 fn read_f64(path: &Path) -> Vec<f64> {
-    bytemuck::pod_collect_to_vec(&npy_body(path))
+    common::npy_f64(path)
 }
 
 fn read_i32(path: &Path) -> Vec<i32> {
-    bytemuck::pod_collect_to_vec(&npy_body(path))
+    common::npy_ints(path)
 }
 
 #[test]

@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 use crate::common;
 
+use common::npy_f64;
 use common::runs::{ok, reeb, s};
 
 fn tmp(name: &str) -> PathBuf {
@@ -27,20 +28,6 @@ fn refused(args: &[&str]) -> String {
 
 fn summary(dir: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
-}
-
-fn npy_f64(path: &Path) -> Vec<f64> {
-    let bytes = std::fs::read(path).unwrap();
-    let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
-    match npy.dtype() {
-        npyz::DType::Plain(t) if t.size_field() == 4 => npy
-            .into_vec::<f32>()
-            .unwrap()
-            .into_iter()
-            .map(f64::from)
-            .collect(),
-        _ => npy.into_vec::<f64>().unwrap(),
-    }
 }
 
 /// `text` written as `dir/name.toml`.
@@ -521,9 +508,7 @@ fn a_preview_keeps_its_stroboscopic_section() {
             "--out",
             s(&out),
         ]);
-        let counts = std::fs::read(out.join("poincare_count.npy")).unwrap();
-        let npy = npyz::NpyFile::new(&counts[..]).unwrap();
-        let counts: Vec<u32> = npy.into_vec().unwrap();
+        let counts: Vec<u32> = common::npy_ints(&out.join("poincare_count.npy"));
         assert!(counts.iter().all(|c| *c > 0), "{name}: {counts:?}");
     }
 }

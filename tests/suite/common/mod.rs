@@ -28,3 +28,29 @@ pub fn gpu() -> Option<&'static GpuContext> {
     })
     .as_ref()
 }
+
+/// The data of a `.npy` file reeb wrote (version 1.0, little-endian), and
+/// its header.
+pub fn npy(path: &std::path::Path) -> (String, Vec<u8>) {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let header = String::from_utf8_lossy(&bytes[10..10 + len]).into_owned();
+    (header, bytes[10 + len..].to_vec())
+}
+
+/// A real `.npy` array (`<f4` or `<f8`) as f64.
+pub fn npy_f64(path: &std::path::Path) -> Vec<f64> {
+    match npy(path) {
+        (h, data) if h.contains("'<f4'") => {
+            let v: Vec<f32> = bytemuck::pod_collect_to_vec(&data);
+            v.into_iter().map(f64::from).collect()
+        }
+        (h, data) if h.contains("'<f8'") => bytemuck::pod_collect_to_vec(&data),
+        (h, _) => panic!("{}: not a real array ({h})", path.display()),
+    }
+}
+
+/// An integer `.npy` array of element type `T` (`<i4`, `<u4`, …).
+pub fn npy_ints<T: bytemuck::Pod>(path: &std::path::Path) -> Vec<T> {
+    bytemuck::pod_collect_to_vec(&npy(path).1)
+}
