@@ -10,13 +10,16 @@
 //! See `README.md` for the command line and `../shared/SPEC.md` (the
 //! mathematics) for what every formula computes.
 
-pub mod num;
+// The lower layers are crates of their own (`crates/`), so that an edit in
+// the layers here never recompiles their kernels; re-exported, they keep
+// their paths (`crate::plan::Plan`, `reeb::backend::cpu`).
+pub use reeb_backend::backend;
+pub use reeb_core::{models, num, plan};
+// The macros the core exports (at its root), at reeb's.
+pub use reeb_core::{
+    lienard_methods, mechanical_1d_methods, model_lanes, model_ops, pieces, shared_fns, with_fma,
+};
 
-pub mod models;
-
-pub mod plan;
-
-pub mod backend;
 pub mod reference;
 
 pub mod scene;

@@ -11,6 +11,7 @@
 
 use reeb::backend::gpu::accuracy;
 use reeb::backend::gpu::codegen::{generate, ExpForm};
+use reeb::backend::gpu::time_table::TimeTable;
 use reeb::backend::gpu::tuning::Launch;
 use reeb::backend::{cpu, gpu};
 use reeb::models::{Model, MODEL_NAMES};
@@ -20,8 +21,9 @@ use reeb::num::precision::Real;
 use reeb::plan::observations::Observations;
 use reeb::plan::observers::{CycleObs, Direction, PoincareObs, Section, TrajectoryObs};
 use reeb::plan::scheme::{Scheme, SCHEME_NAMES};
+use reeb::plan::tangent::{TangentInput, TangentStep};
 use reeb::plan::{Plan, Problem, Source};
-use reeb::verify::indicators::with_indicators;
+use reeb::verify::indicators::{columns_of, lane_at, with_indicators};
 
 use crate::common;
 use common::{first_var, gpu, problem};
@@ -908,4 +910,52 @@ fn hardware_exp_agrees_with_the_cpu() {
         }
     }
     assert!(checked >= 10, "{checked}");
+}
+
+/// The tangent the GPU builds where the ensemble shares its time terms
+/// reads them from its time table (`TangentStep::tabled`): the same map,
+/// bit for bit, as the tangent that computes them, at every stage of a
+/// composition and for every model with time ops.
+#[test]
+fn a_tangent_reading_the_table_is_the_tangent_computing_it() {
+    let mut tabled = vec![];
+    for model in [
+        "damped_oscillator",
+        "kepler",
+        "lane_emden",
+        "van_der_pol",
+        "spin_orbit",
+    ] {
+        for scheme in ["s2", "triple_jump4"] {
+            let plan = Plan::new(&problem(model, scheme).expect("a problem")).unwrap();
+            let Some(tt) = TimeTable::of(&plan) else {
+                continue;
+            };
+            let spec = plan.step_spec();
+            let d = TangentStep::new(&spec, 1).unwrap().space.len();
+            let computed = TangentStep::new(&spec, d).unwrap();
+            let read = TangentStep::tabled(&spec, d).unwrap();
+            let n = 7;
+            let rows: Vec<f64> = tt.fill::<f64>(&plan, n, 1);
+            let l = lane_at(&plan, &[]);
+            let row = |stage: usize, term: usize| rows[stage * 4 * tt.vec4s() + term];
+            let columns = |t: &TangentStep| -> Vec<u64> {
+                let cols = columns_of(t, &l, n, row).concat();
+                cols.iter().map(|x| x.to_bits()).collect()
+            };
+            let terms = read.inputs.iter();
+            let stages = terms.filter_map(|i| match i {
+                TangentInput::TimeTerm { stage, .. } => Some(*stage),
+                _ => None,
+            });
+            assert_eq!(
+                stages.max().map(|s| s + 1),
+                Some(tt.stages()),
+                "{model} {scheme}"
+            );
+            assert_eq!(columns(&computed), columns(&read), "{model} {scheme}");
+            tabled.push(format!("{model} {scheme}"));
+        }
+    }
+    assert!(tabled.len() >= 4, "tables for {tabled:?}");
 }

@@ -1,5 +1,5 @@
 // reeb prelude, f32: the working precision and the primitives that shared
-// functions call (their CPU twins are `Prims` and `Math` in src/num/).
+// functions call (their CPU twins are `Prims` and `Math` in crates/reeb-core/src/num/).
 
 alias R = f32;
 
@@ -40,7 +40,7 @@ fn finite(x: f32) -> bool {
 }
 
 // exp: reeb's polynomial (the CPU's function) or the adapter's exp2 on a split
-// argument, as the device opened (src/backend/gpu/codegen.rs, ExpForm).
+// argument, as the device opened (crates/reeb-backend/src/backend/gpu/codegen.rs, ExpForm).
 {{EXP_F32}}
 
 // ln x with x = 2^e·m read from the bits rather than found by log_f32's

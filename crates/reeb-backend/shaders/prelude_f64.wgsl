@@ -1,7 +1,7 @@
 // reeb prelude, f64 (needs SHADER_F64): the working precision and the
-// primitives that shared functions call (CPU twins: src/num/prims.rs). Nothing here
+// primitives that shared functions call (CPU twins: crates/reeb-core/src/num/prims.rs). Nothing here
 // uses a WGSL builtin that lavapipe gets wrong in f64 (exp, sin, cos, ...):
-// reeb's own polynomials (src/num/math.rs) replace them.
+// reeb's own polynomials (crates/reeb-core/src/num/math.rs) replace them.
 
 alias R = f64;
 
@@ -29,7 +29,7 @@ fn rint(x: f64) -> f64 {
 }
 
 // 2^n for an integer-valued n in [-1023, 1024]: +0 at -1023, +inf at 1024.
-// Filled in per adapter (src/backend/gpu/codegen.rs, `launched`):
+// Filled in per adapter (crates/reeb-backend/src/backend/gpu/codegen.rs, `launched`):
 // with SHADER_INT64 from the bits, as the CPU's twin; without, from f32
 // powers of two (pow2i), with two conversions more.
 {{POW2_F64}}
@@ -61,13 +61,13 @@ fn log_r(x: f64) -> f64 {
 }
 
 // The chaos indicators' ln x: log_r's bits, as on the CPU. Filled in per
-// adapter (src/backend/gpu/codegen.rs): with SHADER_INT64, 2^k·m with m in
+// adapter (crates/reeb-backend/src/backend/gpu/codegen.rs): with SHADER_INT64, 2^k·m with m in
 // [√½, √2) read from the bits offset by √½'s (the CPU's log_normal_f64),
 // so that log_core_f64's compare, selects and halving fall away.
 {{SAMPLE_LOG_F64}}
 
 // ln x, log_f64's kernel on x = 2^e·m (m in [1, 2)): filled in per
-// adapter (src/backend/gpu/codegen.rs, `launched`): with SHADER_INT64
+// adapter (crates/reeb-backend/src/backend/gpu/codegen.rs, `launched`): with SHADER_INT64
 // e and m from the bits, as the CPU's log_f64_bits; without, log_f64's
 // ladder of scalings. Both exact, so the same bits.
 {{LOG_SPLIT_F64}}

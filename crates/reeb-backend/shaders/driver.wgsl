@@ -1,10 +1,10 @@
 // reeb driver: one invocation integrates one or several trajectories over
-// the window of steps [u.step0, u.step0 + u.nsteps). src/backend/gpu/codegen.rs splices the
+// the window of steps [u.step0, u.step0 + u.nsteps). crates/reeb-backend/src/backend/gpu/codegen.rs splices the
 // plan's code in at the `{{...}}` markers: the inputs (constants, or values
 // looked up along the ensemble's axes), the step (the plan's ops as calls of
 // the shared functions), the finite test and the observers.
 
-// Keep in sync with `struct Uniforms` of src/backend/gpu/run.rs.
+// Keep in sync with `struct Uniforms` of crates/reeb-backend/src/backend/gpu/run.rs.
 struct Uniforms {
     // Grid index of the chunk's first trajectory (the plan's first row included).
     base: u32,
@@ -26,7 +26,7 @@ struct Uniforms {
 // Input values along the axes.
 @group(0) @binding(2) var<storage, read> table: array<R>;
 // 0: running; k > 0: non-finite at step k (the trajectory stopped there);
-// src/plan/slots.rs has the other words (stopped, cut).
+// crates/reeb-core/src/plan/slots.rs has the other words (stopped, cut).
 @group(0) @binding(3) var<storage, read_write> status: array<u32>;
 // Observer state that lives across dispatches.
 @group(0) @binding(4) var<storage, read_write> aux_r: array<R>;
@@ -36,10 +36,10 @@ struct Uniforms {
 // Poincaré points: points_out[(k * vars + j) * cap + i].
 @group(0) @binding(7) var<storage, read_write> points_out: array<R>;
 // Time terms the ensemble shares, per step and stage of this window (only in
-// kernels whose plan shares them; src/backend/gpu/time_table.rs).
+// kernels whose plan shares them; crates/reeb-backend/src/backend/gpu/time_table.rs).
 {{TIME_TABLE}}
 
-// The launch (src/backend/gpu/tuning.rs): {{WORKGROUP}} invocations per
+// The launch (crates/reeb-backend/src/backend/gpu/tuning.rs): {{WORKGROUP}} invocations per
 // workgroup, each integrating {{PER_THREAD}} trajectories, thread + k·threads,
 // so that neighbouring invocations read neighbouring trajectories.
 @compute @workgroup_size({{WORKGROUP}})
@@ -81,7 +81,7 @@ fn trajectory(i: u32) {
         n = n + 1u;
     }
     // A loop the adapter ended early (llvmpipe's limit on loop iterations,
-    // src/backend/gpu/run.rs) is flagged, never a silently short window.
+    // crates/reeb-backend/src/backend/gpu/run.rs) is flagged, never a silently short window.
     if st == 0u && n < u.step0 + u.nsteps {
         st = {{CUT}}u;
     }

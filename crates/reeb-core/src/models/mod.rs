@@ -23,8 +23,9 @@ pub mod quadratic_s;
 pub mod spec;
 pub mod spin_orbit;
 pub mod symbolic;
-#[cfg(test)]
-pub(crate) mod tangent_gen;
+/// The generator of `tangent_ops.rs` (and the Rust it writes, which the
+/// CPU backend's generator of its sample loops shares).
+pub mod tangent_gen;
 // Generated (`tangent_gen.rs`), checked against its generator by a test.
 #[rustfmt::skip]
 pub mod tangent_ops;

@@ -86,7 +86,7 @@ fn body(name: &str, l: &Lowered, input: &dyn Fn(u32) -> String, written: &[&str]
 }
 
 /// An operand of a lowered program as Rust: `input(k)` names input k.
-pub(crate) fn rust_operand(o: Operand, input: &dyn Fn(u32) -> String) -> String {
+pub fn rust_operand(o: Operand, input: &dyn Fn(u32) -> String) -> String {
     match o {
         Operand::Val(k) => format!("v{k}"),
         Operand::Input(k) => input(k),
@@ -100,7 +100,7 @@ pub(crate) fn rust_operand(o: Operand, input: &dyn Fn(u32) -> String) -> String 
 /// `cos_r` each call: the same bits), where the first of them stood: two
 /// calls left LLVM two copies of its selects (spin–orbit tangent stage,
 /// AVX2 f32: 126 → 120 instructions per 8 lanes).
-pub(crate) fn rust_lets(l: &Lowered, input: &dyn Fn(u32) -> String, indent: &str) -> String {
+pub fn rust_lets(l: &Lowered, input: &dyn Fn(u32) -> String, indent: &str) -> String {
     // The instruction calling `f` on operand `a`, if any.
     let call_of = |f: Func, a: Operand| {
         l.instrs
