@@ -26,7 +26,7 @@ pub fn write_npy<T: npy::Element>(
         std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
     let write = || -> std::io::Result<()> {
         let mut w = BufWriter::new(file);
-        w.write_all(&npy::header(T::DESCR, shape))?;
+        w.write_all(&npy::whole_header(T::DESCR, shape))?;
         for x in data {
             w.write_all(bytemuck::bytes_of(&x))?;
         }

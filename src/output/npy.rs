@@ -33,6 +33,19 @@ pub fn header(descr: &str, shape: &[u64]) -> Vec<u8> {
             format!("({})", d.join(", "))
         }
     };
+    header_of(descr, &dims)
+}
+
+/// [`header`] with every dimension followed by `, ` (`(5, )`), as the
+/// arrays written whole ([`crate::output::arrays::write_npy`]) have always
+/// had it: their files stay byte for byte what they were.
+pub fn whole_header(descr: &str, shape: &[u64]) -> Vec<u8> {
+    let dims: String = shape.iter().map(|n| format!("{n}, ")).collect();
+    header_of(descr, &format!("({dims})"))
+}
+
+/// The header around a shape written out (`dims`).
+fn header_of(descr: &str, dims: &str) -> Vec<u8> {
     let mut dict = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {dims}, }}");
     let unpadded = 10 + dict.len() + 1;
     dict.push_str(&" ".repeat(unpadded.next_multiple_of(64) - unpadded));
