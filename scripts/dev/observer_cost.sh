@@ -7,6 +7,7 @@
 #
 # vdp: van der Pol S2 f32 (ε over [0.5, 5], dt 0.01); so: spin–orbit S2 f64
 # (p over [0.3, 1.9], dt 0.05). Defaults: 20000 orbits × 20000 steps, 3 runs.
+# KEEP=DIR keeps each scene's last outputs in DIR/<scene> (to compare builds).
 set -euo pipefail
 reeb="$1"; which="${2:-vdp}"; backend="${3:-cpu}"
 n="${4:-20000}"; steps="${5:-20000}"; repeats="${6:-3}"
@@ -66,6 +67,7 @@ seconds() { # median integration seconds of scene $1
     rm -rf "$dir/out"
     "$reeb" run "$dir/$1.toml" --out "$dir/out" >/dev/null 2>&1
     grep -o '"integration_seconds": [0-9.e+-]*' "$dir/out/summary.json" | cut -d' ' -f2
+    if [ -n "${KEEP:-}" ]; then mkdir -p "$KEEP"; rm -rf "${KEEP:?}/$1"; cp -r "$dir/out" "$KEEP/$1"; fi
   done | sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'
 }
 

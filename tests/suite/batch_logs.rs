@@ -13,7 +13,7 @@ use common::runs::{grid_scene, ok, s, same_arrays, REEB};
 #[test]
 fn progress_lines_reach_a_log_that_is_not_a_terminal() {
     let d = common::runs::tmp("logs", "lines");
-    let scene = grid_scene(&d, 4_000.0, 10_000, "cpu");
+    let scene = grid_scene(&d, 40_000.0, 100_000, "cpu");
     let o = Command::new(REEB)
         .args(["run", s(&scene), "--out", s(&d.join("run"))])
         .env("REEB_PROGRESS_EVERY", "0.1")
@@ -62,7 +62,7 @@ fn interrupted(scene: &Path, out: &Path, signal: i32) -> (Option<i32>, String) {
 
 fn stopped_and_continued(signal: i32, name: &str) {
     let d = common::runs::tmp("logs", name);
-    let scene = grid_scene(&d, 10_000.0, 100_000, "cpu");
+    let scene = grid_scene(&d, 60_000.0, 600_000, "cpu");
     let one = d.join("one");
     ok(&["run", s(&scene), "--out", s(&one)]);
     let out = d.join("run");
@@ -109,7 +109,7 @@ fn ctrl_c_keeps_the_work_and_says_how_to_continue() {
 #[test]
 fn on_a_terminal_the_bar_leaves_no_trailing_spaces_and_a_short_rate() {
     let d = common::runs::tmp("logs", "terminal");
-    let scene = grid_scene(&d, 4_000.0, 10_000, "cpu");
+    let scene = grid_scene(&d, 40_000.0, 100_000, "cpu");
     let log = d.join("tty.log");
     let command = format!("{REEB} run {} --out {}", s(&scene), s(&d.join("run")));
     // `script` runs the command on a pseudo-terminal and keeps what it drew.

@@ -21,6 +21,7 @@ mod observers;
 mod on_disk;
 mod oracles;
 mod pictures;
+mod recorded;
 mod reports;
 mod safety;
 mod scene_fuzz;

@@ -166,7 +166,7 @@ fn killed_with_a_checkpoint(scene: &Path, out: &Path) -> PathBuf {
 #[test]
 fn a_cut_checkpoint_is_discarded_and_its_chunk_integrated_again() {
     let d = tmp("checkpoint");
-    let scene = grid_scene(&d, 4_000.0, 10_000, "cpu");
+    let scene = grid_scene(&d, 40_000.0, 100_000, "cpu");
     let one = d.join("one");
     ok(&["run", s(&scene), "--out", s(&one)]);
     let out = d.join("run");

@@ -182,8 +182,9 @@ fn killed_inside_a_chunk(d: &Path, scene: &Path, one: &Path) {
 #[test]
 fn a_run_killed_inside_a_chunk_continues_from_its_checkpoint() {
     let d = tmp("checkpoint");
-    // Two sub-runs (a dt axis) in one chunk, 4·10⁵ steps for the longest.
-    let scene = grid_scene(&d, 4_000.0, 10_000, "cpu");
+    // Two sub-runs (a dt axis) in one chunk, 4·10⁶ steps for the longest
+    // (long enough to be killed after its second checkpoint).
+    let scene = grid_scene(&d, 40_000.0, 100_000, "cpu");
     let one = d.join("one");
     ok(&["run", s(&scene), "--out", s(&one)]);
     killed_inside_a_chunk(&d, &scene, &one);

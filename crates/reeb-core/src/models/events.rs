@@ -84,6 +84,10 @@ crate::shared_fns! {
     fn strobe_due(k: R, period: R, phase: R, dt: R, n1: R, initial: bool, th: &mut R) -> bool {
         let x: R = R::strobe_position(k, period, phase, dt);
         *th = R::select(R::max(R::min(x - n1 + 1.0, 1.0), 0.0), 1.0, initial);
+        return R::strobe_reached(x, n1);
+    }
+    /// Is the sample at position x (`strobe_position`) due after step n1?
+    fn strobe_reached(x: R, n1: R) -> bool {
         return x <= n1 + 1e-4;
     }
     /// Event section: does y (the crossing variable minus its level) cross
@@ -151,17 +155,33 @@ crate::shared_fns! {
     fn cycle_step(x: R, y0: R, y1: R, d0: R, d1: R, dt: R, t_start: R,
                   cyc_max: &mut R, cyc_min: &mut R, cyc_count: &mut R,
                   cyc_first: &mut R, cyc_mean: &mut R, cyc_com: &mut R) {
+        R::cycle_extremes(x, cyc_max, cyc_min);
+        if R::cycle_up(y0, y1) {
+            R::cycle_upcrossing(y0, y1, d0, d1, dt, t_start, cyc_count, cyc_first, cyc_mean, cyc_com);
+        }
+    }
+    /// The running extremes of `cycle_step`. (The CPU applies its three
+    /// parts over a block's lanes apart: the extremes and the test on every
+    /// lane at once, the crossing only on the lanes that cross.)
+    fn cycle_extremes(x: R, cyc_max: &mut R, cyc_min: &mut R) {
         *cyc_max = R::select(*cyc_max, x, x > *cyc_max);
         *cyc_min = R::select(*cyc_min, x, x < *cyc_min);
-        if y0 < 0.0 && y1 >= 0.0 {
-            let th: R = R::crossing_theta(y0, y1, d0, d1, dt);
-            let tc: R = t_start + th * dt;
-            if *cyc_count == 0.0 {
-                *cyc_first = tc;
-            }
-            R::cycle_crossing(*cyc_count, tc - *cyc_first, cyc_mean, cyc_com);
-            *cyc_count = *cyc_count + 1.0;
+    }
+    /// Does the step y0 → y1 cross the level upwards (`cycle_step`)?
+    fn cycle_up(y0: R, y1: R) -> bool {
+        return y0 < 0.0 && y1 >= 0.0;
+    }
+    /// An upward crossing of `cycle_step`, located inside the step and
+    /// counted.
+    fn cycle_upcrossing(y0: R, y1: R, d0: R, d1: R, dt: R, t_start: R, cyc_count: &mut R,
+                        cyc_first: &mut R, cyc_mean: &mut R, cyc_com: &mut R) {
+        let th: R = R::crossing_theta(y0, y1, d0, d1, dt);
+        let tc: R = t_start + th * dt;
+        if *cyc_count == 0.0 {
+            *cyc_first = tc;
         }
+        R::cycle_crossing(*cyc_count, tc - *cyc_first, cyc_mean, cyc_com);
+        *cyc_count = *cyc_count + 1.0;
     }
     /// Adds crossing number k (0-based) at time u (relative to the first)
     /// to the running mean of u and the co-moment C = Σ (k − k̄)(u − ū), by

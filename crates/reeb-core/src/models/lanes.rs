@@ -64,13 +64,29 @@ macro_rules! define_lanes {
         }
 
         /// One trajectory of a block: the scalar twin of [`Lanes`], with the
-        /// same field names, which scalar ops bind by name.
+        /// same field names, which scalar ops bind by name. `repr(C)` with
+        /// one field type, as [`Lanes`]: [`Lane::at`] relies on it.
         #[derive(Debug, Clone, Copy, Default)]
+        #[repr(C)]
         pub struct Lane<R> {
             $( $(#[$m])* pub $f: R, )*
         }
 
         impl<R: Real> Lane<R> {
+            /// The value at position `k` of [`NAMES`].
+            #[inline(always)]
+            pub fn at(&self, k: usize) -> R {
+                assert!(k < COUNT);
+                // SAFETY: repr(C) struct of COUNT fields of type R, no padding.
+                unsafe { *(self as *const Self as *const R).add(k) }
+            }
+            /// The value at position `k` of [`NAMES`], mutable.
+            #[inline(always)]
+            pub fn at_mut(&mut self, k: usize) -> &mut R {
+                assert!(k < COUNT);
+                // SAFETY: as in `at`; the &mut self borrow covers the whole struct.
+                unsafe { &mut *(self as *mut Self as *mut R).add(k) }
+            }
             /// Trajectory `i` of a block (loads the compiler finds unused are dropped).
             #[inline(always)]
             pub fn gather(l: &Lanes<R>, i: usize) -> Lane<R> {
@@ -199,6 +215,8 @@ define_lanes! {
 }
 
 const _: () = assert!(std::mem::size_of::<Lanes<f64>>() == COUNT * LANES * 8);
+const _: () = assert!(std::mem::size_of::<Lane<f64>>() == COUNT * 8);
+const _: () = assert!(std::mem::size_of::<Lane<f32>>() == COUNT * 4);
 const _: () = assert!(std::mem::size_of::<Lanes<f32>>() == COUNT * LANES * 4);
 
 /// A lane array on cache lines of its own.

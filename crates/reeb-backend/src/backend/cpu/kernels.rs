@@ -18,9 +18,33 @@ pub type Weights<R> = (R, R, R);
 /// [`time::SHARED`] mode evaluates the model's time ops (a plan without time
 /// shares only `dt`). Returns how many steps it took — fewer than `k` when
 /// one left some lane non-finite (the last stage's verdict is the step's) —
-/// and whether the last one did. Unsafe to call: the variants compiled for
-/// AVX2/FMA and AVX-512 need those features.
-pub type StepsFn<R> = unsafe fn(&mut Lanes<R>, &[Weights<R>], u64, u64, bool) -> (u64, bool);
+/// and whether the last one did; `record`, if given, receives the state
+/// after each step. Unsafe to call: the variants compiled for AVX2/FMA and
+/// AVX-512 need those features.
+pub type StepsFn<R> =
+    unsafe fn(&mut Lanes<R>, &[Weights<R>], u64, u64, bool, Option<&mut Record<R>>) -> (u64, bool);
+
+/// Where a run of steps leaves the block's state after each of its steps,
+/// for observers that look at every step: they then read the run's states
+/// after it, and the step runs as many steps per call as when nobody looks.
+pub struct Record<'a, R> {
+    /// Lane index of each state variable recorded, in the plan's order.
+    pub vars: &'a [usize],
+    /// `after[j][k]`: variable `vars[k]` after the run's step j; at least
+    /// as many as the run's steps.
+    pub after: &'a mut [Saved<R>],
+}
+
+impl<R: Real> Record<'_, R> {
+    /// Copies the state after the run's step `j`.
+    #[inline(always)]
+    fn take(&mut self, l: &Lanes<R>, j: u64) {
+        let to = &mut self.after[j as usize];
+        for (k, &v) in self.vars.iter().enumerate() {
+            to[k] = *l.at(v);
+        }
+    }
+}
 
 /// How a stage gets its time terms.
 pub mod time {
@@ -52,6 +76,9 @@ pub mod time {
 /// step: the same operations, so the same bits and the same verdict as
 /// checking every step.
 ///
+/// A run that records its states goes through [`steps`] alone, which takes
+/// them; a rerun records them again, the same.
+///
 /// A scheme of one stage (S2, the sweeps' workhorse) runs its unchecked
 /// steps in a loop of its own: the stage's weights are then loop
 /// invariants, so what the pieces compute from them and the lanes' fixed
@@ -78,6 +105,7 @@ fn fused_steps_body<
     n: u64,
     k: u64,
     time_terms: bool,
+    mut record: Option<&mut Record<R>>,
 ) -> (u64, bool) {
     // A single step's run is checked as it goes; a longer one first runs
     // unchecked, and again from its start, checked, only if it ended with
@@ -89,7 +117,8 @@ fn fused_steps_body<
     let mut start: Option<Saved<R>> = None;
     if !check {
         P::save(l, start.insert([[R::default(); LANES]; MAX_VARS]));
-        if let [(h, f, c)] = *stages {
+        if let ([(h, f, c)], None) = (stages, &record) {
+            let (h, f, c) = (*h, *f, *c);
             for j in 0..k {
                 let nf = R::from_f64((n + j) as f64);
                 fused_stage_body::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, h, f, c, nf, time_terms);
@@ -104,7 +133,9 @@ fn fused_steps_body<
     // One call site, `check` known only at run time: the loop is compiled
     // once (a call with `false` and one with `true` would be two copies).
     loop {
-        let done = steps::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, stages, n, k, time_terms, check);
+        let rec = record.as_deref_mut();
+        let done =
+            steps::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, stages, n, k, time_terms, check, rec);
         if check || all_finite::<R, P>(l) {
             return done;
         }
@@ -132,7 +163,8 @@ struct FrameAlign([u8; 64]);
 
 /// Steps `n … n+k−1`, each the stages in order; `check`: look for
 /// non-finite lanes after every step and stop after the first step that
-/// left some (a single step's run, and the search for that step).
+/// left some (a single step's run, and the search for that step);
+/// `record`: take the state after each step.
 #[inline(always)]
 fn steps<
     R: Real,
@@ -150,9 +182,13 @@ fn steps<
     k: u64,
     time_terms: bool,
     check: bool,
+    mut record: Option<&mut Record<R>>,
 ) -> (u64, bool) {
     for j in 0..k {
         step::<R, P, P1, P2, P3, OPT, TIME, VEC>(l, stages, n + j, time_terms);
+        if let Some(r) = record.as_deref_mut() {
+            r.take(l, j);
+        }
         if check && !all_finite::<R, P>(l) {
             return (j + 1, true);
         }
@@ -326,8 +362,9 @@ macro_rules! steps_variant {
             n: u64,
             k: u64,
             time_terms: bool,
+            record: Option<&mut Record<R>>,
         ) -> (u64, bool) {
-            fused_steps_body::<R, P, P1, P2, P3, OPT, TIME, $vec>(l, stages, n, k, time_terms)
+            fused_steps_body::<R, P, P1, P2, P3, OPT, TIME, $vec>(l, stages, n, k, time_terms, record)
         }
     };
 }

@@ -30,6 +30,7 @@ use super::checkpoint::Checkpoints;
 use super::error::BackendError;
 
 use crate::models::lanes::{LaneArrays, Lanes, LANES};
+use crate::models::pieces::{Saved, MAX_VARS};
 use crate::models::Flows;
 use crate::num::precision::{handed_back, is_f32, Real};
 use crate::plan::observations::{Observations, Sink};
@@ -37,8 +38,9 @@ use crate::plan::snapshot::{get, get_array, get_one, get_vec, invalid, put, put_
 use crate::plan::{slots, Plan};
 use formula::Condition;
 use formula::StepMemory;
+use kernels::Record;
 pub use kernels::{isa, Isa};
-use observe::{BlockObservers, BlockStep};
+use observe::{BlockObservers, BlockStep, Slopes};
 use program::{CpuOp, Program};
 
 /// Integrates `plan` on the CPU in precision `R`. `progress`, if given, is
@@ -50,7 +52,7 @@ pub fn run<R: Flows>(plan: &Plan, progress: Option<&AtomicU64>) -> Observations<
 /// [`run`] with the fused kernels of a given instruction-set level (which
 /// must not exceed the CPU's, see [`isa`]).
 pub fn run_isa<R: Flows>(plan: &Plan, progress: Option<&AtomicU64>, isa: Isa) -> Observations<R> {
-    uninterrupted(integrate(plan, progress, isa, true, None))
+    uninterrupted(integrate(plan, progress, isa, USUAL, None))
 }
 
 /// The threads the CPU backend integrates on (rayon's pool: every core,
@@ -75,15 +77,45 @@ pub fn resumable<R: Flows>(
     isa: Isa,
     cp: Option<&mut Checkpoints>,
 ) -> Result<(Observations<R>, f64), BackendError> {
-    integrate(plan, progress, isa, true, cp)
+    integrate(plan, progress, isa, USUAL, cp)
 }
 
 /// [`run_isa`] evaluating the time terms on every trajectory even where the
 /// ensemble shares them (`Plan::shares_time`): the reference the shared
 /// evaluation is tested and timed against.
 pub fn run_time_per_trajectory<R: Flows>(plan: &Plan, isa: Isa) -> Observations<R> {
-    uninterrupted(integrate(plan, None, isa, false, None))
+    let how = How {
+        share_time: false,
+        record: true,
+    };
+    uninterrupted(integrate(plan, None, isa, how, None))
 }
+
+/// [`run_isa`] with one step per call of the fused kernels wherever an
+/// observer looks at every step, instead of recorded runs
+/// ([`Walk::recorded_runs`]): the reference those are tested against.
+pub fn run_step_by_step<R: Flows>(plan: &Plan, isa: Isa) -> Observations<R> {
+    let how = How {
+        share_time: true,
+        record: false,
+    };
+    uninterrupted(integrate(plan, None, isa, how, None))
+}
+
+/// How a run goes where it may choose: `share_time`, the time terms once
+/// per block where the ensemble shares them; `record`, recorded runs where
+/// observers look at every step.
+#[derive(Clone, Copy)]
+struct How {
+    share_time: bool,
+    record: bool,
+}
+
+/// The usual [`How`]: both.
+const USUAL: How = How {
+    share_time: true,
+    record: true,
+};
 
 /// The observations of a run without checkpoints, which cannot fail.
 fn uninterrupted<R>(run: Result<(Observations<R>, f64), BackendError>) -> Observations<R> {
@@ -99,13 +131,13 @@ fn integrate<R: Flows>(
     plan: &Plan,
     progress: Option<&AtomicU64>,
     isa: Isa,
-    share_time: bool,
+    how: How,
     cp: Option<&mut Checkpoints>,
 ) -> Result<(Observations<R>, f64), BackendError> {
     if is_f32::<R>() {
-        handed_back(integrate_f32(plan, progress, isa, share_time, cp))
+        handed_back(integrate_f32(plan, progress, isa, how, cp))
     } else {
-        handed_back(integrate_f64(plan, progress, isa, share_time, cp))
+        handed_back(integrate_f64(plan, progress, isa, how, cp))
     }
 }
 
@@ -117,10 +149,10 @@ fn integrate_f32(
     plan: &Plan,
     progress: Option<&AtomicU64>,
     isa: Isa,
-    share_time: bool,
+    how: How,
     cp: Option<&mut Checkpoints>,
 ) -> Integrated<f32> {
-    integrate_in(plan, progress, isa, share_time, cp)
+    integrate_in(plan, progress, isa, how, cp)
 }
 
 /// [`integrate_in`] in f64, compiled in this crate only.
@@ -129,17 +161,17 @@ fn integrate_f64(
     plan: &Plan,
     progress: Option<&AtomicU64>,
     isa: Isa,
-    share_time: bool,
+    how: How,
     cp: Option<&mut Checkpoints>,
 ) -> Integrated<f64> {
-    integrate_in(plan, progress, isa, share_time, cp)
+    integrate_in(plan, progress, isa, how, cp)
 }
 
 fn integrate_in<R: Flows>(
     plan: &Plan,
     progress: Option<&AtomicU64>,
     isa: Isa,
-    share_time: bool,
+    how: How,
     mut cp: Option<&mut Checkpoints>,
 ) -> Integrated<R> {
     assert!(
@@ -147,7 +179,8 @@ fn integrate_in<R: Flows>(
         "the CPU lacks {isa:?}"
     );
     let mut out = Observations::<R>::for_plan(plan);
-    let program = Program::<R>::new(plan, isa, share_time);
+    let mut program = Program::<R>::new(plan, isa, how.share_time);
+    program.record &= how.record;
     let mut blocks: Vec<Block<R>> = (0..plan.n.div_ceil(LANES))
         .map(|_| Block::Unstarted)
         .collect();
@@ -390,155 +423,381 @@ fn run_block<R: Flows>(
     progress: Option<&AtomicU64>,
     pause: &Pause,
 ) {
-    let Some((n0, mut status, mut obs)) = enter(p, block, slot, l, pause) else {
+    let Some((n0, status, obs)) = enter(p, block, slot, l, pause) else {
         return;
     };
     let plan = p.plan;
     let base = block * LANES;
     let count = LANES.min(plan.n - base);
-    let nv = p.var.len();
-    let mut alive = count - status[..count].iter().filter(|s| **s != 0).count();
-    // Registers of the formula interpreter, one set per block.
-    let mut regs = LaneArrays::filled(p.registers, R::default());
-    let mut memory = p.formula_step.as_ref().map(|f| {
-        let mut m = f.memory();
-        f.begin(l, &mut m);
-        m
-    });
-    // The compiled tangent step's lanes, where it runs; whether it takes
-    // the steps (else the tape or the compiled tangent reads `prev`).
-    let mut tangent = p.indicators.as_ref().and_then(|i| i.scratch(l));
-    let tangent_steps = p.indicators.as_ref().is_some_and(|i| i.takes_step());
-    let reads_prev = p.indicators.is_some() && !tangent_steps;
-    // Whether the indicators take runs of steps: compiled throughout, and
-    // no other observer looks at every step.
-    let indicator_runs =
-        p.indicators.as_ref().is_some_and(|i| i.takes_runs()) && !plan.others_observe_every_step();
-    // State (and slopes) at the start of the current step, for interpolation.
-    let mut prev = LaneArrays::filled(nv, R::default());
-    let mut dprev = LaneArrays::filled(nv, R::default());
-    // The observers' view of the block after step n1.
-    macro_rules! after {
-        ($n1:expr) => {
-            BlockStep {
-                p,
-                l: &**l,
-                sink,
-                base,
-                count,
-                prev: &prev,
-                dprev: &dprev,
-                status: &status,
-                n1: $n1,
-            }
-        };
-    }
-    if n0 == 0 {
-        if p.needs_field {
-            eval_field(p, l, &mut regs, 0);
-        }
-        obs.observe(&after!(0));
-        obs.indicator_frame(&after!(0));
-    }
-
-    let mut reported = n0;
-    let report = |reported: &mut u64, n: u64| {
-        if let Some(pr) = progress {
-            pr.fetch_add(count as u64 * (n - *reported), Ordering::Relaxed);
-            *reported = n;
-        }
+    let mut b = Walk {
+        here: Here {
+            p,
+            sink,
+            base,
+            count,
+            status,
+            run: observe::running_flags(&status, count),
+            prev: LaneArrays::filled(p.var.len(), R::default()),
+            slopes: p.needs_field.then(|| Slopes::new(p, l)),
+        },
+        alive: count - status[..count].iter().filter(|s| **s != 0).count(),
+        obs,
+        regs: LaneArrays::filled(p.registers, R::default()),
+        reported: n0,
+        progress,
     };
-    let mut n = n0;
-    while n < plan.steps {
-        if n > n0 && n % LANES as u64 == 0 && pause.due(n % 1024 == 0) {
-            report(&mut reported, n);
+    if n0 == 0 {
+        // The initial state: frames and sections (cycles and averages start
+        // with the first step).
+        let view = b.here.view(l, 0);
+        b.obs.observe(&view);
+        b.obs.indicator_frame(&view);
+    }
+    let finished = match p.records() {
+        true => b.recorded_runs(l, n0, pause),
+        false => b.steps(l, n0, pause),
+    };
+    match finished {
+        Ok(()) => {
+            b.report(plan.steps);
+            b.obs.finish(p, l, sink, base, count, &b.here.status);
+        }
+        Err(n) => {
             let lanes = std::mem::replace(l, Lanes::boxed());
             *slot = Block::Suspended(Box::new(BlockState {
                 n,
                 lanes,
-                status,
-                obs,
+                status: b.here.status,
+                obs: b.obs,
             }));
-            pause.progressed();
-            return;
-        }
-        if p.needs_field || plan.cycle_var.is_some() || reads_prev {
-            for k in 0..nv {
-                prev[k] = *l.at(p.var[k]);
-                dprev[k] = *l.at(p.dvar[k]);
-            }
-        }
-        // Whether a run of steps took the samples of its last step.
-        let mut sampled = false;
-        let (done, any) = match (&p.indicators, tangent.as_mut()) {
-            // Runs of steps no other observer looks at, in one call.
-            (Some(ind), Some(scratch)) if indicator_runs => {
-                let (running, padding) = observe::running_lanes(&status[..count]);
-                let k = quiet_run(p, &obs, n, count, true);
-                let (real, mask) = (obs.slots_mut(), running | padding);
-                let out = ind.steps(l, scratch, real, &mut regs, n, k, mask, p.isa);
-                sampled = out.sampled;
-                (out.done, !out.sampled)
-            }
-            // The compiled tangent step moves state and vectors at once.
-            (Some(ind), Some(scratch)) if tangent_steps => {
-                let (running, padding) = observe::running_lanes(&status[..count]);
-                ind.step(l, scratch, obs.slots_mut(), n, running | padding);
-                (1, any_nonfinite(l, &p.var))
-            }
-            _ => advance(
-                p,
-                l,
-                &mut regs,
-                memory.as_mut(),
-                n,
-                quiet_run(p, &obs, n, count, false),
-            ),
-        };
-        if any {
-            let bad = nonfinite_lanes(p, l);
-            alive -= mark_nonfinite(&bad, &mut status, count, n + done - 1);
-            if p.stages.is_some() {
-                retire(&bad, l, &status, count);
-            }
-        }
-        n += done;
-        if p.needs_field {
-            eval_field(p, l, &mut regs, n);
-        }
-        let view = after!(n);
-        obs.observe(&view);
-        obs.cycle(&view);
-        obs.average(&view);
-        if !sampled {
-            obs.indicators(&view, &mut regs, tangent.as_mut());
-        }
-        obs.indicator_frame(&after!(n));
-        if let Some(stop) = &p.stop {
-            let real = obs.slots();
-            alive -= stop_lanes(
-                p,
-                stop,
-                l,
-                real,
-                &mut regs,
-                &mut status,
-                n,
-                sink,
-                base,
-                count,
-            );
-        }
-        if n % 1024 == 0 {
-            report(&mut reported, n);
-        }
-        if alive == 0 {
-            break;
         }
     }
-    report(&mut reported, plan.steps);
-    obs.finish(p, l, sink, base, count, &status);
     pause.progressed();
+}
+
+/// States a recorded run holds: a quarter of a pause's distance, so that
+/// they stay in the core's first-level cache (16 × 5 × 64 f64: 40 KB).
+const RECORDED: usize = 16;
+
+/// A block on its way through the run, with its observers.
+struct Walk<'a, R> {
+    here: Here<'a, R>,
+    /// Trajectories of the block still running.
+    alive: usize,
+    obs: BlockObservers<R>,
+    /// Registers of the formula interpreter.
+    regs: LaneArrays<R>,
+    /// Steps the progress counts for the block.
+    reported: u64,
+    progress: Option<&'a AtomicU64>,
+}
+
+/// What the observers see of a block besides its lanes and their own state.
+struct Here<'a, R> {
+    p: &'a Program<'a, R>,
+    sink: &'a Sink<R>,
+    base: usize,
+    count: usize,
+    status: [u64; LANES],
+    /// Which lanes run, as `status` says.
+    run: [bool; LANES],
+    /// The state at the start of the step the observers look at.
+    prev: LaneArrays<R>,
+    slopes: Option<Slopes<R>>,
+}
+
+impl<R: Flows> Here<'_, R> {
+    /// The observers' view of the block after step `n1`, its state in `l`.
+    fn view<'s>(&'s self, l: &'s Lanes<R>, n1: u64) -> BlockStep<'s, R> {
+        BlockStep {
+            p: self.p,
+            l,
+            sink: self.sink,
+            base: self.base,
+            count: self.count,
+            prev: &self.prev,
+            slopes: self.slopes.as_ref(),
+            status: &self.status,
+            run: &self.run,
+            n1,
+        }
+    }
+}
+
+impl<'a, R: Flows> Walk<'a, R> {
+    /// Advances the progress to step `n` of the block.
+    fn report(&mut self, n: u64) {
+        if let Some(pr) = self.progress {
+            pr.fetch_add(
+                self.here.count as u64 * (n - self.reported),
+                Ordering::Relaxed,
+            );
+            self.reported = n;
+        }
+    }
+
+    /// Whether the block pauses before step `n` (`n0`: where it entered).
+    fn pauses(&mut self, n: u64, n0: u64, pause: &Pause) -> bool {
+        let due = n > n0 && n.is_multiple_of(LANES as u64) && pause.due(n.is_multiple_of(1024));
+        if due {
+            self.report(n);
+        }
+        due
+    }
+
+    /// Copies the state of `l` as the start of the next step.
+    #[inline(always)]
+    fn keep_start(&mut self, l: &Lanes<R>) {
+        let h = &mut self.here;
+        for (k, &v) in h.p.var.iter().enumerate() {
+            h.prev[k] = *l.at(v);
+        }
+    }
+
+    /// Marks the lanes that left the finite numbers in step `n` (its
+    /// state in `l`), and makes them twins of running lanes.
+    fn nonfinite(&mut self, l: &mut Lanes<R>, n: u64) {
+        let h = &mut self.here;
+        let bad = nonfinite_lanes(h.p, l);
+        self.alive -= mark_nonfinite(&bad, &mut h.status, h.count, n);
+        h.run = observe::running_flags(&h.status, h.count);
+        if h.p.stages.is_some() {
+            retire(&bad, l, &h.status, h.count);
+        }
+    }
+
+    /// Frames, sections, cycle statistics and averages after step `n1`, its
+    /// state in `l`.
+    #[inline(always)]
+    fn observe(&mut self, l: &Lanes<R>, n1: u64) {
+        let view = self.here.view(l, n1);
+        self.obs.observe(&view);
+        self.obs.cycle(&view);
+        self.obs.average(&view);
+    }
+
+    /// Stops the lanes where the stop condition holds after step `n1`.
+    #[inline(always)]
+    fn stop(&mut self, l: &mut Lanes<R>, n1: u64) {
+        let h = &mut self.here;
+        let Some(stop) = &h.p.stop else { return };
+        let stopped = stop_lanes(
+            h.p,
+            stop,
+            l,
+            self.obs.slots(),
+            &mut self.regs,
+            &mut h.status,
+            n1,
+            h.sink,
+            h.base,
+            h.count,
+        );
+        if stopped > 0 {
+            self.alive -= stopped;
+            h.run = observe::running_flags(&h.status, h.count);
+        }
+    }
+
+    /// The block from step `n0` to the end, observed after each call of
+    /// the step (one step where an observer looks at every step); `Err(n)`
+    /// if it pauses before step `n`.
+    fn steps(&mut self, l: &mut Box<Lanes<R>>, n0: u64, pause: &Pause) -> Result<(), u64> {
+        let p = self.here.p;
+        let plan = p.plan;
+        let mut memory = p.formula_step.as_ref().map(|f| {
+            let mut m = f.memory();
+            f.begin(l, &mut m);
+            m
+        });
+        // The compiled tangent step's lanes, where it runs; whether it takes
+        // the steps (else the tape or the compiled tangent reads `prev`).
+        let mut tangent = p.indicators.as_ref().and_then(|i| i.scratch(l));
+        let tangent_steps = p.indicators.as_ref().is_some_and(|i| i.takes_step());
+        let reads_prev = p.indicators.is_some() && !tangent_steps;
+        // Whether the indicators take runs of steps: compiled throughout, and
+        // no other observer looks at every step.
+        let indicator_runs = p.indicators.as_ref().is_some_and(|i| i.takes_runs())
+            && !plan.others_observe_every_step();
+        let mut n = n0;
+        while n < plan.steps {
+            if self.pauses(n, n0, pause) {
+                return Err(n);
+            }
+            if p.needs_field || plan.cycle_var.is_some() || reads_prev {
+                self.keep_start(l);
+            }
+            // Whether a run of steps took the samples of its last step.
+            let mut sampled = false;
+            let count = self.here.count;
+            let (done, any) = match (&p.indicators, tangent.as_mut()) {
+                // Runs of steps no other observer looks at, in one call.
+                (Some(ind), Some(scratch)) if indicator_runs => {
+                    let (running, padding) = observe::running_lanes(&self.here.status[..count]);
+                    let k = quiet_run(p, &self.obs, n, count, true);
+                    let (real, mask) = (self.obs.slots_mut(), running | padding);
+                    let out = ind.steps(l, scratch, real, &mut self.regs, n, k, mask, p.isa);
+                    sampled = out.sampled;
+                    (out.done, !out.sampled)
+                }
+                // The compiled tangent step moves state and vectors at once.
+                (Some(ind), Some(scratch)) if tangent_steps => {
+                    let (running, padding) = observe::running_lanes(&self.here.status[..count]);
+                    ind.step(l, scratch, self.obs.slots_mut(), n, running | padding);
+                    (1, any_nonfinite(l, &p.var))
+                }
+                _ => {
+                    let k = quiet_run(p, &self.obs, n, count, false);
+                    advance(p, l, &mut self.regs, memory.as_mut(), n, k)
+                }
+            };
+            if any {
+                self.nonfinite(l, n + done - 1);
+            }
+            n += done;
+            self.observe(l, n);
+            if !sampled {
+                let view = self.here.view(l, n);
+                self.obs.indicators(&view, &mut self.regs, tangent.as_mut());
+            }
+            self.obs.indicator_frame(&self.here.view(l, n));
+            self.stop(l, n);
+            if n.is_multiple_of(1024) {
+                self.report(n);
+            }
+            if self.alive == 0 {
+                break;
+            }
+        }
+        Ok(())
+    }
+
+    /// [`Self::steps`] for observers that look at every step of fused
+    /// stages without chaos indicators: each call of the kernel takes a run
+    /// of steps and records the state after each, and the observers then
+    /// look at the recorded steps one by one, on `view`: the block's lanes
+    /// with each step's state. A lane stops at the first step at whose end
+    /// its condition holds; the steps its lane took past it are never read.
+    fn recorded_runs(&mut self, l: &mut Box<Lanes<R>>, n0: u64, pause: &Pause) -> Result<(), u64> {
+        let p = self.here.p;
+        let plan = p.plan;
+        let f = p.stages.as_ref().expect("recorded runs of fused stages");
+        let mut view = Lanes::<R>::boxed();
+        view.as_mut_slice().copy_from_slice(l.as_slice());
+        let mut after = vec![[[R::default(); LANES]; MAX_VARS]; RECORDED];
+        let mut n = n0;
+        while n < plan.steps {
+            if self.pauses(n, n0, pause) {
+                return Err(n);
+            }
+            let k = (RECORDED as u64)
+                .min(LANES as u64 - n % LANES as u64)
+                .min(plan.steps - n);
+            self.keep_start(l);
+            let mut record = Record {
+                vars: &p.var,
+                after: &mut after,
+            };
+            // SAFETY: `isa()` chose wide kernels only where the CPU has the features.
+            let (done, any) =
+                unsafe { (f.kernel)(l, &f.weights, n, k, f.time_terms, Some(&mut record)) };
+            let after = &after[..done as usize];
+            if self.look_at_run(l, &mut view, after, n, any) {
+                return Ok(());
+            }
+            n += done;
+            if n.is_multiple_of(1024) {
+                self.report(n);
+            }
+        }
+        Ok(())
+    }
+
+    /// The observers after each step of a recorded run from step `n`
+    /// (`any`: its last step left some lane non-finite); whether every lane
+    /// of the block has stopped. Compiled for each instruction-set level,
+    /// as the kernels are, so the observers' lane loops are as wide. Only
+    /// loops without a product feeding a sum are inlined here: the wide
+    /// builds contract a·b + c into an FMA (`.cargo/config.toml`), which
+    /// would change the observers' bits (and differ from the GPU's); the
+    /// rest (crossings, samples, frames, stops, slopes) is `inline(never)`.
+    fn look_at_run(
+        &mut self,
+        l: &mut Lanes<R>,
+        view: &mut Lanes<R>,
+        after: &[Saved<R>],
+        n: u64,
+        any: bool,
+    ) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            // SAFETY: the program's level is one `isa()` found on this CPU.
+            match self.here.p.isa {
+                Isa::V4 => unsafe { self.look_v4(l, view, after, n, any) },
+                Isa::V3 => unsafe { self.look_v3(l, view, after, n, any) },
+                Isa::Baseline => self.look(l, view, after, n, any),
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        self.look(l, view, after, n, any)
+    }
+
+    /// [`Self::look`] for AVX-512.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
+    unsafe fn look_v4(
+        &mut self,
+        l: &mut Lanes<R>,
+        view: &mut Lanes<R>,
+        after: &[Saved<R>],
+        n: u64,
+        any: bool,
+    ) -> bool {
+        self.look(l, view, after, n, any)
+    }
+
+    /// [`Self::look`] for AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn look_v3(
+        &mut self,
+        l: &mut Lanes<R>,
+        view: &mut Lanes<R>,
+        after: &[Saved<R>],
+        n: u64,
+        any: bool,
+    ) -> bool {
+        self.look(l, view, after, n, any)
+    }
+
+    /// [`Self::look_at_run`] at the level it is inlined into.
+    #[inline(always)]
+    fn look(
+        &mut self,
+        l: &mut Lanes<R>,
+        view: &mut Lanes<R>,
+        after: &[Saved<R>],
+        n: u64,
+        any: bool,
+    ) -> bool {
+        let p = self.here.p;
+        for (j, state) in after.iter().enumerate() {
+            let n1 = n + j as u64 + 1;
+            if any && j + 1 == after.len() {
+                self.nonfinite(l, n1 - 1);
+            }
+            for (&v, x) in p.var.iter().zip(state) {
+                *view.at_mut(v) = *x;
+            }
+            self.observe(view, n1);
+            self.stop(view, n1);
+            if self.alive == 0 {
+                return true;
+            }
+            self.keep_start(view);
+        }
+        false
+    }
 }
 
 /// Loads the block's inputs (parameters, initial state, dt, t0, …); padding
@@ -611,7 +870,7 @@ fn advance<R: Flows>(
 ) -> (u64, bool) {
     if let Some(f) = &p.stages {
         // SAFETY: `isa()` chose wide kernels only where the CPU has the features.
-        return unsafe { (f.kernel)(l, &f.weights, n, k, f.time_terms) };
+        return unsafe { (f.kernel)(l, &f.weights, n, k, f.time_terms, None) };
     }
     if let (Some(f), Some(m)) = (&p.formula_step, memory) {
         // A variable no op assigns keeps its initial value: checked once.
@@ -681,8 +940,10 @@ fn nonfinite_lanes<R: Flows>(p: &Program<R>, l: &Lanes<R>) -> [bool; LANES] {
 
 /// Stops the running lanes where the stop condition holds after step `n`
 /// and writes their final values; returns how many stopped. Their lanes
-/// go on computing what is never read.
+/// go on computing what is never read. Never inlined: time's arithmetic
+/// stays that of the baseline build (see [`Walk::look_at_run`]).
 #[allow(clippy::too_many_arguments)]
+#[inline(never)]
 fn stop_lanes<R: Flows>(
     p: &Program<R>,
     stop: &Condition<R>,

@@ -7,9 +7,11 @@
 // Lane loops index several arrays by lane; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
+use std::cell::{Ref, RefCell};
 use std::io::{self, Read, Write};
 
-use crate::models::lanes::{LaneArrays, Lanes, LANES};
+use crate::models::lanes::{Lane, LaneArrays, Lanes, LANES};
+use crate::models::pieces::MAX_VARS;
 use crate::models::Flows;
 use crate::plan::observations::{Rows, Sink};
 use crate::plan::section::{Recorded, SectionKind, SectionStep};
@@ -21,9 +23,9 @@ use super::program::Program;
 use super::tangent::TangentScratch;
 
 /// A block right after step `n1` (0: the initial state), as the observers
-/// see it: the program, the lanes, where its rows go, the state at the
-/// step's start (and the vector field there) for interpolation inside the
-/// step, and which lanes stopped.
+/// see it: the program, the lanes (their state the state after the step),
+/// where its rows go, the state at the step's start and the vector field at
+/// both ends for interpolation inside the step, and which lanes stopped.
 pub struct BlockStep<'a, R> {
     pub p: &'a Program<'a, R>,
     pub l: &'a Lanes<R>,
@@ -32,16 +34,148 @@ pub struct BlockStep<'a, R> {
     pub base: usize,
     pub count: usize,
     pub prev: &'a [[R; LANES]],
-    pub dprev: &'a [[R; LANES]],
+    /// Where the plan needs the field ([`Program::needs_field`]).
+    pub slopes: Option<&'a Slopes<R>>,
     /// 0: running; k > 0: a variable became non-finite at step k.
     pub status: &'a [u64; LANES],
+    /// Which lanes run: status 0, and not padding ([`running_flags`]).
+    pub run: &'a [bool; LANES],
     pub n1: u64,
 }
 
-impl<R> BlockStep<'_, R> {
-    /// The lanes still running.
-    fn running(&self) -> impl Iterator<Item = usize> + '_ {
-        (0..self.count).filter(|i| self.status[*i] == 0)
+impl<R: Flows> BlockStep<'_, R> {
+    /// The lanes still running, one flag per lane (padding lanes: false).
+    #[inline(always)]
+    fn running_flags(&self) -> [bool; LANES] {
+        *self.run
+    }
+
+    /// The vector field at the step's start and end on lane `i` (see
+    /// [`Slopes`]).
+    fn slopes(&self, i: usize) -> LaneSlopes<R> {
+        let slopes = self.slopes.expect("slopes where the plan needs the field");
+        slopes.of_lane(self, i)
+    }
+}
+
+/// The vector field at both ends of the step the observers look at,
+/// evaluated only where one of them interpolates inside it (a crossing, a
+/// sample between two steps): on most steps no lane does, and the field of a
+/// whole block costs as much as a step. Evaluated on one trajectory where
+/// the model's field has scalar ops (the same shared functions as its lane
+/// loops), else on lanes of its own, once per step; either from the
+/// block's inputs and the observed state: the values the step's ends have.
+pub struct Slopes<R> {
+    at: RefCell<SlopesAt<R>>,
+}
+
+/// The field of [`Slopes`] at the step that ends at `n1`.
+pub struct SlopesAt<R> {
+    lanes: Box<Lanes<R>>,
+    regs: LaneArrays<R>,
+    n1: Option<u64>,
+    /// Each state variable's derivative at the step's start and end.
+    pub d0: LaneArrays<R>,
+    pub d1: LaneArrays<R>,
+}
+
+impl<R: Flows> Slopes<R> {
+    /// Slopes for a block whose inputs are loaded in `l`.
+    pub fn new(p: &Program<R>, l: &Lanes<R>) -> Self {
+        let mut lanes = Lanes::boxed();
+        lanes.as_mut_slice().copy_from_slice(l.as_slice());
+        let nv = p.var.len();
+        Slopes {
+            at: RefCell::new(SlopesAt {
+                lanes,
+                regs: LaneArrays::filled(p.registers, R::default()),
+                n1: None,
+                d0: LaneArrays::filled(nv, R::default()),
+                d1: LaneArrays::filled(nv, R::default()),
+            }),
+        }
+    }
+
+    /// The field at both ends of the step `s` looks at, on lane `i`.
+    /// Never inlined: its arithmetic stays that of the baseline build (see
+    /// `cpu::Walk::look_at_run`).
+    #[inline(never)]
+    fn of_lane(&self, s: &BlockStep<R>, i: usize) -> LaneSlopes<R> {
+        let p = s.p;
+        let Some(ops) = &p.field_lane else {
+            let at = self.at(s);
+            let pick = |d: &LaneArrays<R>| {
+                std::array::from_fn(|k| d.get(k).map_or(R::default(), |a| a[i]))
+            };
+            return LaneSlopes {
+                d0: pick(&at.d0),
+                d1: pick(&at.d1),
+            };
+        };
+        let mut x = Lane::gather(&self.at.borrow().lanes, i);
+        let mut field = |state: &dyn Fn(usize) -> R, n: u64| {
+            for (k, &v) in p.var.iter().enumerate() {
+                *x.at_mut(v) = state(k);
+            }
+            x.t = x.t0 + R::from_f64(n as f64) * x.dt;
+            for f in ops {
+                f(&mut x);
+            }
+            std::array::from_fn(|k| p.dvar.get(k).map_or(R::default(), |&v| x.at(v)))
+        };
+        LaneSlopes {
+            d0: field(&|k| s.prev[k][i], s.n1.saturating_sub(1)),
+            d1: field(&|k| s.l.at(p.var[k])[i], s.n1),
+        }
+    }
+
+    /// The field at both ends of the step `s` looks at, on every lane,
+    /// evaluated once per step.
+    #[inline(never)]
+    fn at(&self, s: &BlockStep<R>) -> Ref<'_, SlopesAt<R>> {
+        if self.at.borrow().n1 != Some(s.n1) {
+            let mut at = self.at.borrow_mut();
+            let SlopesAt {
+                lanes,
+                regs,
+                n1,
+                d0,
+                d1,
+            } = &mut *at;
+            let p = s.p;
+            let start = s.n1.saturating_sub(1);
+            field_at(p, lanes, regs, s.prev, start, d0);
+            let end = p.var.iter().map(|&v| s.l.at(v));
+            field_at(p, lanes, regs, end, s.n1, d1);
+            *n1 = Some(s.n1);
+        }
+        self.at.borrow()
+    }
+}
+
+/// Each state variable's derivative at the start and the end of a step,
+/// on one lane.
+pub struct LaneSlopes<R> {
+    pub d0: [R; MAX_VARS],
+    pub d1: [R; MAX_VARS],
+}
+
+/// The vector field at state `x` (each variable's lanes, in the plan's
+/// order) at the end of step `n` (time `t0 + n dt`) into `d`.
+fn field_at<'x, R: Flows + 'x>(
+    p: &Program<R>,
+    l: &mut Lanes<R>,
+    regs: &mut [[R; LANES]],
+    x: impl IntoIterator<Item = &'x [R; LANES]>,
+    n: u64,
+    d: &mut [[R; LANES]],
+) {
+    for (&v, x) in p.var.iter().zip(x) {
+        *l.at_mut(v) = *x;
+    }
+    super::eval_field(p, l, regs, n);
+    for (d, &v) in d.iter_mut().zip(&p.dvar) {
+        *d = *l.at(v);
     }
 }
 
@@ -53,6 +187,10 @@ pub struct BlockObservers<R> {
     /// The real slots of [`slots::real`], per lane.
     real: LaneArrays<R>,
     count: [[i32; LANES]; slots::COUNT.len()],
+    /// Interpolated stroboscopic section: each lane's next sample, as
+    /// `strobe_position` of sample `strobe_for` (−1: not yet computed).
+    strobe_at: [R; LANES],
+    strobe_for: [i32; LANES],
     /// Where the cycle statistics and time averages start, as
     /// `Plan::cycle_start` and `Plan::average_start` say.
     cycle_start: u64,
@@ -82,6 +220,8 @@ impl<R: Flows> BlockObservers<R> {
                 .map(|(_, init)| [init.value(); LANES])
                 .collect(),
             count: [[0; LANES]; slots::COUNT.len()],
+            strobe_at: [R::default(); LANES],
+            strobe_for: [-1; LANES],
             cycle_start: plan.cycle_start(),
             average_start: plan.average_start(),
         }
@@ -129,6 +269,7 @@ impl<R: Flows> BlockObservers<R> {
 
     /// Trajectory frames and Poincaré points after step `n1` (0: the initial
     /// state), for the first `count` lanes of the block at row `base`.
+    #[inline(always)]
     pub fn observe(&mut self, s: &BlockStep<R>) {
         record_frame(s);
         self.section(s);
@@ -136,17 +277,25 @@ impl<R: Flows> BlockObservers<R> {
 
     /// The section's points in the step that ends at `n1`, as the shared
     /// `section_next` finds them.
+    #[inline(always)]
     fn section(&mut self, s: &BlockStep<R>) {
         let Some(section) = &s.p.section else {
             return;
         };
+        let candidates = self.candidates(s, section);
+        if candidates != 0 {
+            self.section_points(s, section, candidates);
+        }
+    }
+
+    /// The points of [`Self::section`] on the lanes `candidates`. Never
+    /// inlined: its arithmetic stays that of the baseline build (see
+    /// `cpu::Walk::look_at_run`).
+    #[inline(never)]
+    fn section_points(&mut self, s: &BlockStep<R>, section: &SectionStep, candidates: u64) {
         let (p, l, n1) = (s.p, s.l, s.n1 as i32);
         let (kind, max_points) = (section.kind.code(), section.kept_limit());
         let (exact_every, exact_first) = self.strobe_exact.unwrap_or(([0; LANES], [0; LANES]));
-        let candidates = self.candidates(s, section);
-        if candidates == 0 {
-            return;
-        }
         let zero = R::default();
         let [strobe_k, npoints] = &mut self.count;
         for i in (0..s.count).filter(|i| candidates >> i & 1 == 1) {
@@ -158,9 +307,10 @@ impl<R: Flows> BlockObservers<R> {
             } = section.kind
             {
                 let level = R::from_f64(level);
+                let f = s.slopes(i);
                 y0 = s.prev[var][i] - level;
                 y1 = l.at(p.var[var])[i] - level;
-                (d0, d1, direction) = (s.dprev[var][i], l.at(p.dvar[var])[i], d.code());
+                (d0, d1, direction) = (f.d0[var], f.d1[var], d.code());
             }
             let (mut done, mut th) = (false, zero);
             while R::section_next(
@@ -193,16 +343,18 @@ impl<R: Flows> BlockObservers<R> {
     /// sections and crossings are due at few steps of a lane: the per-lane
     /// call is skipped where the predicate `section_next` applies first
     /// says no, which leaves the points found unchanged.
-    fn candidates(&self, s: &BlockStep<R>, section: &SectionStep) -> u64 {
+    #[inline(always)]
+    fn candidates(&mut self, s: &BlockStep<R>, section: &SectionStep) -> u64 {
         let n1 = s.n1 as i32;
-        let bits = |may: &dyn Fn(usize) -> bool| {
-            s.running().filter(|&i| may(i)).fold(0, |b, i| b | 1 << i)
-        };
+        let run = s.running_flags();
+        let mut may = [false; LANES];
         match (section.kind, &self.strobe_exact) {
             (SectionKind::Exact, Some((every, first))) => {
-                bits(&|i| R::strobe_exact_due(n1, every[i], first[i]))
+                for i in 0..LANES {
+                    may[i] = R::strobe_exact_due(n1, every[i], first[i]);
+                }
             }
-            (SectionKind::Crossing { .. }, _) if n1 == 0 => 0,
+            (SectionKind::Crossing { .. }, _) if n1 == 0 => return 0,
             (
                 SectionKind::Crossing {
                     var,
@@ -212,10 +364,27 @@ impl<R: Flows> BlockObservers<R> {
                 _,
             ) => {
                 let (level, now, d) = (R::from_f64(level), s.l.at(s.p.var[var]), direction.code());
-                bits(&|i| R::crossing_due(s.prev[var][i] - level, now[i] - level, d))
+                for i in 0..LANES {
+                    may[i] = R::crossing_due(s.prev[var][i] - level, now[i] - level, d);
+                }
             }
-            _ => bits(&|_| true),
+            (SectionKind::Exact, None) => unreachable!("an exact section has its steps"),
+            (SectionKind::Interpolated, _) => {
+                let k = &self.count[slots::STROBE_K];
+                let mut stale = false;
+                for i in 0..LANES {
+                    stale |= self.strobe_for[i] != k[i];
+                }
+                if stale {
+                    strobe_positions(s, k, &mut self.strobe_at, &mut self.strobe_for);
+                }
+                let n1 = R::from_i32(n1);
+                for i in 0..LANES {
+                    may[i] = R::strobe_reached(self.strobe_at[i], n1);
+                }
+            }
         }
+        flags_to_bits(&may, &run)
     }
 
     /// The real slots, per lane (what a stop condition may read).
@@ -245,7 +414,10 @@ impl<R: Flows> BlockObservers<R> {
         &mut self.real
     }
 
-    /// Cycle statistics over step `n → n+1`, inside the measuring window.
+    /// Cycle statistics over step `n → n+1`, inside the measuring window:
+    /// `cycle_step`'s extremes and crossing test on every lane at once, its
+    /// crossing on the lanes that cross.
+    #[inline(always)]
     pub fn cycle(&mut self, s: &BlockStep<R>) {
         let (p, l) = (s.p, s.l);
         let Some(k) = p.plan.cycle_var else { return };
@@ -253,31 +425,27 @@ impl<R: Flows> BlockObservers<R> {
             return;
         }
         let level = R::from_f64(p.plan.observers.cycle.as_ref().map_or(0.0, |cy| cy.level));
-        let nf = R::from_f64((s.n1 - 1) as f64);
         let [max, min, count, first, mean, com] = &mut self.real[..slots::MEAN0] else {
             unreachable!("the fixed slots")
         };
-        for i in s.running() {
-            let x = l.at(p.var[k])[i];
-            R::cycle_step(
-                x,
-                s.prev[k][i] - level,
-                x - level,
-                s.dprev[k][i],
-                l.at(p.dvar[k])[i],
-                l.dt[i],
-                l.t0[i] + nf * l.dt[i],
-                &mut max[i],
-                &mut min[i],
-                &mut count[i],
-                &mut first[i],
-                &mut mean[i],
-                &mut com[i],
-            );
+        let (x, x0, run) = (l.at(p.var[k]), &s.prev[k], s.running_flags());
+        let mut up = [false; LANES];
+        for i in 0..LANES {
+            let (mut hi, mut lo) = (max[i], min[i]);
+            R::cycle_extremes(x[i], &mut hi, &mut lo);
+            max[i] = R::select(max[i], hi, run[i]);
+            min[i] = R::select(min[i], lo, run[i]);
+            up[i] = R::cycle_up(x0[i] - level, x[i] - level);
         }
+        let up = flags_to_bits(&up, &run);
+        if up == 0 {
+            return;
+        }
+        let slots = [count, first, mean, com];
+        cycle_upcrossings(s, k, level, up, slots);
     }
-
     /// Time averages over step `n → n+1`, after the skipped part of the run.
+    #[inline(always)]
     pub fn average(&mut self, s: &BlockStep<R>) {
         let (p, l) = (s.p, s.l);
         let start = self.average_start;
@@ -285,13 +453,16 @@ impl<R: Flows> BlockObservers<R> {
             return;
         }
         let k = R::from_f64((s.n1 - start) as f64);
+        let run = s.running_flags();
         for (j, v) in p.plan.average_vars.iter().enumerate() {
             let ObsVar::State(v) = *v else {
                 unreachable!("time is not averaged")
             };
-            let mean = &mut self.real[slots::MEAN0 + j];
-            for i in s.running() {
-                R::mean_step(l.at(p.var[v])[i], k, &mut mean[i]);
+            let (mean, x) = (&mut self.real[slots::MEAN0 + j], l.at(p.var[v]));
+            for i in 0..LANES {
+                let mut m = mean[i];
+                R::mean_step(x[i], k, &mut m);
+                mean[i] = R::select(mean[i], m, run[i]);
             }
         }
     }
@@ -395,8 +566,65 @@ impl<R: Flows> BlockObservers<R> {
     }
 }
 
+/// The position of each lane's next interpolated stroboscopic sample
+/// (number `k`) where it is not that of sample `at_k`: what `strobe_due`
+/// compares with the step, which changes only when a sample is taken.
+/// Never inlined: `strobe_position`, contracted into an FMA in wider code,
+/// would differ from `strobe_due`'s (see `cpu::Walk::look_at_run`).
+#[inline(never)]
+fn strobe_positions<R: Flows>(
+    s: &BlockStep<R>,
+    k: &[i32; LANES],
+    at: &mut [R; LANES],
+    at_k: &mut [i32; LANES],
+) {
+    let l = s.l;
+    for i in 0..LANES {
+        if at_k[i] == k[i] {
+            continue;
+        }
+        let (period, phase) = (l.strobe_period[i], l.strobe_phase[i]);
+        at[i] = R::strobe_position(R::from_i32(k[i]), period, phase, l.dt[i]);
+        at_k[i] = k[i];
+    }
+}
+
+/// `cycle_step`'s crossings on the lanes `up`, into their cycle slots
+/// `[count, first, mean, comoment]`. Never inlined: its arithmetic stays
+/// that of the baseline build (see `cpu::Walk::look_at_run`; inlined into
+/// AVX-512 code it gave other last bits).
+#[inline(never)]
+fn cycle_upcrossings<R: Flows>(
+    s: &BlockStep<R>,
+    k: usize,
+    level: R,
+    up: u64,
+    [count, first, mean, com]: [&mut [R; LANES]; 4],
+) {
+    let (p, l) = (s.p, s.l);
+    let (x, x0) = (l.at(p.var[k]), &s.prev[k]);
+    let nf = R::from_f64((s.n1 - 1) as f64);
+    for i in (0..LANES).filter(|i| up >> i & 1 == 1) {
+        let f = s.slopes(i);
+        R::cycle_upcrossing(
+            x0[i] - level,
+            x[i] - level,
+            f.d0[k],
+            f.d1[k],
+            l.dt[i],
+            l.t0[i] + nf * l.dt[i],
+            &mut count[i],
+            &mut first[i],
+            &mut mean[i],
+            &mut com[i],
+        );
+    }
+}
+
 /// The final values of lane `i` (row `base + i`), its state after step
-/// `last` (the run's last, or where it stopped).
+/// `last` (the run's last, or where it stopped). Never inlined: time's
+/// arithmetic stays that of the baseline build.
+#[inline(never)]
 pub fn write_finals<R: Flows>(
     p: &Program<R>,
     l: &Lanes<R>,
@@ -416,6 +644,7 @@ pub fn write_finals<R: Flows>(
 }
 
 /// `(frame, frames per trajectory)` if step `n1` is a trajectory frame.
+#[inline(always)]
 fn frame_at<R: Flows>(s: &BlockStep<R>) -> Option<(usize, usize)> {
     let plan = s.p.plan;
     let tr = plan.observers.trajectory.as_ref()?;
@@ -464,6 +693,8 @@ fn put_indicators<R: Copy>(
 }
 
 /// A trajectory frame, if step `n1` is one: the state at the step's end.
+/// Never inlined: time's arithmetic stays that of the baseline build.
+#[inline(never)]
 fn record_frame<R: Flows>(s: &BlockStep<R>) {
     let plan = s.p.plan;
     let Some((frame, frames)) = frame_at(s) else {
@@ -500,13 +731,44 @@ fn value_at<R: Flows>(s: &BlockStep<R>, v: ObsVar, i: usize, th: R) -> R {
         ObsVar::Time => R::observed_time(l.t0[i], R::from_f64(s.n1 as f64), l.dt[i], th),
         // At the step's end the state itself (no slopes needed).
         ObsVar::State(k) if th == R::from_f64(1.0) => l.at(p.var[k])[i],
-        ObsVar::State(k) => R::observed_state(
-            s.prev[k][i],
-            l.at(p.var[k])[i],
-            s.dprev[k][i],
-            l.at(p.dvar[k])[i],
-            l.dt[i],
-            th,
-        ),
+        ObsVar::State(k) => {
+            let f = s.slopes(i);
+            R::observed_state(
+                s.prev[k][i],
+                l.at(p.var[k])[i],
+                f.d0[k],
+                f.d1[k],
+                l.dt[i],
+                th,
+            )
+        }
     }
+}
+
+/// The lanes of a block whose trajectories run (`status` 0 among the
+/// first `count`), one flag per lane.
+pub fn running_flags(status: &[u64; LANES], count: usize) -> [bool; LANES] {
+    let mut run = [false; LANES];
+    for i in 0..count {
+        run[i] = status[i] == 0;
+    }
+    run
+}
+
+/// The lanes where `may` holds and `run` too, as bits.
+#[inline(always)]
+fn flags_to_bits(may: &[bool; LANES], run: &[bool; LANES]) -> u64 {
+    // Mostly none: one vectorised pass says so.
+    let mut any = false;
+    for i in 0..LANES {
+        any |= may[i] & run[i];
+    }
+    if !any {
+        return 0;
+    }
+    let mut bits = 0u64;
+    for i in 0..LANES {
+        bits |= u64::from(may[i] & run[i]) << i;
+    }
+    bits
 }

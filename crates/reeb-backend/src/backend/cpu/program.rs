@@ -1,8 +1,8 @@
 //! A plan resolved for the CPU: ops as lane loops (or fused S2 stages),
 //! names as lane indices.
 
-use crate::models::lanes::{index_of, LaneFn, Lanes, LANES};
-use crate::models::{lane_fn, Flows};
+use crate::models::lanes::{index_of, LaneFn, Lanes, ScalarFn, LANES};
+use crate::models::{lane_fn, scalar_fn, Flows};
 use crate::num::precision::Real;
 use crate::plan::section::SectionStep;
 use crate::plan::{Op, Plan, Source};
@@ -26,6 +26,9 @@ pub struct Program<'p, R> {
     /// `ops`).
     pub formula_step: Option<FormulaStep<R>>,
     pub field: Vec<CpuOp<R>>,
+    /// The field's ops on one trajectory, where the model has them (not a
+    /// formula model's): the observers' slopes at a lane that crosses.
+    pub field_lane: Option<Vec<ScalarFn<R>>>,
     /// The stop condition.
     pub stop: Option<Condition<R>>,
     /// The chaos indicators' tangent step and samples.
@@ -38,6 +41,9 @@ pub struct Program<'p, R> {
     pub needs_field: bool,
     /// Does an observer look at every step (`Plan::observes_every_step`)?
     pub observes_every_step: bool,
+    /// Whether recorded runs are allowed ([`Program::records`]; off only
+    /// for the reference they are tested against).
+    pub record: bool,
     /// The plan's Poincaré section (`Plan::section`).
     pub section: Option<SectionStep>,
     /// Lane index of each integrated variable and of its derivative.
@@ -138,6 +144,10 @@ impl<'p, R: Flows> Program<'p, R> {
                 .formula()
                 .and_then(|m| FormulaStep::new(plan, m, isa)),
             field,
+            field_lane: match plan.model.formula() {
+                Some(_) => None,
+                None => plan.field_ops.iter().map(|f| scalar_fn::<R>(f)).collect(),
+            },
             stop,
             indicators,
             isa,
@@ -145,11 +155,24 @@ impl<'p, R: Flows> Program<'p, R> {
             registers,
             needs_field: plan.needs_field(),
             observes_every_step: plan.observes_every_step(),
+            record: true,
             section: plan.section(),
             var: plan.vars.iter().map(|v| idx(v)).collect(),
             dvar: plan.vars.iter().map(|v| idx(&format!("d{v}"))).collect(),
             bindings: plan.bindings.iter().map(|(n, s)| (idx(n), s)).collect(),
         }
+    }
+}
+
+impl<R> Program<'_, R> {
+    /// Whether the block's observers read recorded runs of fused steps
+    /// (`cpu::Walk::recorded_runs`): some observer looks at every step, and
+    /// no chaos indicator, whose tangent steps with the state.
+    pub fn records(&self) -> bool {
+        self.record
+            && self.stages.is_some()
+            && self.indicators.is_none()
+            && self.observes_every_step
     }
 }
 

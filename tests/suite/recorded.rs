@@ -1,0 +1,117 @@
+//! Recorded runs: where observers look at every step of fused stages, the
+//! CPU kernel takes runs of steps and the observers read the states it
+//! recorded. Every column must be bitwise that of one step per call, with
+//! every such observer at once, lanes that stop inside a run, lanes that
+//! leave the finite numbers, in both precisions and both kernel paths
+//! (a single stage's, a composition's).
+
+use std::path::Path;
+
+use reeb::backend::cpu;
+use reeb::models::Flows;
+use reeb::plan::observations::{Col, Observations};
+use reeb::plan::Plan;
+use reeb::scene::Scene;
+
+/// The single plan of a scene text.
+fn plan(text: &str) -> Plan {
+    let s = Scene::parse(Path::new("test.toml"), text).unwrap_or_else(|e| panic!("{e}"));
+    let mut subs = s.sub_runs().unwrap();
+    assert_eq!(subs.len(), 1);
+    subs.remove(0).plan
+}
+
+/// Van der Pol over ε (some of whose steps overflow: ετ up to 120) and q0,
+/// with `scheme`, cycle statistics from the first step, an upward crossing
+/// section, averages, frames every 5 steps and a stop that holds for some
+/// trajectories inside a run (t > 2 + 3ε, not a multiple of 16 steps).
+fn van_der_pol(scheme: &str, section: &str) -> String {
+    format!(
+        r#"
+model = "van_der_pol"
+[params]
+epsilon = {{ linspace = [0.3, 600.0, 37] }}
+[initial]
+q = {{ linspace = [0.5, 2.5, 5] }}
+[integrator]
+scheme = "{scheme}"
+dt = 0.2
+steps = 700
+[output]
+final = ["q", "s", "t"]
+trajectory = {{ every = 5, vars = ["q", "s"] }}
+poincare = {section}
+cycle = {{ var = "q", skip = 0.0 }}
+average = {{ vars = ["q", "s"], skip = 0.1 }}
+stop = "t > 2 + 3*epsilon"
+"#
+    )
+}
+
+/// Every column of `a` and `b`, bitwise.
+fn same<R: Flows>(what: &str, a: &Observations<R>, b: &Observations<R>) {
+    let (ca, cb) = (a.columns(), b.columns());
+    assert_eq!(ca.len(), cb.len(), "{what}");
+    for (k, ((_, x), (_, y))) in ca.iter().zip(&cb).enumerate() {
+        let same = match (x, y) {
+            (Col::Real(x), Col::Real(y)) => {
+                x.len() == y.len()
+                    && x.iter()
+                        .zip(*y)
+                        .all(|(u, v)| u.to_f64().to_bits() == v.to_f64().to_bits())
+            }
+            (Col::Count(x), Col::Count(y)) => x == y,
+            _ => false,
+        };
+        assert!(same, "{what}: column {k} differs");
+    }
+}
+
+fn check<R: Flows>(what: &str, text: &str) -> Observations<R> {
+    let p = plan(text);
+    let recorded = cpu::run::<R>(&p, None);
+    let stepwise = cpu::run_step_by_step::<R>(&p, cpu::isa());
+    same(what, &recorded, &stepwise);
+    recorded
+}
+
+#[test]
+fn recorded_runs_are_bitwise_one_step_per_call() {
+    let crossing =
+        r#"{ crossing = "q", value = 1.0, direction = "both", vars = ["s"], max_points = 30 }"#;
+    let strobe = r#"{ period = 2.9, vars = ["q", "s"], max_points = 300 }"#;
+    for scheme in ["s2", "yoshida6a"] {
+        for (name, section) in [("crossing", crossing), ("strobe", strobe)] {
+            let text = van_der_pol(scheme, section);
+            let o = check::<f32>(&format!("{scheme} {name} f32"), &text);
+            check::<f64>(&format!("{scheme} {name} f64"), &text);
+            // The cases are there: stopped and non-finite trajectories.
+            let (stopped, ok) = (o.count_stopped(), o.count_ok());
+            assert!(
+                stopped > 0 && ok + stopped < o.n,
+                "{scheme}: {stopped} stopped, {ok} ok"
+            );
+        }
+    }
+    // Spin–orbit (time terms per trajectory): an interpolated section
+    // with a phase, averages, no stop.
+    let spin_orbit = r#"
+model = "spin_orbit"
+[params]
+eccentricity = 0.1
+epsilon = 0.05
+[initial]
+q = { linspace = [0.0, 6.0, 9] }
+p = { linspace = [0.5, 1.5, 11] }
+[integrator]
+scheme = "s2"
+dt = 0.1
+steps = 3000
+[output]
+final = ["q", "p"]
+poincare = { period = 6.283185307179586, phase = 1.0, vars = ["q", "p"], max_points = 60 }
+average = ["p"]
+"#;
+    check::<f32>("spin–orbit f32", spin_orbit);
+    check::<f64>("spin–orbit f64", spin_orbit);
+}
