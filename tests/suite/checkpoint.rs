@@ -5,7 +5,6 @@
 //! and f64, fused kernels, the op interpreter, formula models) and on the
 //! GPU (across chunks and windows), with every observer.
 
-use std::path::Path;
 use std::time::{Duration, Instant};
 
 use reeb::backend::checkpoint::{Checkpoints, Contents};
@@ -16,17 +15,9 @@ use reeb::models::Flows;
 use reeb::plan::observations::{Col, Observations};
 use reeb::plan::snapshot::Header;
 use reeb::plan::Plan;
-use reeb::scene::Scene;
 
 use crate::common;
-
-/// The single plan of a scene text.
-fn plan(text: &str) -> Plan {
-    let s = Scene::parse(Path::new("test.toml"), text).unwrap_or_else(|e| panic!("{e}"));
-    let mut subs = s.sub_runs().unwrap();
-    assert_eq!(subs.len(), 1);
-    subs.remove(0).plan
-}
+use common::plan;
 
 /// Van der Pol with every observer, trajectories that diverge and
 /// trajectories the stop condition stops (t > 60 + 10ε: ε < 1.2 of them).

@@ -5,25 +5,15 @@
 //! leave the finite numbers, in both precisions and both kernel paths
 //! (a single stage's, a composition's).
 
-use std::path::Path;
-
 use reeb::backend::cpu;
 use reeb::models::Flows;
 use reeb::plan::observations::{Col, Observations};
-use reeb::plan::Plan;
-use reeb::scene::Scene;
 
-/// The single plan of a scene text.
-fn plan(text: &str) -> Plan {
-    let s = Scene::parse(Path::new("test.toml"), text).unwrap_or_else(|e| panic!("{e}"));
-    let mut subs = s.sub_runs().unwrap();
-    assert_eq!(subs.len(), 1);
-    subs.remove(0).plan
-}
+use crate::common::plan;
 
 /// Van der Pol over ε (some of whose steps overflow: ετ up to 120) and q0,
-/// with `scheme`, cycle statistics from the first step, an upward crossing
-/// section, averages, frames every 5 steps and a stop that holds for some
+/// with `scheme`, cycle statistics from the first step, a Poincaré
+/// `section`, averages, frames every 5 steps and a stop that holds for some
 /// trajectories inside a run (t > 2 + 3ε, not a multiple of 16 steps).
 fn van_der_pol(scheme: &str, section: &str) -> String {
     format!(

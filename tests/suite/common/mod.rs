@@ -29,6 +29,15 @@ pub fn gpu() -> Option<&'static GpuContext> {
     .as_ref()
 }
 
+/// The single plan of a scene text.
+pub fn plan(text: &str) -> reeb::plan::Plan {
+    let path = std::path::Path::new("test.toml");
+    let s = reeb::scene::Scene::parse(path, text).unwrap_or_else(|e| panic!("{e}"));
+    let mut subs = s.sub_runs().unwrap();
+    assert_eq!(subs.len(), 1);
+    subs.remove(0).plan
+}
+
 /// The data of a `.npy` file reeb wrote (version 1.0, little-endian), and
 /// its header.
 pub fn npy(path: &std::path::Path) -> (String, Vec<u8>) {
