@@ -438,7 +438,7 @@ fn run_block<R: Flows>(
             status,
             run: observe::running_flags(&status, count),
             prev: LaneArrays::filled(p.var.len(), R::default()),
-            slopes: p.needs_field.then(|| Slopes::new(p, l)),
+            slopes: p.needs_field.then(|| Slopes::new(p)),
         },
         alive: count - status[..count].iter().filter(|s| **s != 0).count(),
         obs,

@@ -44,12 +44,6 @@ pub struct BlockStep<'a, R> {
 }
 
 impl<R: Flows> BlockStep<'_, R> {
-    /// The lanes still running, one flag per lane (padding lanes: false).
-    #[inline(always)]
-    fn running_flags(&self) -> [bool; LANES] {
-        *self.run
-    }
-
     /// The vector field at the step's start and end on lane `i` (see
     /// [`Slopes`]).
     fn slopes(&self, i: usize) -> LaneSlopes<R> {
@@ -71,7 +65,9 @@ pub struct Slopes<R> {
 
 /// The field of [`Slopes`] at the step that ends at `n1`.
 pub struct SlopesAt<R> {
-    lanes: Box<Lanes<R>>,
+    /// The block's inputs, where the field is evaluated on the whole block
+    /// (copied from the observed lanes when first needed).
+    lanes: Option<Box<Lanes<R>>>,
     regs: LaneArrays<R>,
     n1: Option<u64>,
     /// Each state variable's derivative at the step's start and end.
@@ -80,14 +76,12 @@ pub struct SlopesAt<R> {
 }
 
 impl<R: Flows> Slopes<R> {
-    /// Slopes for a block whose inputs are loaded in `l`.
-    pub fn new(p: &Program<R>, l: &Lanes<R>) -> Self {
-        let mut lanes = Lanes::boxed();
-        lanes.as_mut_slice().copy_from_slice(l.as_slice());
+    /// Slopes for a block of `p`.
+    pub fn new(p: &Program<R>) -> Self {
         let nv = p.var.len();
         Slopes {
             at: RefCell::new(SlopesAt {
-                lanes,
+                lanes: None,
                 regs: LaneArrays::filled(p.registers, R::default()),
                 n1: None,
                 d0: LaneArrays::filled(nv, R::default()),
@@ -112,7 +106,8 @@ impl<R: Flows> Slopes<R> {
                 d1: pick(&at.d1),
             };
         };
-        let mut x = Lane::gather(&self.at.borrow().lanes, i);
+        // The lane's inputs from the observed lanes, its state from the step.
+        let mut x = Lane::gather(s.l, i);
         let mut field = |state: &dyn Fn(usize) -> R, n: u64| {
             for (k, &v) in p.var.iter().enumerate() {
                 *x.at_mut(v) = state(k);
@@ -143,6 +138,11 @@ impl<R: Flows> Slopes<R> {
                 d1,
             } = &mut *at;
             let p = s.p;
+            let lanes = lanes.get_or_insert_with(|| {
+                let mut lanes = Lanes::boxed();
+                lanes.as_mut_slice().copy_from_slice(s.l.as_slice());
+                lanes
+            });
             let start = s.n1.saturating_sub(1);
             field_at(p, lanes, regs, s.prev, start, d0);
             let end = p.var.iter().map(|&v| s.l.at(v));
@@ -346,7 +346,7 @@ impl<R: Flows> BlockObservers<R> {
     #[inline(always)]
     fn candidates(&mut self, s: &BlockStep<R>, section: &SectionStep) -> u64 {
         let n1 = s.n1 as i32;
-        let run = s.running_flags();
+        let run = *s.run;
         let mut may = [false; LANES];
         match (section.kind, &self.strobe_exact) {
             (SectionKind::Exact, Some((every, first))) => {
@@ -428,7 +428,7 @@ impl<R: Flows> BlockObservers<R> {
         let [max, min, count, first, mean, com] = &mut self.real[..slots::MEAN0] else {
             unreachable!("the fixed slots")
         };
-        let (x, x0, run) = (l.at(p.var[k]), &s.prev[k], s.running_flags());
+        let (x, x0, run) = (l.at(p.var[k]), &s.prev[k], *s.run);
         let mut up = [false; LANES];
         for i in 0..LANES {
             let (mut hi, mut lo) = (max[i], min[i]);
@@ -453,7 +453,7 @@ impl<R: Flows> BlockObservers<R> {
             return;
         }
         let k = R::from_f64((s.n1 - start) as f64);
-        let run = s.running_flags();
+        let run = *s.run;
         for (j, v) in p.plan.average_vars.iter().enumerate() {
             let ObsVar::State(v) = *v else {
                 unreachable!("time is not averaged")
