@@ -38,6 +38,30 @@ stop = "t > 2 + 3*epsilon"
     )
 }
 
+/// [`van_der_pol`] with a stop condition as the only observer that looks
+/// at every step, frames every 5 steps and an exact stroboscopic section
+/// (every 6 steps).
+fn stop_only(scheme: &str) -> String {
+    format!(
+        r#"
+model = "van_der_pol"
+[params]
+epsilon = {{ linspace = [0.3, 600.0, 37] }}
+[initial]
+q = {{ linspace = [0.5, 2.5, 5] }}
+[integrator]
+scheme = "{scheme}"
+dt = 0.2
+steps = 700
+[output]
+final = ["q", "s", "t"]
+trajectory = {{ every = 5, vars = ["q", "s"] }}
+poincare = {{ period = 1.2, vars = ["q", "s"], max_points = 200 }}
+stop = "t + 0.1*q > 2 + 3*epsilon"
+"#
+    )
+}
+
 /// Every column of `a` and `b`, bitwise.
 fn same<R: Flows>(what: &str, a: &Observations<R>, b: &Observations<R>) {
     let (ca, cb) = (a.columns(), b.columns());
@@ -82,6 +106,19 @@ fn recorded_runs_are_bitwise_one_step_per_call() {
                 "{scheme}: {stopped} stopped, {ok} ok"
             );
         }
+    }
+    // A stop condition alone (of the state, a parameter and time), with
+    // frames and an exact stroboscopic section: runs in which no lane stops
+    // are observed only at their end.
+    for scheme in ["s2", "yoshida6a"] {
+        let text = stop_only(scheme);
+        let o = check::<f32>(&format!("{scheme} stop f32"), &text);
+        check::<f64>(&format!("{scheme} stop f64"), &text);
+        let (stopped, ok) = (o.count_stopped(), o.count_ok());
+        assert!(
+            stopped > 0 && ok + stopped < o.n,
+            "{scheme}: {stopped} stopped, {ok} ok"
+        );
     }
     // Spin–orbit (time terms per trajectory): an interpolated section
     // with a phase, averages, no stop.

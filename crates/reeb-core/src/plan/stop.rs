@@ -7,7 +7,7 @@
 //! difference is within round-off of zero. A NaN never stops.
 
 use crate::num::formula::dag::Dag;
-use crate::num::formula::lower::{lower, Lowered, Operand};
+use crate::num::formula::lower::{lower, Lowered};
 use crate::num::formula::parse::{parse, FormulaError};
 
 /// How `lhs − rhs` is compared with zero.
@@ -94,18 +94,7 @@ pub fn compile(text: &str, names: &[&str], states: usize) -> Result<StopObs, For
         .map_err(|e| offset(e, rhs_at))?;
     let g = dag.sub(a, b);
     let program = lower(&dag, &[g]);
-    let mut read: Vec<u32> = program
-        .instrs
-        .iter()
-        .flat_map(|i| [i.a, i.b])
-        .chain(program.outputs.iter().copied())
-        .filter_map(|o| match o {
-            Operand::Input(k) => Some(k),
-            _ => None,
-        })
-        .collect();
-    read.sort_unstable();
-    read.dedup();
+    let read = program.inputs_read();
     Ok(StopObs {
         text: text.to_string(),
         cmp,

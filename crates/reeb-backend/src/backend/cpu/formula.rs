@@ -79,6 +79,8 @@ pub struct Condition<R> {
     inputs: Vec<usize>,
     /// The slot of each input that reads one (by input).
     slots: Vec<Option<usize>>,
+    /// Whether the program reads each input.
+    read: Vec<bool>,
     cmp: Cmp,
     isa: Isa,
     /// Does it read `t` (set to the step's end before it runs)?
@@ -89,6 +91,7 @@ impl<R: Real> Condition<R> {
     /// `slot(name)`: the observer slot of an input that is not a lane.
     pub fn new(s: &StopPlan, isa: Isa, slot: impl Fn(&str) -> Option<usize>) -> Self {
         let slots: Vec<Option<usize>> = s.inputs.iter().map(|n| slot(n)).collect();
+        let read = s.program.inputs_read();
         Condition {
             tape: Tape::new(&s.program, |_| false),
             inputs: s
@@ -98,6 +101,9 @@ impl<R: Real> Condition<R> {
                 .map(|(n, k)| if k.is_some() { 0 } else { lane(n) })
                 .collect(),
             slots,
+            read: (0..s.inputs.len() as u32)
+                .map(|k| read.contains(&k))
+                .collect(),
             cmp: s.cmp,
             isa,
             reads_time: s.inputs.contains(&"t"),
@@ -108,6 +114,17 @@ impl<R: Real> Condition<R> {
         self.tape.registers
     }
 
+    /// The lane of each input (where it is no observer slot), `None` where
+    /// the program does not read it.
+    pub fn lanes_read(&self) -> impl Iterator<Item = Option<usize>> + '_ {
+        (self.inputs.iter().zip(&self.read)).map(|(&lane, &read)| read.then_some(lane))
+    }
+
+    /// Whether some input reads an observer slot.
+    pub fn reads_slots(&self) -> bool {
+        self.slots.iter().any(Option::is_some)
+    }
+
     /// The lanes where the condition holds (never where it is NaN); `real`:
     /// the block's observer slots.
     pub fn holds(
@@ -116,12 +133,13 @@ impl<R: Real> Condition<R> {
         real: &[[R; LANES]],
         regs: &mut [[R; LANES]],
     ) -> [bool; LANES] {
-        if self.slots.iter().all(Option::is_none) {
+        let mut holds = [false; LANES];
+        if !self.reads_slots() {
             let view = LaneView {
                 l,
                 lanes: &self.inputs,
             };
-            self.tape.run(regs, &view, self.isa);
+            self.holds_on(&view, regs, &mut holds);
         } else {
             let arrays: Vec<&[R; LANES]> = (self.inputs.iter().zip(&self.slots))
                 .map(|(lane, slot)| match slot {
@@ -129,10 +147,59 @@ impl<R: Real> Condition<R> {
                     None => l.at(*lane),
                 })
                 .collect();
-            self.tape.run(regs, &arrays[..], self.isa);
+            self.holds_on(&arrays[..], regs, &mut holds);
         }
+        holds
+    }
+
+    /// `lhs − rhs` on `N` lanes of inputs (by input index).
+    pub fn value_on<'r, const N: usize>(
+        &self,
+        input: &(impl Inputs<R, N> + ?Sized),
+        regs: &'r mut [[R; N]],
+    ) -> &'r [R; N] {
+        self.tape.run(regs, input, self.isa);
+        self.tape.output(regs, 0)
+    }
+
+    /// The comparison as `(sign, strict)`: the condition holds where
+    /// `sign·(lhs − rhs)` is above zero, or at zero where it is not strict
+    /// (a negation is exact, and NaN holds nowhere).
+    pub fn sign(&self) -> (R, bool) {
+        let one = R::from_f64(1.0);
+        match self.cmp {
+            Cmp::Gt => (one, true),
+            Cmp::Ge => (one, false),
+            Cmp::Lt => (-one, true),
+            Cmp::Le => (-one, false),
+        }
+    }
+
+    /// Where the condition holds on `N` lanes of inputs (by input index).
+    pub fn holds_on<const N: usize>(
+        &self,
+        input: &(impl Inputs<R, N> + ?Sized),
+        regs: &mut [[R; N]],
+        holds: &mut [bool; N],
+    ) {
+        self.tape.run(regs, input, self.isa);
         let g = self.tape.output(regs, 0);
-        std::array::from_fn(|i| self.cmp.holds(g[i].to_f64()))
+        // `Cmp::holds` of each lane, with the test chosen once (each
+        // precision's comparison with zero is the f64 one of its value).
+        let zero = R::default();
+        macro_rules! lanes {
+            ($op:tt) => {
+                for i in 0..N {
+                    holds[i] = g[i] $op zero;
+                }
+            };
+        }
+        match self.cmp {
+            Cmp::Gt => lanes!(>),
+            Cmp::Ge => lanes!(>=),
+            Cmp::Lt => lanes!(<),
+            Cmp::Le => lanes!(<=),
+        }
     }
 }
 

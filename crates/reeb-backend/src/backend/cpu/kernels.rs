@@ -27,21 +27,29 @@ pub type StepsFn<R> =
 /// Where a run of steps leaves the block's state after each of its steps,
 /// for observers that look at every step: they then read the run's states
 /// after it, and the step runs as many steps per call as when nobody looks.
+/// A recorded run takes at most [`RECORDED`] steps.
 pub struct Record<'a, R> {
     /// Lane index of each state variable recorded, in the plan's order.
     pub vars: &'a [usize],
-    /// `after[j][k]`: variable `vars[k]` after the run's step j; at least
-    /// as many as the run's steps.
-    pub after: &'a mut [Saved<R>],
+    /// `after[k][j]`: variable `vars[k]` after the run's step j.
+    pub after: &'a mut [Recorded<R>],
 }
+
+/// The most steps a recorded run takes: a quarter of a pause's distance,
+/// so that their states stay in the core's first-level cache (16 × 5 × 64
+/// f64: 40 KB).
+pub const RECORDED: usize = 16;
+
+/// One variable over a recorded run: its lanes after each step, one step
+/// after another (so a run's values of a variable are one array).
+pub type Recorded<R> = [[R; LANES]; RECORDED];
 
 impl<R: Real> Record<'_, R> {
     /// Copies the state after the run's step `j`.
     #[inline(always)]
     fn take(&mut self, l: &Lanes<R>, j: u64) {
-        let to = &mut self.after[j as usize];
-        for (k, &v) in self.vars.iter().enumerate() {
-            to[k] = *l.at(v);
+        for (to, &v) in self.after.iter_mut().zip(self.vars) {
+            to[j as usize] = *l.at(v);
         }
     }
 }

@@ -18,6 +18,7 @@ mod sample_gen;
 #[rustfmt::skip]
 mod sample_ops;
 pub mod samples;
+pub mod stops;
 pub mod tangent;
 
 use std::io::{self, Read, Write};
@@ -30,7 +31,6 @@ use super::checkpoint::Checkpoints;
 use super::error::BackendError;
 
 use crate::models::lanes::{LaneArrays, Lanes, LANES};
-use crate::models::pieces::{Saved, MAX_VARS};
 use crate::models::Flows;
 use crate::num::precision::{handed_back, is_f32, Real};
 use crate::plan::observations::{Observations, Sink};
@@ -38,10 +38,11 @@ use crate::plan::snapshot::{get, get_array, get_one, get_vec, invalid, put, put_
 use crate::plan::{slots, Plan};
 use formula::Condition;
 use formula::StepMemory;
-use kernels::Record;
 pub use kernels::{isa, Isa};
+use kernels::{Record, Recorded, RECORDED};
 use observe::{BlockObservers, BlockStep, Slopes};
 use program::{CpuOp, Program};
+use stops::RunStops;
 
 /// Integrates `plan` on the CPU in precision `R`. `progress`, if given, is
 /// advanced by trajectory-steps as blocks go.
@@ -475,10 +476,6 @@ fn run_block<R: Flows>(
     pause.progressed();
 }
 
-/// States a recorded run holds: a quarter of a pause's distance, so that
-/// they stay in the core's first-level cache (16 × 5 × 64 f64: 40 KB).
-const RECORDED: usize = 16;
-
 /// A block on its way through the run, with its observers.
 struct Walk<'a, R> {
     here: Here<'a, R>,
@@ -677,22 +674,34 @@ impl<'a, R: Flows> Walk<'a, R> {
     /// of steps and records the state after each, and the observers then
     /// look at the recorded steps one by one, on `view`: the block's lanes
     /// with each step's state. A lane stops at the first step at whose end
-    /// its condition holds; the steps its lane took past it are never read.
+    /// its condition holds ([`RunStops`]: evaluated on the whole run at
+    /// once); the steps its lane took past it are never read. Where the
+    /// stop condition is all that looks at every step, a run in which no
+    /// lane stops is not looked at step by step: it ends where a frame or
+    /// an exact stroboscopic sample is due, and only its end is observed.
     fn recorded_runs(&mut self, l: &mut Box<Lanes<R>>, n0: u64, pause: &Pause) -> Result<(), u64> {
         let p = self.here.p;
         let plan = p.plan;
         let f = p.stages.as_ref().expect("recorded runs of fused stages");
         let mut view = Lanes::<R>::boxed();
         view.as_mut_slice().copy_from_slice(l.as_slice());
-        let mut after = vec![[[R::default(); LANES]; MAX_VARS]; RECORDED];
+        let mut after: Vec<Recorded<R>> = vec![[[R::default(); LANES]; RECORDED]; p.var.len()];
+        let stop = p.stop.as_ref();
+        let mut stops = stop.map(|c| RunStops::new(c, &p.var, l));
+        let stop_only = stop.is_some()
+            && !p.needs_field
+            && plan.cycle_var.is_none()
+            && plan.average_vars.is_empty();
         let mut n = n0;
         while n < plan.steps {
             if self.pauses(n, n0, pause) {
                 return Err(n);
             }
-            let k = (RECORDED as u64)
-                .min(LANES as u64 - n % LANES as u64)
-                .min(plan.steps - n);
+            let end = match stop_only {
+                true => next_look(p, &self.obs, n, self.here.count).unwrap_or(n + 1),
+                false => (n / LANES as u64 + 1) * LANES as u64,
+            };
+            let k = (RECORDED as u64).min(end.min(plan.steps) - n);
             self.keep_start(l);
             let mut record = Record {
                 vars: &p.var,
@@ -701,9 +710,32 @@ impl<'a, R: Flows> Walk<'a, R> {
             // SAFETY: `isa()` chose wide kernels only where the CPU has the features.
             let (done, any) =
                 unsafe { (f.kernel)(l, &f.weights, n, k, f.time_terms, Some(&mut record)) };
-            let after = &after[..done as usize];
-            if self.look_at_run(l, &mut view, after, n, any) {
-                return Ok(());
+            let steps = done as usize;
+            let first = match (stop, stops.as_mut()) {
+                (Some(c), Some(s)) => {
+                    let h = &self.here;
+                    Some(s.first(c, l, &after, n, steps, &h.status, h.count, p.isa))
+                }
+                _ => None,
+            };
+            let quiet =
+                stop_only && !any && first.is_some_and(|f| f.iter().all(|&j| j as usize >= steps));
+            if quiet {
+                for (&v, x) in p.var.iter().zip(&after) {
+                    *view.at_mut(v) = x[steps - 1];
+                }
+                self.observe(&view, n + done);
+            } else {
+                let run = Run {
+                    after: &after,
+                    n,
+                    steps,
+                    any,
+                    first: first.as_ref(),
+                };
+                if self.look_at_run(l, &mut view, &run) {
+                    return Ok(());
+                }
             }
             n += done;
             if n.is_multiple_of(1024) {
@@ -713,84 +745,57 @@ impl<'a, R: Flows> Walk<'a, R> {
         Ok(())
     }
 
-    /// The observers after each step of a recorded run from step `n`
-    /// (`any`: its last step left some lane non-finite); whether every lane
-    /// of the block has stopped. Compiled for each instruction-set level,
-    /// as the kernels are, so the observers' lane loops are as wide. Only
-    /// loops without a product feeding a sum are inlined here: the wide
+    /// The observers after each step of recorded run `run`; whether every
+    /// lane of the block has stopped. Compiled for each instruction-set
+    /// level, as the kernels are, so the observers' lane loops are as wide.
+    /// Only loops without a product feeding a sum are inlined here: the wide
     /// builds contract a·b + c into an FMA (`.cargo/config.toml`), which
     /// would change the observers' bits (and differ from the GPU's); the
     /// rest (crossings, samples, frames, stops, slopes) is `inline(never)`.
-    fn look_at_run(
-        &mut self,
-        l: &mut Lanes<R>,
-        view: &mut Lanes<R>,
-        after: &[Saved<R>],
-        n: u64,
-        any: bool,
-    ) -> bool {
+    fn look_at_run(&mut self, l: &mut Lanes<R>, view: &mut Lanes<R>, run: &Run<R>) -> bool {
         #[cfg(target_arch = "x86_64")]
         {
             // SAFETY: the program's level is one `isa()` found on this CPU.
             match self.here.p.isa {
-                Isa::V4 => unsafe { self.look_v4(l, view, after, n, any) },
-                Isa::V3 => unsafe { self.look_v3(l, view, after, n, any) },
-                Isa::Baseline => self.look(l, view, after, n, any),
+                Isa::V4 => unsafe { self.look_v4(l, view, run) },
+                Isa::V3 => unsafe { self.look_v3(l, view, run) },
+                Isa::Baseline => self.look(l, view, run),
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
-        self.look(l, view, after, n, any)
+        self.look(l, view, run)
     }
 
     /// [`Self::look`] for AVX-512.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
-    unsafe fn look_v4(
-        &mut self,
-        l: &mut Lanes<R>,
-        view: &mut Lanes<R>,
-        after: &[Saved<R>],
-        n: u64,
-        any: bool,
-    ) -> bool {
-        self.look(l, view, after, n, any)
+    unsafe fn look_v4(&mut self, l: &mut Lanes<R>, view: &mut Lanes<R>, run: &Run<R>) -> bool {
+        self.look(l, view, run)
     }
 
     /// [`Self::look`] for AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn look_v3(
-        &mut self,
-        l: &mut Lanes<R>,
-        view: &mut Lanes<R>,
-        after: &[Saved<R>],
-        n: u64,
-        any: bool,
-    ) -> bool {
-        self.look(l, view, after, n, any)
+    unsafe fn look_v3(&mut self, l: &mut Lanes<R>, view: &mut Lanes<R>, run: &Run<R>) -> bool {
+        self.look(l, view, run)
     }
 
     /// [`Self::look_at_run`] at the level it is inlined into.
     #[inline(always)]
-    fn look(
-        &mut self,
-        l: &mut Lanes<R>,
-        view: &mut Lanes<R>,
-        after: &[Saved<R>],
-        n: u64,
-        any: bool,
-    ) -> bool {
+    fn look(&mut self, l: &mut Lanes<R>, view: &mut Lanes<R>, run: &Run<R>) -> bool {
         let p = self.here.p;
-        for (j, state) in after.iter().enumerate() {
-            let n1 = n + j as u64 + 1;
-            if any && j + 1 == after.len() {
+        for j in 0..run.steps {
+            let n1 = run.n + j as u64 + 1;
+            if run.any && j + 1 == run.steps {
                 self.nonfinite(l, n1 - 1);
             }
-            for (&v, x) in p.var.iter().zip(state) {
-                *view.at_mut(v) = *x;
+            for (&v, x) in p.var.iter().zip(run.after) {
+                *view.at_mut(v) = x[j];
             }
             self.observe(view, n1);
-            self.stop(view, n1);
+            if let Some(first) = run.first {
+                self.stop_recorded(view, n1, j, first);
+            }
             if self.alive == 0 {
                 return true;
             }
@@ -798,6 +803,36 @@ impl<'a, R: Flows> Walk<'a, R> {
         }
         false
     }
+
+    /// Stops the running lanes whose stop condition first holds at step `j`
+    /// of a recorded run (`first`, from [`RunStops::first`]), which ends at
+    /// step `n1` with the state in `l`.
+    #[inline(always)]
+    fn stop_recorded(&mut self, l: &Lanes<R>, n1: u64, j: usize, first: &[u8; LANES]) {
+        let h = &mut self.here;
+        let mut stopped = 0;
+        for i in 0..h.count {
+            if first[i] as usize == j && h.status[i] == 0 {
+                stop_lane(h.p, l, &mut h.status, n1, h.sink, h.base, i);
+                stopped += 1;
+            }
+        }
+        if stopped > 0 {
+            self.alive -= stopped;
+            h.run = observe::running_flags(&h.status, h.count);
+        }
+    }
+}
+
+/// A recorded run from step `n`: `steps` states in `after`; `any`: its
+/// last step left some lane non-finite; `first`: each lane's first step at
+/// whose end the stop condition holds, where there is one.
+struct Run<'r, R> {
+    after: &'r [Recorded<R>],
+    n: u64,
+    steps: usize,
+    any: bool,
+    first: Option<&'r [u8; LANES]>,
 }
 
 /// Loads the block's inputs (parameters, initial state, dt, t0, …); padding
@@ -834,16 +869,31 @@ fn quiet_run<R: Flows>(
         true => plan.others_observe_every_step(),
         false => p.stages.is_none() || p.observes_every_step,
     };
-    if every_step {
-        return 1;
+    match every_step {
+        true => 1,
+        false => next_look(p, obs, n, count).map_or(1, |end| end - n),
     }
+}
+
+/// The first step after `n` at whose end frames, samples or sections want
+/// the state (the next trajectory frame, exact stroboscopic sample of one
+/// of the block's `count` lanes), or a pause may come (a multiple of
+/// [`LANES`]), at most the end; `None` where the section looks at every
+/// step.
+fn next_look<R: Flows>(
+    p: &Program<R>,
+    obs: &BlockObservers<R>,
+    n: u64,
+    count: usize,
+) -> Option<u64> {
+    let plan = p.plan;
     let strobe = plan
         .observers
         .poincare
         .as_ref()
         .map(|_| obs.next_exact_strobe(n, count));
     if strobe == Some(None) {
-        return 1;
+        return None;
     }
     let lanes = LANES as u64;
     let mut end = (n / lanes + 1) * lanes;
@@ -853,7 +903,7 @@ fn quiet_run<R: Flows>(
     if let Some(Some(due)) = strobe {
         end = end.min(due);
     }
-    end.min(plan.steps) - n
+    Some(end.min(plan.steps))
 }
 
 /// Steps `n … n+k−1` on every lane (`k` > 1 only for fused stages); returns
@@ -966,12 +1016,25 @@ fn stop_lanes<R: Flows>(
     let mut stopped = 0;
     for i in 0..count {
         if holds[i] && status[i] == 0 {
-            status[i] = u64::from(slots::STOPPED) | n;
-            observe::write_finals(p, l, sink, base, i, n);
+            stop_lane(p, l, status, n, sink, base, i);
             stopped += 1;
         }
     }
     stopped
+}
+
+/// Stops lane `i` after step `n`, its state in `l`: its status and final values.
+fn stop_lane<R: Flows>(
+    p: &Program<R>,
+    l: &Lanes<R>,
+    status: &mut [u64; LANES],
+    n: u64,
+    sink: &Sink<R>,
+    base: usize,
+    i: usize,
+) {
+    status[i] = u64::from(slots::STOPPED) | n;
+    observe::write_finals(p, l, sink, base, i, n);
 }
 
 /// Marks the lanes `bad` at step `n` as stopped there (first time only);

@@ -101,6 +101,21 @@ impl Prim {
 }
 
 impl Lowered {
+    /// The inputs the program reads, each once, in increasing order.
+    pub fn inputs_read(&self) -> Vec<u32> {
+        let mut read: Vec<u32> = (self.instrs.iter())
+            .flat_map(|i| [i.a, i.b])
+            .chain(self.outputs.iter().copied())
+            .filter_map(|o| match o {
+                Operand::Input(k) => Some(k),
+                _ => None,
+            })
+            .collect();
+        read.sort_unstable();
+        read.dedup();
+        read
+    }
+
     /// The same values with negations carried outward through products and
     /// quotients into the sums that take them, where `a + (−b)` and
     /// `a − (−b)` become `a − b` and `a + b`: fewer instructions (LLVM, given
