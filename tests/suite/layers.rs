@@ -65,16 +65,108 @@ fn module_of(file: &Path) -> Vec<String> {
 }
 
 /// The code of a file without comments (doc examples name paths too) and
-/// without its unit tests (whose `super::` is the file itself).
+/// without the items compiled for tests alone (`#[cfg(test)]`: unit tests,
+/// whose `super::` is the file itself, and test-only modules and helpers;
+/// the code after such an item is read as any other).
 fn code(text: &str) -> String {
-    let text = text.split("#[cfg(test)]").next().unwrap_or("");
-    text.lines()
+    let text = text
+        .lines()
         .map(|l| match l.find("//") {
             Some(k) => &l[..k],
             None => l,
         })
         .collect::<Vec<_>>()
-        .join("\n")
+        .join("\n");
+    let mut out = String::new();
+    let mut rest = text.as_str();
+    while let Some(k) = rest.find("#[cfg(test)]") {
+        out.push_str(&rest[..k]);
+        rest = &rest[k + "#[cfg(test)]".len()..];
+        rest = &rest[item_len(rest)..];
+    }
+    out.push_str(rest);
+    out
+}
+
+/// The length of the item `text` starts with: up to its `;` or the end of
+/// its first braced block, whichever comes first.
+fn item_len(text: &str) -> usize {
+    let mut depth = 0;
+    for (i, c) in text.char_indices() {
+        match c {
+            ';' if depth == 0 => return i + 1,
+            '{' => depth += 1,
+            '}' => {
+                depth -= 1;
+                if depth == 0 {
+                    return i + 1;
+                }
+            }
+            _ => {}
+        }
+    }
+    text.len()
+}
+
+/// Every `super::…` path in the code of module `m` that leaves the file,
+/// as a path from the crate's root (`super::super::` climbs twice; inside
+/// an inline `mod x { … }` the first climb is back to the file). Not inside
+/// macros: there it is relative to where the macro expands.
+fn super_paths(m: &[String], code: &str) -> Vec<Vec<String>> {
+    let code = without_macros(code);
+    let inline = inline_modules(&code);
+    let mut out = vec![];
+    for (k, _) in code.match_indices("super::") {
+        let before = code[..k].chars().last();
+        if before.is_some_and(|c| c.is_alphanumeric() || c == '_' || c == ':') {
+            continue; // the second of `super::super::`, or `a::super::`
+        }
+        let mut rest = &code[k..];
+        let mut up = 0usize;
+        while let Some(r) = rest.strip_prefix("super::") {
+            up += 1;
+            rest = r;
+        }
+        let depth = inline.iter().filter(|r| r.contains(&k)).count();
+        let Some(above) = up.checked_sub(depth).filter(|&a| a > 0) else {
+            continue; // within the file
+        };
+        let path: String = rest
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_' || *c == ':')
+            .collect();
+        let mut segs = m[..m.len().saturating_sub(above)].to_vec();
+        segs.extend(path.split("::").filter(|s| !s.is_empty()).map(String::from));
+        out.push(segs);
+    }
+    out
+}
+
+/// Where the bodies of the inline modules (`mod x { … }`) of the code are.
+fn inline_modules(code: &str) -> Vec<std::ops::Range<usize>> {
+    let mut out = vec![];
+    for (k, _) in code.match_indices("mod ") {
+        if code[..k]
+            .chars()
+            .last()
+            .is_some_and(|c| c.is_alphanumeric() || c == '_')
+        {
+            continue;
+        }
+        let after = &code[k + 4..];
+        let name = after.trim_start();
+        let ident = name
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .count();
+        if ident == 0 || !name[ident..].trim_start().starts_with('{') {
+            continue; // `mod x;`, or not a module
+        }
+        let open = k + 4 + (after.len() - name.len()) + ident;
+        let open = open + code[open..].find('{').unwrap();
+        out.push(open..open + item_len(&code[open..]));
+    }
+    out
 }
 
 /// Every `crate::a::b::…` path in the code, as its segments.
@@ -120,11 +212,16 @@ fn macro_homes(files: &[PathBuf]) -> BTreeMap<String, Vec<String>> {
     out
 }
 
-/// `crate::…` paths of a file, with macro paths replaced by their home module.
+/// `crate::…` paths of a file, with macro paths replaced by their home
+/// module, and its `super::…` paths from the crate's root.
 fn uses(file: &Path, homes: &BTreeMap<String, Vec<String>>) -> Vec<Vec<String>> {
-    crate_paths(&code(&std::fs::read_to_string(file).unwrap()))
+    let code = code(&std::fs::read_to_string(file).unwrap());
+    let crate_paths = crate_paths(&code)
         .into_iter()
-        .map(|p| homes.get(&p[0]).cloned().unwrap_or(p))
+        .map(|p| homes.get(&p[0]).cloned().unwrap_or(p));
+    crate_paths
+        .chain(super_paths(&module_of(file), &code))
+        .filter(|p| !p.is_empty())
         .collect()
 }
 
@@ -209,20 +306,8 @@ fn no_import_circle_between_files() {
     let mut edges: BTreeMap<Vec<String>, BTreeSet<Vec<String>>> = BTreeMap::new();
     for (m, f) in &modules {
         let text = code(&std::fs::read_to_string(f).unwrap());
+        // `use super::x` from a file is `crate::<parent>::x` (in `uses`).
         let mut targets: Vec<Vec<String>> = uses(f, &homes);
-        // `use super::x` from a file is `crate::<parent>::x` (inside a macro
-        // it is relative to where the macro expands: not this file's).
-        for line in without_macros(&text).lines() {
-            if let Some(k) = line.find("super::") {
-                let path: String = line[k + 7..]
-                    .chars()
-                    .take_while(|c| c.is_alphanumeric() || *c == '_' || *c == ':')
-                    .collect();
-                let mut segs = m[..m.len().saturating_sub(1)].to_vec();
-                segs.extend(path.split("::").filter(|s| !s.is_empty()).map(String::from));
-                targets.push(segs);
-            }
-        }
         // Paths relative to the file's module: `child::x` (not `pub mod child;`).
         for child in modules
             .keys()
@@ -287,4 +372,27 @@ fn no_import_circle_between_files() {
             );
         }
     }
+}
+
+/// The reader of the two tests above: it reads the code after an item for
+/// tests alone (not only up to the first), leaves test modules out, and
+/// follows `super::` as far up as it climbs.
+#[test]
+fn the_import_reader_sees_past_test_items_and_follows_super() {
+    let text = "#[cfg(test)]\nmod generator;\nuse crate::scene::Scene; // crate::output\n\
+                #[cfg(test)]\nmod tests {\n    use super::*;\n    use crate::output::Run;\n}\n\
+                use super::super::report::Table;\nfn f() { super::g() }\n\
+                mod wide {\n    use super::*;\n    use super::super::h;\n}\n";
+    let code = code(text);
+    let path = |s: &[&str]| s.iter().map(|x| x.to_string()).collect::<Vec<_>>();
+    assert_eq!(crate_paths(&code), vec![path(&["scene", "Scene"])]);
+    let m = path(&["backend", "cpu", "stops"]);
+    assert_eq!(
+        super_paths(&m, &code),
+        vec![
+            path(&["backend", "report", "Table"]),
+            path(&["backend", "cpu", "g"]),
+            path(&["backend", "cpu", "h"])
+        ]
+    );
 }

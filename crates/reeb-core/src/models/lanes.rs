@@ -214,6 +214,21 @@ define_lanes! {
     k0, k1, k2, k3, k4, k5, k6, k7, k8, k9, k10, k11, k12, k13, k14, k15,
 }
 
+impl<R: Real> Lanes<R> {
+    /// Whether some lane array of `fields` (indices of [`NAMES`]) holds a
+    /// non-finite value: one vectorised pass per array with an OR-reduction.
+    #[inline(always)]
+    pub fn any_nonfinite(&self, fields: &[usize]) -> bool {
+        let mut any = false;
+        for &k in fields {
+            for x in self.at(k) {
+                any |= !x.finite();
+            }
+        }
+        any
+    }
+}
+
 const _: () = assert!(std::mem::size_of::<Lanes<f64>>() == COUNT * LANES * 8);
 const _: () = assert!(std::mem::size_of::<Lane<f64>>() == COUNT * 8);
 const _: () = assert!(std::mem::size_of::<Lane<f32>>() == COUNT * 4);

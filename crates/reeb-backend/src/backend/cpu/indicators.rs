@@ -531,7 +531,7 @@ fn steps_body<R: Real>(
             }
         }
         let out = run_steps(ind, c, s, &mut bufs, rest, run, check);
-        let bad = !check && super::any_nonfinite(&s.x, &ind.var_lanes);
+        let bad = !check && s.x.any_nonfinite(&ind.var_lanes);
         if !bad {
             break out;
         }
@@ -592,7 +592,7 @@ fn run_steps_pending<R: Real>(
     let mut peak = locs.iter().any(fli).then(Peak::new);
     for j in 0..run.k {
         c.run(&mut s.x, &mut s.d, run.n + j);
-        if check && super::any_nonfinite(&s.x, &ind.var_lanes) {
+        if check && s.x.any_nonfinite(&ind.var_lanes) {
             return RunOutcome {
                 done: j + 1,
                 sampled: false,

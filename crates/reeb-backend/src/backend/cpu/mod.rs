@@ -32,7 +32,7 @@ use super::error::BackendError;
 
 use crate::models::lanes::{LaneArrays, Lanes, LANES};
 use crate::models::Flows;
-use crate::num::precision::{handed_back, is_f32, Real};
+use crate::num::precision::{handed_back, is_f32};
 use crate::plan::observations::{Observations, Sink};
 use crate::plan::snapshot::{get, get_array, get_one, get_vec, invalid, put, put_slice, Header};
 use crate::plan::{slots, Plan};
@@ -641,7 +641,7 @@ impl<'a, R: Flows> Walk<'a, R> {
                 (Some(ind), Some(scratch)) if tangent_steps => {
                     let (running, padding) = observe::running_lanes(&self.here.status[..count]);
                     ind.step(l, scratch, self.obs.slots_mut(), n, running | padding);
-                    (1, any_nonfinite(l, &p.var))
+                    (1, l.any_nonfinite(&p.var))
                 }
                 _ => {
                     let k = quiet_run(p, &self.obs, n, count, false);
@@ -924,10 +924,10 @@ fn advance<R: Flows>(
     }
     if let (Some(f), Some(m)) = (&p.formula_step, memory) {
         // A variable no op assigns keeps its initial value: checked once.
-        return (1, f.step(l, m, n) || (n == 0 && any_nonfinite(l, &p.var)));
+        return (1, f.step(l, m, n) || (n == 0 && l.any_nonfinite(&p.var)));
     }
     run_ops(p, l, regs, R::from_f64(n as f64));
-    (1, any_nonfinite(l, &p.var))
+    (1, l.any_nonfinite(&p.var))
 }
 
 /// Makes every lane whose state is non-finite (`bad`: marked, or padding)
@@ -941,20 +941,6 @@ fn retire<R: Flows>(bad: &[bool; LANES], l: &mut Lanes<R>, status: &[u64; LANES]
     for i in (0..LANES).filter(|&i| bad[i]) {
         l.copy_lane(live, i);
     }
-}
-
-/// Whether some state variable is non-finite in some lane.
-#[inline(always)]
-fn any_nonfinite<R: Real>(l: &Lanes<R>, vars: &[usize]) -> bool {
-    // One vectorised pass per variable with an OR-reduction.
-    let mut any = false;
-    for &k in vars {
-        let x = l.at(k);
-        for i in 0..LANES {
-            any |= !x[i].finite();
-        }
-    }
-    any
 }
 
 /// The plan's ops in order (the step of models without a fused kernel).
@@ -1048,15 +1034,4 @@ fn mark_nonfinite(bad: &[bool; LANES], status: &mut [u64; LANES], count: usize, 
         }
     }
     stopped
-}
-
-/// Vector field at the end of step `n` (time `t0 + n dt`) into the `d<var>` lanes.
-fn eval_field<R: Flows>(p: &Program<R>, l: &mut Lanes<R>, regs: &mut [[R; LANES]], n: u64) {
-    let nf = R::from_f64(n as f64);
-    for i in 0..LANES {
-        l.t[i] = l.t0[i] + nf * l.dt[i];
-    }
-    for f in &p.field {
-        f.call(l, regs);
-    }
 }

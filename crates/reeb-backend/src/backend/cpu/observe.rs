@@ -173,7 +173,7 @@ fn field_at<'x, R: Flows + 'x>(
     for (&v, x) in p.var.iter().zip(x) {
         *l.at_mut(v) = *x;
     }
-    super::eval_field(p, l, regs, n);
+    p.eval_field(l, regs, n);
     for (d, &v) in d.iter_mut().zip(&p.dvar) {
         *d = *l.at(v);
     }

@@ -164,6 +164,20 @@ impl<'p, R: Flows> Program<'p, R> {
     }
 }
 
+impl<R: Flows> Program<'_, R> {
+    /// The vector field at the end of step `n` (time `t0 + n dt`) into the
+    /// `d<var>` lanes of `l`.
+    pub fn eval_field(&self, l: &mut Lanes<R>, regs: &mut [[R; LANES]], n: u64) {
+        let nf = R::from_f64(n as f64);
+        for i in 0..LANES {
+            l.t[i] = l.t0[i] + nf * l.dt[i];
+        }
+        for f in &self.field {
+            f.call(l, regs);
+        }
+    }
+}
+
 impl<R> Program<'_, R> {
     /// Whether the block's observers read recorded runs of fused steps
     /// (`cpu::Walk::recorded_runs`): some observer looks at every step, and
