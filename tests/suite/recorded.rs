@@ -12,10 +12,8 @@ use reeb::plan::observations::{Col, Observations};
 use crate::common::plan;
 
 /// Van der Pol over ε (some of whose steps overflow: ετ up to 120) and q0,
-/// with `scheme`, cycle statistics from the first step, a Poincaré
-/// `section`, averages, frames every 5 steps and a stop that holds for some
-/// trajectories inside a run (t > 2 + 3ε, not a multiple of 16 steps).
-fn van_der_pol(scheme: &str, section: &str) -> String {
+/// with `scheme`, frames every 5 steps and the `[output]` lines `observers`.
+fn van_der_pol(scheme: &str, observers: &str) -> String {
     format!(
         r#"
 model = "van_der_pol"
@@ -30,36 +28,31 @@ steps = 700
 [output]
 final = ["q", "s", "t"]
 trajectory = {{ every = 5, vars = ["q", "s"] }}
-poincare = {section}
-cycle = {{ var = "q", skip = 0.0 }}
-average = {{ vars = ["q", "s"], skip = 0.1 }}
-stop = "t > 2 + 3*epsilon"
+{observers}
 "#
     )
 }
 
+/// [`van_der_pol`] with every observer that looks at every step: cycle
+/// statistics from the first step, a Poincaré `section`, averages and a
+/// stop that holds for some trajectories inside a run (t > 2 + 3ε, not a
+/// multiple of 16 steps).
+fn every_observer(scheme: &str, section: &str) -> String {
+    let observers = format!(
+        r#"poincare = {section}
+cycle = {{ var = "q", skip = 0.0 }}
+average = {{ vars = ["q", "s"], skip = 0.1 }}
+stop = "t > 2 + 3*epsilon""#
+    );
+    van_der_pol(scheme, &observers)
+}
+
 /// [`van_der_pol`] with a stop condition as the only observer that looks
-/// at every step, frames every 5 steps and an exact stroboscopic section
-/// (every 6 steps).
+/// at every step, and an exact stroboscopic section (every 6 steps).
 fn stop_only(scheme: &str) -> String {
-    format!(
-        r#"
-model = "van_der_pol"
-[params]
-epsilon = {{ linspace = [0.3, 600.0, 37] }}
-[initial]
-q = {{ linspace = [0.5, 2.5, 5] }}
-[integrator]
-scheme = "{scheme}"
-dt = 0.2
-steps = 700
-[output]
-final = ["q", "s", "t"]
-trajectory = {{ every = 5, vars = ["q", "s"] }}
-poincare = {{ period = 1.2, vars = ["q", "s"], max_points = 200 }}
-stop = "t + 0.1*q > 2 + 3*epsilon"
-"#
-    )
+    let observers = r#"poincare = { period = 1.2, vars = ["q", "s"], max_points = 200 }
+stop = "t + 0.1*q > 2 + 3*epsilon""#;
+    van_der_pol(scheme, observers)
 }
 
 /// Every column of `a` and `b`, bitwise.
@@ -95,30 +88,24 @@ fn recorded_runs_are_bitwise_one_step_per_call() {
         r#"{ crossing = "q", value = 1.0, direction = "both", vars = ["s"], max_points = 30 }"#;
     let strobe = r#"{ period = 2.9, vars = ["q", "s"], max_points = 300 }"#;
     for scheme in ["s2", "yoshida6a"] {
-        for (name, section) in [("crossing", crossing), ("strobe", strobe)] {
-            let text = van_der_pol(scheme, section);
+        // The last: a stop condition alone (of the state, a parameter and
+        // time), with frames and an exact stroboscopic section: runs in
+        // which no lane stops are observed only at their end.
+        let scenes = [
+            ("crossing", every_observer(scheme, crossing)),
+            ("strobe", every_observer(scheme, strobe)),
+            ("stop", stop_only(scheme)),
+        ];
+        for (name, text) in scenes {
             let o = check::<f32>(&format!("{scheme} {name} f32"), &text);
             check::<f64>(&format!("{scheme} {name} f64"), &text);
             // The cases are there: stopped and non-finite trajectories.
             let (stopped, ok) = (o.count_stopped(), o.count_ok());
             assert!(
                 stopped > 0 && ok + stopped < o.n,
-                "{scheme}: {stopped} stopped, {ok} ok"
+                "{scheme} {name}: {stopped} stopped, {ok} ok"
             );
         }
-    }
-    // A stop condition alone (of the state, a parameter and time), with
-    // frames and an exact stroboscopic section: runs in which no lane stops
-    // are observed only at their end.
-    for scheme in ["s2", "yoshida6a"] {
-        let text = stop_only(scheme);
-        let o = check::<f32>(&format!("{scheme} stop f32"), &text);
-        check::<f64>(&format!("{scheme} stop f64"), &text);
-        let (stopped, ok) = (o.count_stopped(), o.count_ok());
-        assert!(
-            stopped > 0 && ok + stopped < o.n,
-            "{scheme}: {stopped} stopped, {ok} ok"
-        );
     }
     // Spin–orbit (time terms per trajectory): an interpolated section
     // with a phase, averages, no stop.
