@@ -88,13 +88,18 @@ fn recorded_runs_are_bitwise_one_step_per_call() {
         r#"{ crossing = "q", value = 1.0, direction = "both", vars = ["s"], max_points = 30 }"#;
     let strobe = r#"{ period = 2.9, vars = ["q", "s"], max_points = 300 }"#;
     for scheme in ["s2", "yoshida6a"] {
-        // The last: a stop condition alone (of the state, a parameter and
+        // Then a stop condition alone (of the state, a parameter and
         // time), with frames and an exact stroboscopic section: runs in
         // which no lane stops are observed only at their end.
         let scenes = [
             ("crossing", every_observer(scheme, crossing)),
             ("strobe", every_observer(scheme, strobe)),
             ("stop", stop_only(scheme)),
+            // Of the parameters alone: the whole condition computed once.
+            (
+                "parameter stop",
+                van_der_pol(scheme, r#"stop = "epsilon > 1""#),
+            ),
         ];
         for (name, text) in scenes {
             let o = check::<f32>(&format!("{scheme} {name} f32"), &text);

@@ -9,6 +9,7 @@
 
 use crate::models::formula::{Cost, FormulaModel, STEP_INDEX};
 use crate::models::lanes::{index_of, LaneArrays, Lanes, LANES};
+use crate::num::formula::lower::Lowered;
 use crate::num::formula::stage::split;
 use crate::num::formula::tape::{Inputs, Tape};
 use crate::num::precision::Real;
@@ -76,6 +77,7 @@ impl<R: Real> FormulaCall<R> {
 /// (an indicator's running value).
 pub struct Condition<R> {
     tape: Tape<R>,
+    program: Lowered,
     inputs: Vec<usize>,
     /// The slot of each input that reads one (by input).
     slots: Vec<Option<usize>>,
@@ -94,6 +96,7 @@ impl<R: Real> Condition<R> {
         let read = s.program.inputs_read();
         Condition {
             tape: Tape::new(&s.program, |_| false),
+            program: s.program.clone(),
             inputs: s
                 .inputs
                 .iter()
@@ -152,14 +155,9 @@ impl<R: Real> Condition<R> {
         holds
     }
 
-    /// `lhs − rhs` on `N` lanes of inputs (by input index).
-    pub fn value_on<'r, const N: usize>(
-        &self,
-        input: &(impl Inputs<R, N> + ?Sized),
-        regs: &'r mut [[R; N]],
-    ) -> &'r [R; N] {
-        self.tape.run(regs, input, self.isa);
-        self.tape.output(regs, 0)
+    /// The program of `lhs − rhs`, by input.
+    pub fn program(&self) -> &Lowered {
+        &self.program
     }
 
     /// The comparison as `(sign, strict)`: the condition holds where

@@ -687,7 +687,7 @@ impl<'a, R: Flows> Walk<'a, R> {
         view.as_mut_slice().copy_from_slice(l.as_slice());
         let mut after: Vec<Recorded<R>> = vec![[[R::default(); LANES]; RECORDED]; p.var.len()];
         let stop = p.stop.as_ref();
-        let mut stops = stop.map(|c| RunStops::new(c, &p.var, l));
+        let mut stops = stop.map(|c| RunStops::new(c, &p.var, l, p.isa));
         let stop_only = stop.is_some()
             && !p.needs_field
             && plan.cycle_var.is_none()

@@ -9,7 +9,8 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::models::lanes::{index_of, Lanes, LANES};
-use crate::num::formula::tape::Inputs;
+use crate::num::formula::stage::{split, Vary};
+use crate::num::formula::tape::{Inputs, Tape};
 use crate::num::precision::Real;
 
 use super::formula::Condition;
@@ -33,10 +34,23 @@ enum Source {
 
 /// The condition's inputs and registers on the lanes of a recorded run.
 pub struct RunStops<R> {
+    /// What each input of `per_step` reads: the condition's inputs, then
+    /// the outputs of its fixed part.
     sources: Vec<Source>,
     fixed: Vec<Box<[R; WIDE]>>,
     time: Option<Box<[R; WIDE]>>,
+    /// The condition's part that varies from step to step.
+    per_step: Tape<R>,
     regs: Vec<[R; WIDE]>,
+}
+
+/// A lane array repeated for every step of a run.
+fn repeated<R: Real>(x: &[R; LANES]) -> Box<[R; WIDE]> {
+    let mut out = Box::new([R::default(); WIDE]);
+    for j in 0..RECORDED {
+        out[j * LANES..][..LANES].copy_from_slice(x);
+    }
+    out
 }
 
 /// The inputs of one run: its recorded states, the time of its steps and
@@ -73,34 +87,50 @@ fn wide<R>(x: &Recorded<R>) -> &[R; WIDE] {
 
 impl<R: Real> RunStops<R> {
     /// For `stop` on a block whose lanes are `l` (what the steps do not
-    /// change is read from them once); `vars`: the lane of each state
-    /// variable.
-    pub fn new(stop: &Condition<R>, vars: &[usize], l: &Lanes<R>) -> Self {
+    /// change is read from them once, and what the condition computes from
+    /// that alone, the parameters' part, computed once, at level `isa`);
+    /// `vars`: the lane of each state variable.
+    pub fn new(stop: &Condition<R>, vars: &[usize], l: &Lanes<R>, isa: Isa) -> Self {
         let t = index_of("t");
         let mut fixed = vec![];
-        let sources = (stop.lanes_read())
+        let mut sources = (stop.lanes_read())
             .map(|lane| match lane {
                 None => Source::Unread,
                 Some(lane) if Some(lane) == t => Source::Time,
                 Some(lane) => match vars.iter().position(|&v| v == lane) {
                     Some(k) => Source::Var(k),
                     None => {
-                        let mut x = Box::new([R::default(); WIDE]);
-                        for j in 0..RECORDED {
-                            x[j * LANES..][..LANES].copy_from_slice(l.at(lane));
-                        }
-                        fixed.push(x);
+                        fixed.push(repeated(l.at(lane)));
                         Source::Fixed(fixed.len() - 1)
                     }
                 },
             })
             .collect::<Vec<_>>();
+        // The program split by what varies from step to step: its fixed
+        // part's outputs follow the inputs (`num/formula/stage.rs`).
+        let vary: Vec<Vary> = (sources.iter())
+            .map(|s| Vary {
+                lane: true,
+                step: matches!(s, Source::Var(_) | Source::Time),
+            })
+            .collect();
+        let staged = split(stop.program(), &vary);
+        let once = Tape::<R>::new(&staged.fixed, |_| false);
+        let inputs: Vec<&[R; LANES]> = stop.lanes_read().map(|k| l.at(k.unwrap_or(0))).collect();
+        let mut regs = vec![[R::default(); LANES]; once.registers];
+        once.run(&mut regs, &inputs[..], isa);
+        for k in 0..once.outputs() {
+            fixed.push(repeated(once.output(&regs, k)));
+            sources.push(Source::Fixed(fixed.len() - 1));
+        }
+        let per_step = Tape::new(&staged.lane, |_| false);
         let reads_time = sources.iter().any(|s| matches!(s, Source::Time));
         RunStops {
             sources,
             fixed,
             time: reads_time.then(|| Box::new([R::default(); WIDE])),
-            regs: vec![[R::default(); WIDE]; stop.registers()],
+            regs: vec![[R::default(); WIDE]; per_step.registers],
+            per_step,
         }
     }
 
@@ -130,7 +160,8 @@ impl<R: Real> RunStops<R> {
             time: self.time.as_deref(),
             fixed: &self.fixed,
         };
-        let g = stop.value_on(&input, &mut self.regs);
+        self.per_step.run(&mut self.regs, &input, isa);
+        let g = self.per_step.output(&self.regs, 0);
         let (sign, strict) = stop.sign();
         let mut first = {
             #[cfg(target_arch = "x86_64")]
