@@ -1,9 +1,10 @@
 //! A stop condition on a recorded run (`cpu::Walk::recorded_runs`): the
 //! condition evaluated once for all the run's steps, on lanes as wide as
 //! the run, so the interpreter's dispatch is paid once per run instead of
-//! once per step; then each lane's first step at whose end it holds. The
-//! same operations on the same values as one evaluation per step, so the
-//! same verdicts.
+//! once per step, and its part that no step changes (what it computes from
+//! the parameters) once per block; then each lane's first step at whose
+//! end it holds. The same operations on the same values as one evaluation
+//! per step, so the same verdicts.
 
 // Lane loops index several arrays by lane; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
