@@ -284,10 +284,13 @@ impl Plan {
 
     /// Does an observer other than the chaos indicators look at every step?
     pub fn others_observe_every_step(&self) -> bool {
-        self.needs_field()
-            || self.cycle_var.is_some()
-            || !self.average_vars.is_empty()
-            || self.stop.is_some()
+        self.more_than_stop_observes_every_step() || self.stop.is_some()
+    }
+
+    /// Does an observer other than the chaos indicators and the stop
+    /// condition look at every step?
+    pub fn more_than_stop_observes_every_step(&self) -> bool {
+        self.needs_field() || self.cycle_var.is_some() || !self.average_vars.is_empty()
     }
 
     /// Does any observer need the vector field at the step ends (for

@@ -81,8 +81,6 @@ pub struct Condition<R> {
     inputs: Vec<usize>,
     /// The slot of each input that reads one (by input).
     slots: Vec<Option<usize>>,
-    /// Whether the program reads each input.
-    read: Vec<bool>,
     cmp: Cmp,
     isa: Isa,
     /// Does it read `t` (set to the step's end before it runs)?
@@ -93,7 +91,6 @@ impl<R: Real> Condition<R> {
     /// `slot(name)`: the observer slot of an input that is not a lane.
     pub fn new(s: &StopPlan, isa: Isa, slot: impl Fn(&str) -> Option<usize>) -> Self {
         let slots: Vec<Option<usize>> = s.inputs.iter().map(|n| slot(n)).collect();
-        let read = s.program.inputs_read();
         Condition {
             tape: Tape::new(&s.program, |_| false),
             program: s.program.clone(),
@@ -104,9 +101,6 @@ impl<R: Real> Condition<R> {
                 .map(|(n, k)| if k.is_some() { 0 } else { lane(n) })
                 .collect(),
             slots,
-            read: (0..s.inputs.len() as u32)
-                .map(|k| read.contains(&k))
-                .collect(),
             cmp: s.cmp,
             isa,
             reads_time: s.inputs.contains(&"t"),
@@ -119,8 +113,11 @@ impl<R: Real> Condition<R> {
 
     /// The lane of each input (where it is no observer slot), `None` where
     /// the program does not read it.
-    pub fn lanes_read(&self) -> impl Iterator<Item = Option<usize>> + '_ {
-        (self.inputs.iter().zip(&self.read)).map(|(&lane, &read)| read.then_some(lane))
+    pub fn lanes_read(&self) -> Vec<Option<usize>> {
+        let read = self.program.inputs_read();
+        (self.inputs.iter().enumerate())
+            .map(|(k, &lane)| read.contains(&(k as u32)).then_some(lane))
+            .collect()
     }
 
     /// Whether some input reads an observer slot.
@@ -182,23 +179,21 @@ impl<R: Real> Condition<R> {
     ) {
         self.tape.run(regs, input, self.isa);
         let g = self.tape.output(regs, 0);
-        // `Cmp::holds` of each lane, with the test chosen once (each
-        // precision's comparison with zero is the f64 one of its value).
-        let zero = R::default();
-        macro_rules! lanes {
-            ($op:tt) => {
-                for i in 0..N {
-                    holds[i] = g[i] $op zero;
-                }
-            };
-        }
-        match self.cmp {
-            Cmp::Gt => lanes!(>),
-            Cmp::Ge => lanes!(>=),
-            Cmp::Lt => lanes!(<),
-            Cmp::Le => lanes!(<=),
+        let sign = self.sign();
+        for i in 0..N {
+            holds[i] = holds_at(sign, g[i]);
         }
     }
+}
+
+/// Whether a condition whose comparison is `(sign, strict)`
+/// ([`Condition::sign`]) holds where `lhs − rhs` is `g`: `Cmp::holds` in
+/// the working precision (its comparison with zero is the f64 one of its
+/// value), the same test for every lane so that lane loops vectorise.
+#[inline(always)]
+pub fn holds_at<R: Real>((sign, strict): (R, bool), g: R) -> bool {
+    let x = sign * g;
+    x > R::default() || (!strict && x == R::default())
 }
 
 /// Where an input of the composed step comes from.

@@ -590,10 +590,7 @@ impl<'a, R: Flows> Walk<'a, R> {
             h.base,
             h.count,
         );
-        if stopped > 0 {
-            self.alive -= stopped;
-            h.run = observe::running_flags(&h.status, h.count);
-        }
+        self.stopped(stopped);
     }
 
     /// The block from step `n0` to the end, observed after each call of
@@ -686,12 +683,8 @@ impl<'a, R: Flows> Walk<'a, R> {
         let mut view = Lanes::<R>::boxed();
         view.as_mut_slice().copy_from_slice(l.as_slice());
         let mut after: Vec<Recorded<R>> = vec![[[R::default(); LANES]; RECORDED]; p.var.len()];
-        let stop = p.stop.as_ref();
-        let mut stops = stop.map(|c| RunStops::new(c, &p.var, l, p.isa));
-        let stop_only = stop.is_some()
-            && !p.needs_field
-            && plan.cycle_var.is_none()
-            && plan.average_vars.is_empty();
+        let mut stops = (p.stop.as_ref()).map(|c| (c, RunStops::new(c, &p.var, l, p.isa)));
+        let stop_only = stops.is_some() && !plan.more_than_stop_observes_every_step();
         let mut n = n0;
         while n < plan.steps {
             if self.pauses(n, n0, pause) {
@@ -711,13 +704,9 @@ impl<'a, R: Flows> Walk<'a, R> {
             let (done, any) =
                 unsafe { (f.kernel)(l, &f.weights, n, k, f.time_terms, Some(&mut record)) };
             let steps = done as usize;
-            let first = match (stop, stops.as_mut()) {
-                (Some(c), Some(s)) => {
-                    let h = &self.here;
-                    Some(s.first(c, l, &after, n, steps, &h.status, h.count, p.isa))
-                }
-                _ => None,
-            };
+            let h = &self.here;
+            let first = (stops.as_mut())
+                .map(|(c, s)| s.first(c, l, &after, n, steps, &h.status, h.count, p.isa));
             let quiet =
                 stop_only && !any && first.is_some_and(|f| f.iter().all(|&j| j as usize >= steps));
             if quiet {
@@ -817,9 +806,14 @@ impl<'a, R: Flows> Walk<'a, R> {
                 stopped += 1;
             }
         }
-        if stopped > 0 {
-            self.alive -= stopped;
-            h.run = observe::running_flags(&h.status, h.count);
+        self.stopped(stopped);
+    }
+
+    /// Counts `k` more lanes stopped (their status already set).
+    fn stopped(&mut self, k: usize) {
+        if k > 0 {
+            self.alive -= k;
+            self.here.run = observe::running_flags(&self.here.status, self.here.count);
         }
     }
 }

@@ -14,7 +14,7 @@ use crate::num::formula::stage::{split, Vary};
 use crate::num::formula::tape::{Inputs, Tape};
 use crate::num::precision::Real;
 
-use super::formula::Condition;
+use super::formula::{holds_at, Condition};
 use super::kernels::{Isa, Recorded, RECORDED};
 
 /// The lanes of a whole recorded run: step j's lane i is `j·LANES + i`.
@@ -94,8 +94,9 @@ impl<R: Real> RunStops<R> {
     pub fn new(stop: &Condition<R>, vars: &[usize], l: &Lanes<R>, isa: Isa) -> Self {
         let t = index_of("t");
         let mut fixed = vec![];
-        let mut sources = (stop.lanes_read())
-            .map(|lane| match lane {
+        let lanes = stop.lanes_read();
+        let mut sources = (lanes.iter())
+            .map(|&lane| match lane {
                 None => Source::Unread,
                 Some(lane) if Some(lane) == t => Source::Time,
                 Some(lane) => match vars.iter().position(|&v| v == lane) {
@@ -117,7 +118,7 @@ impl<R: Real> RunStops<R> {
             .collect();
         let staged = split(stop.program(), &vary);
         let once = Tape::<R>::new(&staged.fixed, |_| false);
-        let inputs: Vec<&[R; LANES]> = stop.lanes_read().map(|k| l.at(k.unwrap_or(0))).collect();
+        let inputs: Vec<&[R; LANES]> = lanes.iter().map(|k| l.at(k.unwrap_or(0))).collect();
         let mut regs = vec![[R::default(); LANES]; once.registers];
         once.run(&mut regs, &inputs[..], isa);
         for k in 0..once.outputs() {
@@ -163,17 +164,17 @@ impl<R: Real> RunStops<R> {
         };
         self.per_step.run(&mut self.regs, &input, isa);
         let g = self.per_step.output(&self.regs, 0);
-        let (sign, strict) = stop.sign();
+        let sign = stop.sign();
         let mut first = {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: the kernels' level is one `isa()` found on this CPU.
             match isa {
-                Isa::V4 => unsafe { first_v4(g, done, sign, strict) },
-                Isa::V3 => unsafe { first_v3(g, done, sign, strict) },
-                Isa::Baseline => first_holding(g, done, sign, strict),
+                Isa::V4 => unsafe { first_v4(g, done, sign) },
+                Isa::V3 => unsafe { first_v3(g, done, sign) },
+                Isa::Baseline => first_holding(g, done, sign),
             }
             #[cfg(not(target_arch = "x86_64"))]
-            first_holding(g, done, sign, strict)
+            first_holding(g, done, sign)
         };
         for i in 0..LANES {
             if i >= count || status[i] != 0 {
@@ -184,19 +185,21 @@ impl<R: Real> RunStops<R> {
     }
 }
 
-/// Each lane's first of `done` steps where `sign·g` is above zero (or at
-/// zero, where not `strict`), [`RECORDED`] where none: from the last step
-/// back, so that the first is kept, one select per lane and step.
+/// Each lane's first of `done` steps where a condition of comparison
+/// `sign` ([`Condition::sign`]) holds on `g`, [`RECORDED`] where none: from
+/// the last step back, so that the first is kept, one select per lane and
+/// step.
 #[inline(always)]
-fn first_holding<R: Real>(g: &[R; WIDE], done: usize, sign: R, strict: bool) -> [u8; LANES] {
-    let zero = R::default();
+fn first_holding<R: Real>(g: &[R; WIDE], done: usize, sign: (R, bool)) -> [u8; LANES] {
     let mut first = [RECORDED as u8; LANES];
     for j in (0..done).rev() {
         let g = &g[j * LANES..][..LANES];
         for i in 0..LANES {
-            let x = sign * g[i];
-            let holds = x > zero || (!strict && x == zero);
-            first[i] = if holds { j as u8 } else { first[i] };
+            first[i] = if holds_at(sign, g[i]) {
+                j as u8
+            } else {
+                first[i]
+            };
         }
     }
     first
@@ -205,15 +208,15 @@ fn first_holding<R: Real>(g: &[R; WIDE], done: usize, sign: R, strict: bool) -> 
 /// [`first_holding`] for AVX-512.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,fma")]
-unsafe fn first_v4<R: Real>(g: &[R; WIDE], done: usize, sign: R, strict: bool) -> [u8; LANES] {
-    first_holding(g, done, sign, strict)
+unsafe fn first_v4<R: Real>(g: &[R; WIDE], done: usize, sign: (R, bool)) -> [u8; LANES] {
+    first_holding(g, done, sign)
 }
 
 /// [`first_holding`] for AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn first_v3<R: Real>(g: &[R; WIDE], done: usize, sign: R, strict: bool) -> [u8; LANES] {
-    first_holding(g, done, sign, strict)
+unsafe fn first_v3<R: Real>(g: &[R; WIDE], done: usize, sign: (R, bool)) -> [u8; LANES] {
+    first_holding(g, done, sign)
 }
 
 /// Time at the end of each of the `done` steps of a run from step `n`, on
