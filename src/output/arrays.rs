@@ -114,6 +114,12 @@ pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Ve
     if scene.megno.is_some() {
         out.push(scalar("megno.npy", real::<R>(), &obs.megno));
     }
+    if scene.sali.is_some() {
+        out.push(scalar("sali.npy", real::<R>(), &obs.sali));
+    }
+    if scene.gali.is_some() {
+        out.push(scalar("gali.npy", real::<R>(), &obs.gali));
+    }
     out.extend(indicator_frames(scene, obs));
     // status: 0 ok, 1 non-finite, 2 stopped; status_step: the step it
     // became non-finite or stopped after (−1: neither).
@@ -131,7 +137,8 @@ pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Ve
 
 /// The indicators' running values per trajectory frame:
 /// `trajectory_lyapunov.npy` (axes × frame × exponent),
-/// `trajectory_fli.npy`, `trajectory_megno.npy` (axes × frame).
+/// `trajectory_fli.npy`, `trajectory_megno.npy`, `trajectory_sali.npy`,
+/// `trajectory_gali.npy` (axes × frame).
 fn indicator_frames<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Vec<Array<'a>> {
     let mut out = vec![];
     if scene.trajectory.is_none() || obs.frames == 0 {
@@ -153,6 +160,12 @@ fn indicator_frames<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Vec
     }
     if scene.megno.is_some() {
         out.push(framed("trajectory_megno.npy", &obs.trajectory_megno));
+    }
+    if scene.sali.is_some() {
+        out.push(framed("trajectory_sali.npy", &obs.trajectory_sali));
+    }
+    if scene.gali.is_some() {
+        out.push(framed("trajectory_gali.npy", &obs.trajectory_gali));
     }
     out
 }

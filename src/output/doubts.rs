@@ -87,7 +87,8 @@ fn dropped_points<R: Real>(scene: &Scene, d: &Observations<R>, out: &mut Doubts)
 
 /// Whether the run has chaos indicators.
 fn has_indicators(scene: &Scene) -> bool {
-    scene.lyapunov.is_some() || scene.fli.is_some() || scene.megno.is_some()
+    let scalars = [&scene.fli, &scene.megno, &scene.sali].iter().any(|o| o.is_some());
+    scene.lyapunov.is_some() || scalars || scene.gali.is_some()
 }
 
 /// Trajectories the stop condition ended: their indicators cover less time.
@@ -110,7 +111,8 @@ fn stopped_indicators<R: Real>(
 fn indicators_finite<R: Real>(d: &Observations<R>, i: usize) -> bool {
     let k = d.exponents;
     let finite = |v: &[R], i: usize| v.get(i).is_none_or(|x| x.finite());
-    (0..k).all(|j| finite(&d.lyapunov, i * k + j)) && finite(&d.fli, i) && finite(&d.megno, i)
+    let scalars = [&d.fli, &d.megno, &d.sali, &d.gali];
+    (0..k).all(|j| finite(&d.lyapunov, i * k + j)) && scalars.iter().all(|v| finite(v, i))
 }
 
 /// Trajectories that ran to the end with indicators that are not finite:

@@ -3,7 +3,7 @@
 //! portrait of the trajectories, a Poincaré portrait of the sections, and a
 //! map of where trajectories stopped.
 
-use std::f64::consts::PI;
+use std::f64::consts::{PI, SQRT_2};
 use std::path::Path;
 
 use anyhow::Result;
@@ -173,7 +173,9 @@ fn statistics<'a, R: Real>(d: &'a Observations<R>, doubts: &'a Doubts) -> Vec<St
 }
 
 /// The chaos indicators: each Lyapunov exponent (`lyapunov_1` the
-/// largest), the FLI and MEGNO; none for a trajectory that became
+/// largest), the FLI, MEGNO, and SALI and GALI as their decimal
+/// logarithms (which read as the exponential decay on chaotic orbits),
+/// those below the precision's ε at ε; none for a trajectory that became
 /// non-finite, one the stop condition ended, one whose vectors overflowed,
 /// nor an exponent the samples do not resolve.
 fn indicators<'a, R: Real>(d: &'a Observations<R>, doubts: &'a Doubts) -> Vec<Stat<'a>> {
@@ -211,7 +213,21 @@ fn indicators<'a, R: Real>(d: &'a Observations<R>, doubts: &'a Doubts) -> Vec<St
             Box::new(move |i| value(i, d.megno[i])),
         ));
     }
+    let floor = alignment_floor(R::UNIT_ROUNDOFF);
+    for (file, label, v) in [("sali", "log₁₀ SALI", &d.sali), ("gali", "log₁₀ GALI", &d.gali)] {
+        if !v.is_empty() {
+            let log = move |i: usize| value(i, v[i]).map(|x| x.max(floor).log10());
+            stats.push((file.into(), label.into(), Box::new(log)));
+        }
+    }
     stats
+}
+
+/// The smallest SALI or GALI the maps tell apart: the precision's ε (twice
+/// its unit round-off `u`), where the unit vectors' differences are
+/// round-off.
+fn alignment_floor(u: f64) -> f64 {
+    2.0 * u
 }
 
 /// The colour of resonance class `k` in both pictures: the palette's, grey
@@ -371,6 +387,10 @@ impl<'a> Pictures<'a> {
             let label = &match file.as_str() {
                 "megno" => clip_to(&mut grid, label, MEGNO_RANGE),
                 "fli" => clip_to(&mut grid, label, fli_range(self.scene)),
+                "sali" | "gali" => {
+                    let top = if file == "sali" { SQRT_2.log10() } else { 0.0 };
+                    clip_to(&mut grid, label, (alignment_floor(self.precision.1).log10(), top))
+                }
                 _ => clip_outliers(&mut grid, label),
             };
             let name = format!("{file}.png");
@@ -597,8 +617,24 @@ impl<'a> Pictures<'a> {
                 Box::new(|i, f| d.trajectory_megno[i * frames + f].to_f64()),
             ));
         }
+        if !d.trajectory_sali.is_empty() {
+            running.push((
+                "trajectory_sali",
+                "SALI",
+                Box::new(|i, f| d.trajectory_sali[i * frames + f].to_f64()),
+            ));
+        }
+        if !d.trajectory_gali.is_empty() {
+            running.push((
+                "trajectory_gali",
+                "GALI",
+                Box::new(|i, f| d.trajectory_gali[i * frames + f].to_f64()),
+            ));
+        }
         let mut files = vec![];
         for (file, label, at) in running {
+            // The alignment indices decay exponentially or as powers of t.
+            let log = matches!(file, "trajectory_sali" | "trajectory_gali");
             let ys: Vec<Vec<f64>> = chosen
                 .iter()
                 .map(|i| (0..frames).map(|f| at(*i, f)).collect())
@@ -611,8 +647,8 @@ impl<'a> Pictures<'a> {
                 &self.dir.join(&name),
                 &self.figure("step", label),
                 &series,
-                false,
-                false,
+                log,
+                log,
             )?;
             files.push(name);
         }

@@ -646,6 +646,12 @@ fn load<R: Real>(scene: &Scene, src: &Source, obs: &mut Observations<R>) -> Resu
     if scene.megno.is_some() {
         obs.megno = src.values("megno.npy", n, size)?;
     }
+    if scene.sali.is_some() {
+        obs.sali = src.values("sali.npy", n, size)?;
+    }
+    if scene.gali.is_some() {
+        obs.gali = src.values("gali.npy", n, size)?;
+    }
     if scene.trajectory.is_some() && obs.frames > 0 {
         let frame = size * obs.frames as u64;
         if scene.lyapunov.is_some() {
@@ -657,6 +663,12 @@ fn load<R: Real>(scene: &Scene, src: &Source, obs: &mut Observations<R>) -> Resu
         }
         if scene.megno.is_some() {
             obs.trajectory_megno = src.values("trajectory_megno.npy", n, frame)?;
+        }
+        if scene.sali.is_some() {
+            obs.trajectory_sali = src.values("trajectory_sali.npy", n, frame)?;
+        }
+        if scene.gali.is_some() {
+            obs.trajectory_gali = src.values("trajectory_gali.npy", n, frame)?;
         }
     }
     let steps: Vec<i64> = src.values("status_step.npy", n, 8)?;

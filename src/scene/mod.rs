@@ -36,7 +36,7 @@ use std::path::PathBuf;
 pub use crate::backend::BackendChoice;
 use crate::models::Model;
 use crate::num::precision::Precision;
-use crate::plan::observers::{CycleObs, LyapunovObs, ResonanceObs, SampledObs, Section};
+use crate::plan::observers::{CycleObs, GaliObs, LyapunovObs, ResonanceObs, SampledObs, Section};
 use crate::plan::scheme::Scheme;
 use crate::plan::size::{self, Estimate, SizeError};
 use crate::plan::stop::StopObs;
@@ -178,6 +178,8 @@ pub struct Scene {
     pub lyapunov: Option<LyapunovObs>,
     pub fli: Option<SampledObs>,
     pub megno: Option<SampledObs>,
+    pub sali: Option<SampledObs>,
+    pub gali: Option<GaliObs>,
     /// How the arrays are written (`output.format`).
     pub format: Format,
     pub backend: BackendChoice,

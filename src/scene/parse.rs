@@ -16,7 +16,8 @@ use crate::models::spec::ModelSpec;
 use crate::models::{Model, MODEL_NAMES};
 use crate::num::precision::Precision;
 use crate::plan::observers::{
-    check_skip, check_strobe, CycleObs, Direction, LyapunovObs, ResonanceObs, SampledObs, Section,
+    check_skip, check_strobe, CycleObs, Direction, GaliObs, LyapunovObs, ResonanceObs, SampledObs,
+    Section,
 };
 use crate::plan::scheme::{Scheme, SCHEME_NAMES};
 use crate::plan::size;
@@ -54,6 +55,8 @@ const OUTPUT_KEYS: &[&str] = &[
     "lyapunov",
     "fli",
     "megno",
+    "sali",
+    "gali",
     "format",
 ];
 const TRAJECTORY_KEYS: &[&str] = &["every", "vars"];
@@ -73,6 +76,7 @@ const RESONANCE_KEYS: &[&str] = &["var", "ratios", "tolerance"];
 const STOP_KEYS: &[&str] = &["when"];
 const LYAPUNOV_KEYS: &[&str] = &["vectors", "every", "skip"];
 const SAMPLED_KEYS: &[&str] = &["every"];
+const GALI_KEYS: &[&str] = &["k", "every"];
 const RUN_KEYS: &[&str] = &["backend", "precision"];
 const PLOT_KEYS: &[&str] = &[
     "phase",
@@ -325,9 +329,11 @@ impl Scene {
             average: out.average,
             resonance: out.resonance,
             stop: out.stop,
-            lyapunov: out.lyapunov,
-            fli: out.fli,
-            megno: out.megno,
+            lyapunov: out.chaos.lyapunov,
+            fli: out.chaos.fli,
+            megno: out.chaos.megno,
+            sali: out.chaos.sali,
+            gali: out.chaos.gali,
             format: out.format,
             backend,
             precision,
@@ -606,10 +612,17 @@ struct Out {
     average: Option<(Vec<OutVar>, f64)>,
     resonance: Option<ResonanceObs>,
     stop: Option<StopObs>,
+    chaos: Chaos,
+    format: Format,
+}
+
+/// The chaos indicators `[output]` asks for.
+struct Chaos {
     lyapunov: Option<LyapunovObs>,
     fli: Option<SampledObs>,
     megno: Option<SampledObs>,
-    format: Format,
+    sali: Option<SampledObs>,
+    gali: Option<GaliObs>,
 }
 
 /// Resolves output variable names against the model: a variable, `t`, or a
@@ -698,13 +711,20 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
                 ("lyapunov", LYAPUNOV_KEYS),
                 ("fli", SAMPLED_KEYS),
                 ("megno", SAMPLED_KEYS),
+                ("sali", SAMPLED_KEYS),
+                ("gali", GALI_KEYS),
             ],
         )?;
     }
     let o: tables::Output = deserialize(p, doc.get("output"))?;
     let (average, resonance) = averages(p, &ov, &o)?;
     // The indicators a stop condition may read, by name.
-    let readable: Vec<&str> = [("fli", o.fli.is_some()), ("megno", o.megno.is_some())]
+    let readable: Vec<&str> = [
+        ("fli", o.fli.is_some()),
+        ("megno", o.megno.is_some()),
+        ("sali", o.sali.is_some()),
+        ("gali", o.gali.is_some()),
+    ]
         .iter()
         .filter(|(_, on)| *on)
         .map(|(n, _)| *n)
@@ -759,7 +779,7 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
         }
     };
     let format = parsed(p, "output.format", &o.format)?.unwrap_or(Format::Npy);
-    let (lyapunov, fli, megno) = indicators(o.lyapunov, o.fli, o.megno);
+    let chaos = indicators(o.lyapunov, o.fli, o.megno, o.sali, o.gali);
     Ok(Out {
         final_vars,
         trajectory,
@@ -768,20 +788,21 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
         average,
         resonance,
         stop,
-        lyapunov,
-        fli,
-        megno,
+        chaos,
         format,
     })
 }
 
-/// `output.lyapunov`, `output.fli`, `output.megno` (`true`: the defaults;
-/// the values are checked with the other observers').
+/// `output.lyapunov`, `output.fli`, `output.megno`, `output.sali`,
+/// `output.gali` (`true`: the defaults; the values are checked with the
+/// other observers').
 fn indicators(
     lyapunov: Option<Spanned<Lyapunov>>,
     fli: Option<Spanned<Sampled>>,
     megno: Option<Spanned<Sampled>>,
-) -> (Option<LyapunovObs>, Option<SampledObs>, Option<SampledObs>) {
+    sali: Option<Spanned<Sampled>>,
+    gali: Option<Spanned<tables::Gali>>,
+) -> Chaos {
     let whole =
         |x: Option<Spanned<tables::Int>>, default: u64| x.map_or(default, |v| v.into_inner().0);
     let lyapunov = match lyapunov.map(Spanned::into_inner) {
@@ -800,7 +821,21 @@ fn indicators(
             every: whole(t.every, 1),
         }),
     };
-    (lyapunov, sampled(fli), sampled(megno))
+    let gali = match gali.map(Spanned::into_inner) {
+        None | Some(tables::Gali::On(false)) => None,
+        Some(tables::Gali::On(true)) => Some(GaliObs::default()),
+        Some(tables::Gali::Table(t)) => Some(GaliObs {
+            k: whole(t.k, GaliObs::default().k as u64) as usize,
+            every: whole(t.every, 1),
+        }),
+    };
+    Chaos {
+        lyapunov,
+        fli: sampled(fli),
+        megno: sampled(megno),
+        sali: sampled(sali),
+        gali,
+    }
 }
 
 /// `output.stop`: the condition compiled over the model's variables, `t`

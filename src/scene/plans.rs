@@ -458,6 +458,8 @@ impl Scene {
             lyapunov: self.lyapunov.clone(),
             fli: self.fli.clone(),
             megno: self.megno.clone(),
+            sali: self.sali.clone(),
+            gali: self.gali.clone(),
         }
     }
 }

@@ -184,7 +184,8 @@ impl Leaf for Nums {
 }
 
 leaf_deserialize!(
-    Num, Int, Str, Bool, Strs, Nums, Period, Cycle, Average, Ratios, Stop, Lyapunov, Sampled
+    Num, Int, Str, Bool, Strs, Nums, Period, Cycle, Average, Ratios, Stop, Lyapunov, Sampled,
+    Gali
 );
 
 /// An inline table of known fields; any other value is refused with
@@ -238,6 +239,8 @@ pub struct Output {
     pub lyapunov: Field<Lyapunov>,
     pub fli: Field<Sampled>,
     pub megno: Field<Sampled>,
+    pub sali: Field<Sampled>,
+    pub gali: Field<Gali>,
     pub format: Field<Str>,
 }
 
@@ -448,6 +451,29 @@ impl Leaf for Sampled {
     }
     fn from_map<'de, A: MapAccess<'de>>(map: A) -> Result<Sampled, A::Error> {
         SampledTable::deserialize(de::value::MapAccessDeserializer::new(map)).map(Sampled::Table)
+    }
+}
+
+/// `output.gali`: `true` or `{ k = 3, every = m }`.
+#[derive(Debug)]
+pub enum Gali {
+    On(bool),
+    Table(GaliTable),
+}
+
+#[derive(Debug, Default, Deserialize)]
+pub struct GaliTable {
+    pub k: Field<Int>,
+    pub every: Field<Int>,
+}
+
+impl Leaf for Gali {
+    const WHAT: &'static str = "true or { k = 3, every = 1 }";
+    fn from_bool(v: bool) -> Result<Gali, String> {
+        Ok(Gali::On(v))
+    }
+    fn from_map<'de, A: MapAccess<'de>>(map: A) -> Result<Gali, A::Error> {
+        GaliTable::deserialize(de::value::MapAccessDeserializer::new(map)).map(Gali::Table)
     }
 }
 

@@ -25,11 +25,14 @@
 //! `fli_log` = ln‖w‖ at the last sample, `fli_max` its maximum over the
 //! samples, `megno_sum` = Σ k ln(‖w_k‖/‖w_{k−1}‖) over the samples
 //! k = 1, 2, … and `megno_mean` = ⟨Y⟩ (Y_n = 2·megno_sum/n: the
-//! definition's t_k = k·m·dt cancel).
+//! definition's t_k = k·m·dt cancel). Then SALI's and GALI's vectors
+//! (`plan/alignment.rs`, the identity's first columns again), and `sali`,
+//! `gali` at the last sample.
 
 use crate::num::formula::lower::{lower, Lowered};
 use crate::num::formula::{Dag, Func, Func2, Id};
 
+use super::alignment::alignment_program;
 use super::observers::Observers;
 use super::problem::{err, PlanError};
 use super::tangent::{StepSpec, TangentInput, TangentStep};
@@ -69,6 +72,8 @@ pub struct Indicators {
     pub lyapunov: Option<Sampler>,
     /// The FLI/MEGNO vector's samples.
     pub chaos: Option<Sampler>,
+    /// SALI's and GALI's vectors' samples.
+    pub alignment: Option<Sampler>,
     /// Lyapunov sums start after this step (a multiple of `every`).
     pub skip_step: u64,
     /// The slots: name and value before the first step. Indices here are
@@ -87,33 +92,45 @@ impl Indicators {
     ) -> Result<Option<Indicators>, PlanError> {
         let k = observers.lyapunov.as_ref().map_or(0, |l| l.vectors);
         let chaos = observers.chaos_every();
-        if k == 0 && chaos.is_none() {
+        let alignment = observers.alignment();
+        let m = alignment.map_or(0, |(m, _)| m);
+        if k == 0 && chaos.is_none() && m == 0 {
             return Ok(None);
         }
-        let vectors = k + usize::from(chaos.is_some());
-        let tangent = TangentStep::new(step, vectors).map_err(|e| {
-            let which = if k > 0 { "lyapunov" } else { "fli" };
-            err(format!("output.{which}"), e.message)
-        })?;
+        let vectors = k + usize::from(chaos.is_some()) + m;
+        let which = match (k, chaos, &observers.sali) {
+            (1.., _, _) => "lyapunov",
+            (0, Some(_), _) => "fli",
+            (0, None, Some(_)) => "sali",
+            (0, None, None) => "gali",
+        };
+        let tangent = TangentStep::new(step, vectors)
+            .map_err(|e| err(format!("output.{which}"), e.message))?;
         let d = tangent.space.len();
+        let too_many = |field: &str, what: String| {
+            let space = tangent.space.join(", ");
+            let message = format!("{what} is more than the tangent dimension {d} of this plan ({space})");
+            Err(err(field, message))
+        };
         if k > d {
-            return Err(err(
-                "output.lyapunov.vectors",
-                format!(
-                    "{k} is more than the tangent dimension {d} of this plan ({})",
-                    tangent.space.join(", ")
-                ),
-            ));
+            return too_many("output.lyapunov.vectors", format!("{k}"));
+        }
+        if let Some(g) = observers.gali.as_ref().filter(|g| g.k > d) {
+            return too_many("output.gali.k", format!("{}", g.k));
+        }
+        if observers.sali.is_some() && d < 2 {
+            return too_many("output.sali", "its two deviation vectors are".into());
         }
         let mut s = Indicators {
             deviation_slots: (0..vectors * d).collect(),
             tangent,
             lyapunov: None,
             chaos: None,
+            alignment: None,
             skip_step: 0,
             slots: vec![],
         };
-        s.slots = s.deviation_inits(k, chaos.is_some());
+        s.slots = s.deviation_inits(k, chaos.is_some(), m);
         if let Some(l) = &observers.lyapunov {
             s.skip_step = l.skip_step(steps);
             s.lyapunov = Some(s.lyapunov_sampler(k, l.every));
@@ -121,22 +138,45 @@ impl Indicators {
         if let Some(every) = chaos {
             s.chaos = Some(s.chaos_sampler(k, every));
         }
+        if let Some((m, every)) = alignment {
+            let first = k + usize::from(chaos.is_some());
+            s.alignment = Some(s.alignment_sampler(first, m, every));
+        }
         Ok(Some(s))
+    }
+
+    /// The sample programs, each with the name of its function on the GPU.
+    pub fn samplers(&self) -> impl Iterator<Item = (&'static str, &Sampler)> {
+        [
+            ("lyapunov_sample", &self.lyapunov),
+            ("chaos_sample", &self.chaos),
+            ("alignment_sample", &self.alignment),
+        ]
+        .into_iter()
+        .filter_map(|(name, s)| Some((name, s.as_ref()?)))
     }
 
     fn dimension(&self) -> usize {
         self.tangent.space.len()
     }
 
-    /// The deviation vectors' slots: identity columns, then (1, …, 1)/√d.
-    fn deviation_inits(&self, k: usize, chaos: bool) -> Vec<(String, f64)> {
+    /// The deviation vectors' slots: `k` identity columns, then
+    /// (1, …, 1)/√d where `chaos`, then `m` identity columns again.
+    fn deviation_inits(&self, k: usize, chaos: bool, m: usize) -> Vec<(String, f64)> {
         let d = self.dimension();
+        let c = usize::from(chaos);
         let mut out = vec![];
-        for v in 0..k + usize::from(chaos) {
+        for v in 0..k + c + m {
+            // Which identity column: Lyapunov's vectors, then the alignment's.
+            let column = match v {
+                _ if v < k => Some(v),
+                _ if v >= k + c => Some(v - k - c),
+                _ => None,
+            };
             for j in 0..d {
-                let x = match v < k {
-                    true => f64::from(u8::from(v == j)),
-                    false => 1.0 / (d as f64).sqrt(),
+                let x = match column {
+                    Some(i) => f64::from(u8::from(i == j)),
+                    None => 1.0 / (d as f64).sqrt(),
                 };
                 out.push((format!("w{v}_{j}"), x));
             }
@@ -201,6 +241,27 @@ impl Indicators {
         }
     }
 
+    /// SALI and GALI over the `m` vectors from number `first` on
+    /// ([`alignment_program`]).
+    fn alignment_sampler(&mut self, first: usize, m: usize, every: u64) -> Sampler {
+        let d = self.dimension();
+        let w = self.deviation_slots[first * d..(first + m) * d].to_vec();
+        let indices = [
+            self.slot("sali".into(), std::f64::consts::SQRT_2),
+            self.slot("gali".into(), 1.0),
+        ];
+        let mut outputs = w.clone();
+        outputs.extend(indices);
+        let shape = SampleShape::Alignment { d, m };
+        Sampler {
+            every,
+            program: shape.program(),
+            shape,
+            inputs: w.into_iter().map(SampleInput::Slot).collect(),
+            outputs,
+        }
+    }
+
     /// The slot of the running value `name` (`fli_max`, `megno_mean`, `lyap_0`, …).
     pub fn slot_of(&self, name: &str) -> Option<usize> {
         self.slots.iter().position(|(n, _)| n == name)
@@ -242,6 +303,8 @@ const LYAPUNOV_STATE: [(&str, f64); 4] = [
 pub enum SampleShape {
     Lyapunov { d: usize, k: usize },
     Chaos { d: usize },
+    /// SALI and GALI over `m` vectors.
+    Alignment { d: usize, m: usize },
 }
 
 impl SampleShape {
@@ -250,6 +313,7 @@ impl SampleShape {
         match self {
             SampleShape::Lyapunov { d, k } => k * d + 4 * k + 1,
             SampleShape::Chaos { d } => d + 7,
+            SampleShape::Alignment { d, m } => m * d,
         }
     }
 
@@ -257,6 +321,7 @@ impl SampleShape {
         match self {
             SampleShape::Lyapunov { d, k } => lyapunov_program(d, k),
             SampleShape::Chaos { d } => chaos_program(d),
+            SampleShape::Alignment { d, m } => alignment_program(d, m),
         }
     }
 }

@@ -9,6 +9,7 @@
 //! for `(q, s)`, no `t` for an autonomous one), which ops make one step, and
 //! where every lane input comes from. The ensemble is never materialised.
 
+pub mod alignment;
 pub mod indicators;
 pub mod observations;
 pub mod observed;
@@ -135,11 +136,14 @@ fn stop_plan(
 }
 
 /// The observer slot a stop condition reads for an indicator's name: the
-/// FLI so far, MEGNO's running ⟨Y⟩ (`plan/indicators.rs`).
+/// FLI so far, MEGNO's running ⟨Y⟩, SALI and GALI at the last sample
+/// (`plan/indicators.rs`).
 pub fn indicator_slot(name: &str) -> Option<&'static str> {
     match name {
         "fli" => Some("fli_max"),
         "megno" => Some("megno_mean"),
+        "sali" => Some("sali"),
+        "gali" => Some("gali"),
         _ => None,
     }
 }

@@ -171,6 +171,10 @@ observations! {
     fli: Plain R, per one, when fli;
     /// MEGNO ⟨Y⟩ at the last sample.
     megno: Plain R, per one, when megno;
+    /// SALI at the last sample.
+    sali: Plain R, per one, when sali;
+    /// GALI_k at the last sample.
+    gali: Plain R, per one, when gali;
     /// The exponents so far at each trajectory frame (`frames × exponents`
     /// per trajectory; NaN before the first counted sample).
     trajectory_lyapunov: Plain R, per frame_exponents, when lyapunov_frames;
@@ -178,6 +182,10 @@ observations! {
     trajectory_fli: Plain R, per frames, when fli_frames;
     /// ⟨Y⟩ so far at each trajectory frame (NaN before the first sample).
     trajectory_megno: Plain R, per frames, when megno_frames;
+    /// SALI at the last sample at each trajectory frame.
+    trajectory_sali: Plain R, per frames, when sali_frames;
+    /// GALI_k at the last sample at each trajectory frame.
+    trajectory_gali: Plain R, per frames, when gali_frames;
     /// 0: ok; k > 0: non-finite at step k.
     nonfinite_step: Plain u32, per one, when always;
     /// 0: not stopped; k > 0: stopped by the stop condition after step k.
@@ -220,11 +228,15 @@ struct Shape {
     lyapunov: bool,
     fli: bool,
     megno: bool,
+    sali: bool,
+    gali: bool,
     /// The indicators' running values per trajectory frame.
     frame_exponents: u64,
     lyapunov_frames: bool,
     fli_frames: bool,
     megno_frames: bool,
+    sali_frames: bool,
+    gali_frames: bool,
 }
 
 impl Shape {
@@ -251,7 +263,28 @@ impl Shape {
             lyapunov_frames: framed && o.lyapunov.is_some(),
             fli_frames: framed && o.fli.is_some(),
             megno_frames: framed && o.megno.is_some(),
+            sali: o.sali.is_some(),
+            gali: o.gali.is_some(),
+            sali_frames: framed && o.sali.is_some(),
+            gali_frames: framed && o.gali.is_some(),
         })
+    }
+}
+
+impl<R> Sink<R> {
+    /// The columns of `slots::SCALAR_INDICATORS`, in its order.
+    pub fn scalar_indicators(&self) -> [&Rows<R>; 4] {
+        [&self.fli, &self.megno, &self.sali, &self.gali]
+    }
+
+    /// [`Self::scalar_indicators`] at each trajectory frame.
+    pub fn framed_scalar_indicators(&self) -> [&Rows<R>; 4] {
+        [
+            &self.trajectory_fli,
+            &self.trajectory_megno,
+            &self.trajectory_sali,
+            &self.trajectory_gali,
+        ]
     }
 }
 
@@ -327,7 +360,27 @@ impl<R: Real> Observations<R> {
             lyapunov_frames: !self.trajectory_lyapunov.is_empty(),
             fli_frames: !self.trajectory_fli.is_empty(),
             megno_frames: !self.trajectory_megno.is_empty(),
+            sali: !self.sali.is_empty(),
+            gali: !self.gali.is_empty(),
+            sali_frames: !self.trajectory_sali.is_empty(),
+            gali_frames: !self.trajectory_gali.is_empty(),
         }
+    }
+
+    /// The columns of `slots::SCALAR_INDICATORS`, in its order (a column
+    /// the plan lacks is empty).
+    pub fn scalar_indicators_mut(&mut self) -> [&mut Vec<R>; 4] {
+        [&mut self.fli, &mut self.megno, &mut self.sali, &mut self.gali]
+    }
+
+    /// [`Self::scalar_indicators_mut`] at each trajectory frame.
+    pub fn framed_scalar_indicators_mut(&mut self) -> [&mut Vec<R>; 4] {
+        [
+            &mut self.trajectory_fli,
+            &mut self.trajectory_megno,
+            &mut self.trajectory_sali,
+            &mut self.trajectory_gali,
+        ]
     }
 
     /// The lengths of the arrays of `plan`, counted with checked arithmetic

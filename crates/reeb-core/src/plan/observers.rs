@@ -159,6 +159,21 @@ impl Default for SampledObs {
     }
 }
 
+/// The generalized alignment index GALI_k (Skokos, Bountis and
+/// Antonopoulos 2007): the volume of the parallelepiped of `k` unit
+/// deviation vectors, sampled every `every` steps.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct GaliObs {
+    pub k: usize,
+    pub every: u64,
+}
+
+impl Default for GaliObs {
+    fn default() -> Self {
+        GaliObs { k: 3, every: 1 }
+    }
+}
+
 /// Everything a run records.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct Observers {
@@ -175,6 +190,11 @@ pub struct Observers {
     pub lyapunov: Option<LyapunovObs>,
     pub fli: Option<SampledObs>,
     pub megno: Option<SampledObs>,
+    /// The smaller alignment index of two deviation vectors (Skokos 2001).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sali: Option<SampledObs>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gali: Option<GaliObs>,
 }
 
 impl Observers {
@@ -308,6 +328,7 @@ impl Observers {
                 every(name, o.every)?;
             }
         }
+        self.validate_alignment(&every)?;
         if let (Some(f), Some(m)) = (&self.fli, &self.megno) {
             if f.every != m.every {
                 return Err((
@@ -320,6 +341,49 @@ impl Observers {
             }
         }
         Ok(())
+    }
+
+    /// SALI's and GALI's values that do not depend on the model (`every`:
+    /// the check of a sampling period).
+    fn validate_alignment(
+        &self,
+        every: impl Fn(&str, u64) -> Result<(), (String, String)>,
+    ) -> Result<(), (String, String)> {
+        if let Some(s) = &self.sali {
+            every("sali", s.every)?;
+        }
+        if let Some(g) = &self.gali {
+            every("gali", g.every)?;
+            if g.k < 2 {
+                return Err((
+                    "output.gali.k".into(),
+                    format!("{} is below 2: GALI_k measures the volume of k ≥ 2 unit deviation vectors", g.k),
+                ));
+            }
+        }
+        if let (Some(s), Some(g)) = (&self.sali, &self.gali) {
+            if s.every != g.every {
+                return Err((
+                    "output.gali.every".into(),
+                    format!(
+                        "{} differs from output.sali.every = {}: SALI and GALI share their deviation vectors, sampled at one rate",
+                        g.every, s.every
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// How many deviation vectors SALI and GALI share (SALI two, GALI_k
+    /// k), and their sampling period; `None` if neither is asked for.
+    pub fn alignment(&self) -> Option<(usize, u64)> {
+        let sali = self.sali.as_ref().map(|s| (2, s.every));
+        let gali = self.gali.as_ref().map(|g| (g.k, g.every));
+        match (sali, gali) {
+            (Some((m, e)), Some((k, _))) => Some((m.max(k), e)),
+            (a, b) => a.or(b),
+        }
     }
 
     /// The FLI/MEGNO vector's sampling period, if either is asked for.

@@ -7,6 +7,7 @@
 
 use crate::models::Flows;
 use crate::plan::indicators::{lyapunov_finish, lyapunov_slots};
+use crate::plan::observers::Observers;
 use crate::plan::Plan;
 
 /// A slot's value before the first step.
@@ -148,17 +149,41 @@ pub fn mean_finish<R: Flows>(plan: &Plan, mean: R, ok: bool, stop_step: u32) -> 
     }
 }
 
+/// The indicators read from one slot each, in the order of
+/// [`IndicatorValues::scalars`] and of `Observations::scalar_indicators`:
+/// the FLI so far, MEGNO's ⟨Y⟩, SALI and GALI at the last sample.
+pub const SCALAR_INDICATORS: [&str; 4] = ["fli_max", "megno_mean", "sali", "gali"];
+
+/// The sampling period of scalar indicator `k` of [`SCALAR_INDICATORS`],
+/// if the plan asks for it.
+pub fn scalar_every(o: &Observers, k: usize) -> Option<u64> {
+    match k {
+        0 => o.fli.as_ref().map(|f| f.every),
+        1 => o.megno.as_ref().map(|m| m.every),
+        2 => o.sali.as_ref().map(|s| s.every),
+        _ => o.gali.as_ref().map(|g| g.every),
+    }
+}
+
+/// A trajectory's chaos indicators: its Lyapunov exponents (largest
+/// first; none where not asked for) and the [`SCALAR_INDICATORS`] (NaN
+/// where not asked for).
+#[derive(Debug, Clone, PartialEq)]
+pub struct IndicatorValues<R> {
+    pub lyapunov: Vec<R>,
+    pub scalars: [R; 4],
+}
+
 /// The chaos indicators' outputs from a trajectory's real slots
-/// (`slot(k)`), its step `dt` and status: the Lyapunov exponents (largest
-/// first), the FLI and MEGNO; NaN for a trajectory that became non-finite
-/// or ended before a sample counted.
+/// (`slot(k)`), its step `dt` and status; NaN for a trajectory that
+/// became non-finite or ended before a sample counted.
 pub fn indicators_finish<R: Flows>(
     plan: &Plan,
     slot: impl Fn(usize) -> R,
     dt: R,
     ok: bool,
     stop_step: u32,
-) -> (Vec<R>, R, R) {
+) -> IndicatorValues<R> {
     // A deviation vector that left the finite numbers (its growth between
     // two samples beyond the precision's range) stays out of them: the
     // trajectory keeps its state and loses its indicators. (The frames
@@ -178,23 +203,27 @@ pub fn indicators_at<R: Flows>(
     dt: R,
     ok: bool,
     last: u64,
-) -> (Vec<R>, R, R) {
+) -> IndicatorValues<R> {
     let Some(ind) = &plan.indicators else {
-        return (vec![], R::nan(), R::nan());
+        return IndicatorValues {
+            lyapunov: vec![],
+            scalars: [R::nan(); 4],
+        };
     };
     let first = indicator_first(plan);
     let slot = |k: usize| slot(first + k);
     let exponents = lyapunov_finish(ind, dt.to_f64(), last, ok, |k| slot(k).to_f64());
-    let sampled = ok && plan.observers.chaos_every().is_some_and(|e| last >= e);
-    let value = |name: &str| match (sampled, ind.slot_of(name)) {
-        (true, Some(k)) => slot(k),
-        _ => R::nan(),
+    let value = |k: usize| {
+        let sampled = ok && scalar_every(&plan.observers, k).is_some_and(|e| last >= e);
+        match (sampled, ind.slot_of(SCALAR_INDICATORS[k])) {
+            (true, Some(s)) => slot(s),
+            _ => R::nan(),
+        }
     };
-    (
-        exponents.into_iter().map(R::from_f64).collect(),
-        value("fli_max"),
-        value("megno_mean"),
-    )
+    IndicatorValues {
+        lyapunov: exponents.into_iter().map(R::from_f64).collect(),
+        scalars: [0, 1, 2, 3].map(value),
+    }
 }
 
 /// The real slots [`indicators_at`] reads (absolute indices), which the GPU
@@ -203,7 +232,7 @@ pub fn indicator_frame_slots(plan: &Plan) -> Vec<usize> {
     match (&plan.indicators, &plan.observers.trajectory) {
         (Some(ind), Some(_)) => {
             let first = indicator_first(plan);
-            let chaos = ["fli_max", "megno_mean"].map(|name| ind.slot_of(name));
+            let chaos = SCALAR_INDICATORS.map(|name| ind.slot_of(name));
             lyapunov_slots(ind)
                 .into_iter()
                 .chain(chaos.into_iter().flatten())

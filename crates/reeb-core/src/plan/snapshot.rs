@@ -12,8 +12,9 @@ use crate::plan::observations::{Col, ColMut, Observations};
 use crate::plan::Plan;
 
 const MAGIC: &[u8; 8] = b"REEBSNAP";
-/// 2: observer slots in `plan/slots.rs` order (0.3).
-const VERSION: u32 = 2;
+/// 2: observer slots in `plan/slots.rs` order (0.3); 3: SALI's and GALI's
+/// columns among the observations'.
+const VERSION: u32 = 3;
 
 /// Which integration a snapshot continues, and how far it had come.
 #[derive(Debug, Clone, PartialEq)]

@@ -182,10 +182,9 @@ impl<R: Real> IndicatorTapes<R> {
             every: 1,
             compiled: None,
         };
-        let samples: Vec<Program<R>> = [&ind.lyapunov, &ind.chaos]
-            .into_iter()
-            .flatten()
-            .map(|s| sampler(s, first, isa))
+        let samples: Vec<Program<R>> = ind
+            .samplers()
+            .map(|(_, s)| sampler(s, first, isa))
             .collect();
         let megno = plan.observers.megno.is_some();
         let runs = run_locs(&tangent.outputs, compiled.as_ref(), &samples, megno);

@@ -15,7 +15,7 @@ use crate::models::pieces::MAX_VARS;
 use crate::models::Flows;
 use crate::plan::observations::{Rows, Sink};
 use crate::plan::section::{Recorded, SectionKind, SectionStep};
-use crate::plan::slots;
+use crate::plan::slots::{self, IndicatorValues};
 use crate::plan::snapshot::{get, put};
 use crate::plan::{ObsVar, Plan};
 
@@ -482,7 +482,7 @@ impl<R: Flows> BlockObservers<R> {
             let (nonfinite, stop) = slots::split_status(status[i]);
             let slot = |k: usize| self.real[k][i];
             let values = slots::indicators_finish(p.plan, slot, dt[i], nonfinite == 0, stop);
-            let columns = [&sink.lyapunov, &sink.fli, &sink.megno];
+            let columns = (&sink.lyapunov, sink.scalar_indicators());
             put_indicators(p.plan, columns, base + i, values);
         }
     }
@@ -495,11 +495,10 @@ impl<R: Flows> BlockObservers<R> {
         };
         let dt = s.l.at(p.dt_lane);
         let sink = s.sink;
-        let columns = [
+        let columns = (
             &sink.trajectory_lyapunov,
-            &sink.trajectory_fli,
-            &sink.trajectory_megno,
-        ];
+            sink.framed_scalar_indicators(),
+        );
         for i in 0..s.count {
             let row = (s.base + i) * frames + frame;
             let slot = |k: usize| self.real[k][i];
@@ -673,22 +672,23 @@ pub fn running_lanes(status: &[u64]) -> (u64, u64) {
     (bits, padding)
 }
 
-/// The indicators' values `(exponents, FLI, MEGNO)` as row `row` of their
-/// columns (outputs or running values), those the plan asks for.
+/// The indicators' values as row `row` of their columns (outputs or
+/// running values: the exponents', then the scalar indicators'), those
+/// the plan asks for.
 fn put_indicators<R: Copy>(
     plan: &Plan,
-    [l, f, m]: [&Rows<R>; 3],
+    (lyapunov, scalars): (&Rows<R>, [&Rows<R>; 4]),
     row: usize,
-    (lyap, fli, megno): (Vec<R>, R, R),
+    values: IndicatorValues<R>,
 ) {
-    for (j, x) in lyap.iter().enumerate() {
-        l.set(row * lyap.len() + j, *x);
+    let k = values.lyapunov.len();
+    for (j, x) in values.lyapunov.iter().enumerate() {
+        lyapunov.set(row * k + j, *x);
     }
-    if plan.observers.fli.is_some() {
-        f.set(row, fli);
-    }
-    if plan.observers.megno.is_some() {
-        m.set(row, megno);
+    for (j, (column, x)) in scalars.into_iter().zip(values.scalars).enumerate() {
+        if slots::scalar_every(&plan.observers, j).is_some() {
+            column.set(row, x);
+        }
     }
 }
 

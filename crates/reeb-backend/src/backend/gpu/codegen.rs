@@ -393,7 +393,8 @@ pub(super) fn frame_width(plan: &Plan) -> usize {
 /// locals: `tangent_step` (the state at the step's start is `prev_<v>`,
 /// the step number `nf`, the deviation vectors the slots `w<k>_<j>`; with
 /// `moves_state` it writes the state after the step into the variables
-/// too, and is the step), and `lyapunov_sample`, `chaos_sample` over the
+/// too, and is the step), and `lyapunov_sample`, `chaos_sample`,
+/// `alignment_sample` over the
 /// slots and the locals `count`, `inv_count`, `at_skip`.
 fn indicator_functions(
     plan: &Plan,
@@ -445,11 +446,7 @@ fn indicator_functions(
         &strs(&tangent_inputs),
         &strs(&tangent_outputs),
     );
-    for (name, sampler) in [
-        ("lyapunov_sample", &ind.lyapunov),
-        ("chaos_sample", &ind.chaos),
-    ] {
-        let Some(s) = sampler else { continue };
+    for (name, s) in ind.samplers() {
         let inputs: Vec<String> = s
             .inputs
             .iter()
@@ -1189,11 +1186,7 @@ impl Gen<'_> {
             Some(_) => "R(1.0) / count",
             None => "R(0.0)",
         };
-        for (name, sampler) in [
-            ("lyapunov_sample", &ind.lyapunov),
-            ("chaos_sample", &ind.chaos),
-        ] {
-            let Some(smp) = sampler else { continue };
+        for (name, smp) in ind.samplers() {
             let every = smp.every;
             writeln!(
                 s,

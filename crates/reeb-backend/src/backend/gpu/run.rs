@@ -20,7 +20,8 @@ use crate::models::Flows;
 use crate::num::precision::{handed_back, is_f32, Precision};
 use crate::plan::observations::{frames_per_trajectory, Observations};
 use crate::plan::snapshot::{get_array, get_into, invalid, put, put_slice, Header};
-use crate::plan::{slots, ObsVar, Plan};
+use crate::plan::slots::{self, IndicatorValues};
+use crate::plan::{ObsVar, Plan};
 
 /// GPU memory a run may take (buffers of one chunk).
 pub const MEMORY_BUDGET: u64 = 1 << 30;
@@ -846,28 +847,25 @@ fn read_frames<R: Flows>(
             };
             let frame = frame0 + f;
             let values = slots::indicators_at(plan, slot, dt, true, frame * every);
-            let columns = [
-                &mut out.trajectory_lyapunov,
-                &mut out.trajectory_fli,
-                &mut out.trajectory_megno,
-            ];
-            put_indicators(columns, g * out.frames + frame as usize, values);
+            let row = g * out.frames + frame as usize;
+            put_indicators(&mut out.trajectory_lyapunov, row, &values);
+            put_indicators_scalars(out.framed_scalar_indicators_mut(), row, values);
         }
     }
     Ok(())
 }
 
-/// The indicators' values `(exponents, FLI, MEGNO)` as row `row` of their
-/// columns (outputs or running values); a column the plan lacks is empty.
-fn put_indicators<R: Copy>(
-    columns: [&mut Vec<R>; 3],
-    row: usize,
-    (lyap, fli, megno): (Vec<R>, R, R),
-) {
-    let [l, f, m] = columns;
-    let k = lyap.len();
-    l[row * k..(row + 1) * k].copy_from_slice(&lyap);
-    for (column, value) in [(f, fli), (m, megno)] {
+/// The Lyapunov exponents of `values` as row `row` of their column
+/// (outputs or running values).
+fn put_indicators<R: Copy>(column: &mut [R], row: usize, values: &IndicatorValues<R>) {
+    let k = values.lyapunov.len();
+    column[row * k..(row + 1) * k].copy_from_slice(&values.lyapunov);
+}
+
+/// The scalar indicators of `values` as row `row` of their columns; a
+/// column the plan lacks is empty.
+fn put_indicators_scalars<R: Copy>(columns: [&mut Vec<R>; 4], row: usize, values: IndicatorValues<R>) {
+    for (column, value) in columns.into_iter().zip(values.scalars) {
         if !column.is_empty() {
             column[row] = value;
         }
@@ -959,6 +957,8 @@ fn collect<R: Flows>(
                 (&mut out.trajectory_lyapunov, k),
                 (&mut out.trajectory_fli, 1),
                 (&mut out.trajectory_megno, 1),
+                (&mut out.trajectory_sali, 1),
+                (&mut out.trajectory_gali, 1),
             ];
             for (dst, width) in framed.chain(indicators) {
                 if !dst.is_empty() {
@@ -1038,7 +1038,8 @@ fn collect_observers<R: Flows>(
         }
         if plan.indicators.is_some() {
             let values = slots::indicators_finish(plan, slot, lane_dt::<R>(plan, g), ok, stop);
-            put_indicators([&mut out.lyapunov, &mut out.fli, &mut out.megno], g, values);
+            put_indicators(&mut out.lyapunov, g, &values);
+            put_indicators_scalars(out.scalar_indicators_mut(), g, values);
         }
     }
     Ok(())
