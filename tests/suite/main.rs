@@ -5,6 +5,7 @@
 
 mod common;
 
+mod alignment;
 mod batch_logs;
 mod checkpoint;
 mod cli;

@@ -71,9 +71,13 @@ fn observations(n: usize) -> Observations<f64> {
         lyapunov: vec![],
         fli: vec![],
         megno: vec![],
+        sali: vec![],
+        gali: vec![],
         trajectory_lyapunov: vec![],
         trajectory_fli: vec![],
         trajectory_megno: vec![],
+        trajectory_sali: vec![],
+        trajectory_gali: vec![],
         nonfinite_step: vec![0; n],
         stop_step: vec![0; n],
     }

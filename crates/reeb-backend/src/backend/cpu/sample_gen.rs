@@ -30,6 +30,7 @@ fn name(s: SampleShape) -> String {
     match s {
         SampleShape::Lyapunov { d, k } => format!("lyapunov_{d}_{k}"),
         SampleShape::Chaos { d } => format!("chaos_{d}"),
+        SampleShape::Alignment { d, m } => format!("alignment_{d}_{m}"),
     }
 }
 
@@ -37,6 +38,9 @@ fn pattern(s: SampleShape) -> String {
     match s {
         SampleShape::Lyapunov { d, k } => format!("SampleShape::Lyapunov {{ d: {d}, k: {k} }}"),
         SampleShape::Chaos { d } => format!("SampleShape::Chaos {{ d: {d} }}"),
+        SampleShape::Alignment { d, m } => {
+            format!("SampleShape::Alignment {{ d: {d}, m: {m} }}")
+        }
     }
 }
 

@@ -121,6 +121,7 @@ mod tests {
         let (n, d) = match shape {
             SampleShape::Lyapunov { d, k } => (k * d, d),
             SampleShape::Chaos { d } => (d, d),
+            SampleShape::Alignment { d, m } => (m * d, d),
         };
         (0..shape.inputs())
             .map(|k| {
