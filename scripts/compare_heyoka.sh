@@ -6,6 +6,12 @@
 #   spin–orbit       scripts/wp_heyoka_models.py --model spin_orbit (hy.time)
 #   perturbed Kepler scripts/wp_heyoka_models.py --model kepler
 #
+# and a chaos map, scripts/chaos_map_heyoka.py: the maximal Lyapunov
+# exponent over the forced van der Pol cascade (A = ε = 5, CHAOS_N = 1000
+# values of ω in [2.45, 2.47], t = CHAOS_T = 1500), reeb's exact tangent map
+# of the step against heyoka's variational equations, at equal accuracy of
+# λ₁ (CHAOS_MAP=0 leaves it out).
+#
 # each f64, 16 384 trajectories, t = 50, reeb over a ladder of steps per
 # scheme, heyoka over a ladder of tolerances; then the tables of
 # scripts/heyoka_table.py (reeb's fastest configuration at heyoka's error,
@@ -55,3 +61,7 @@ CPU="$(lscpu | sed -n 's/^Model name: *//p' | head -1)"
 ISA=AVX2; grep -qw avx512f /proc/cpuinfo && ISA=AVX-512
 echo "results: $OUT ($CPU, $ISA, $(nproc) threads)"
 "$PY" scripts/heyoka_table.py "$OUT" ${PNG:+--png "$PNG"} --cpu "$CPU, $ISA, $(nproc) threads"
+if [ "${CHAOS_MAP:-1}" != 0 ]; then
+  echo "chaos map (chaos_map_heyoka.py)" >&2
+  "$PY" scripts/chaos_map_heyoka.py "$REEB" --n "${CHAOS_N:-1000}" --t-end "${CHAOS_T:-1500}"
+fi

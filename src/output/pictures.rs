@@ -214,7 +214,10 @@ fn indicators<'a, R: Real>(d: &'a Observations<R>, doubts: &'a Doubts) -> Vec<St
         ));
     }
     let floor = alignment_floor(R::UNIT_ROUNDOFF);
-    for (file, label, v) in [("sali", "log₁₀ SALI", &d.sali), ("gali", "log₁₀ GALI", &d.gali)] {
+    for (file, label, v) in [
+        ("sali", "log₁₀ SALI", &d.sali),
+        ("gali", "log₁₀ GALI", &d.gali),
+    ] {
         if !v.is_empty() {
             let log = move |i: usize| value(i, v[i]).map(|x| x.max(floor).log10());
             stats.push((file.into(), label.into(), Box::new(log)));
@@ -389,7 +392,11 @@ impl<'a> Pictures<'a> {
                 "fli" => clip_to(&mut grid, label, fli_range(self.scene)),
                 "sali" | "gali" => {
                     let top = if file == "sali" { SQRT_2.log10() } else { 0.0 };
-                    clip_to(&mut grid, label, (alignment_floor(self.precision.1).log10(), top))
+                    clip_to(
+                        &mut grid,
+                        label,
+                        (alignment_floor(self.precision.1).log10(), top),
+                    )
                 }
                 _ => clip_outliers(&mut grid, label),
             };

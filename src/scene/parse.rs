@@ -725,10 +725,10 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
         ("sali", o.sali.is_some()),
         ("gali", o.gali.is_some()),
     ]
-        .iter()
-        .filter(|(_, on)| *on)
-        .map(|(n, _)| *n)
-        .collect();
+    .iter()
+    .filter(|(_, on)| *on)
+    .map(|(n, _)| *n)
+    .collect();
     let params: Vec<&str> = params.iter().copied().chain(readable).collect();
     let stop = o
         .stop

@@ -184,8 +184,7 @@ impl Leaf for Nums {
 }
 
 leaf_deserialize!(
-    Num, Int, Str, Bool, Strs, Nums, Period, Cycle, Average, Ratios, Stop, Lyapunov, Sampled,
-    Gali
+    Num, Int, Str, Bool, Strs, Nums, Period, Cycle, Average, Ratios, Stop, Lyapunov, Sampled, Gali
 );
 
 /// An inline table of known fields; any other value is refused with

@@ -38,7 +38,9 @@ fn run(text: &str) -> Observations<f64> {
 /// The frames' times and an index's values there, from the first sample on.
 fn series(o: &Observations<f64>, column: &[f64], dt_frame: f64) -> (Vec<f64>, Vec<f64>) {
     assert_eq!(o.n, 1);
-    (1..o.frames).map(|f| (f as f64 * dt_frame, column[f])).unzip()
+    (1..o.frames)
+        .map(|f| (f as f64 * dt_frame, column[f]))
+        .unzip()
 }
 
 /// The least-squares slope of y against x.
@@ -75,17 +77,31 @@ fn a_chaotic_orbit_drives_sali_and_gali_to_zero_at_the_lyapunov_rates() {
         if k == 2 {
             let (_, sali) = series(&o, &o.trajectory_sali, 1.0);
             let rate = decay_rate(&t, &sali);
-            assert!((0.8..1.25).contains(&(rate / lambda)), "SALI's rate {rate}, λ₁ {lambda}");
+            assert!(
+                (0.8..1.25).contains(&(rate / lambda)),
+                "SALI's rate {rate}, λ₁ {lambda}"
+            );
             assert!(o.sali[0] < 1e-4, "SALI at the end {}", o.sali[0]);
         }
         assert!(o.gali[0] < 1e-4, "GALI_{k} at the end {}", o.gali[0]);
     }
     assert!(lambda > 0.01, "λ₁ {lambda}: the orbit is chaotic");
     let ratios: Vec<f64> = rates.iter().map(|r| r / lambda).collect();
-    let [g2, g3, g4] = ratios[..] else { unreachable!() };
-    assert!((0.8..1.25).contains(&g2), "GALI_2's rate over λ₁: {ratios:?}");
-    assert!((1.6..2.6).contains(&g3), "GALI_3's rate over λ₁: {ratios:?}");
-    assert!((2.8..5.0).contains(&g4), "GALI_4's rate over λ₁: {ratios:?}");
+    let [g2, g3, g4] = ratios[..] else {
+        unreachable!()
+    };
+    assert!(
+        (0.8..1.25).contains(&g2),
+        "GALI_2's rate over λ₁: {ratios:?}"
+    );
+    assert!(
+        (1.6..2.6).contains(&g3),
+        "GALI_3's rate over λ₁: {ratios:?}"
+    );
+    assert!(
+        (2.8..5.0).contains(&g4),
+        "GALI_4's rate over λ₁: {ratios:?}"
+    );
 }
 
 /// A regular orbit off the symmetry line q1 = p2 = 0 (there the identity's
@@ -111,7 +127,9 @@ fn a_regular_orbit_keeps_sali_and_gali_2_and_gali_3_4_fall_as_powers_of_t() {
             assert!(least(&gali) > 1e-2, "GALI_2 falls to {}", least(&gali));
         }
     }
-    let [s2, s3, s4] = slopes[..] else { unreachable!() };
+    let [s2, s3, s4] = slopes[..] else {
+        unreachable!()
+    };
     assert!(s2.abs() < 0.3, "GALI_2 ∝ t^{s2}");
     assert!((-2.3..-1.7).contains(&s3), "GALI_3 ∝ t^{s3}");
     assert!((-4.4..-3.6).contains(&s4), "GALI_4 ∝ t^{s4}");
@@ -123,7 +141,12 @@ fn a_regular_orbit_keeps_sali_and_gali_2_and_gali_3_4_fall_as_powers_of_t() {
 fn sali_is_the_same_beside_any_gali() {
     let orbit = (0.1, 0.0, 0.05);
     let alone = run(&scene(orbit, 100.0, 100, "sali = { every = 5 }"));
-    let beside = run(&scene(orbit, 100.0, 100, "sali = { every = 5 }\ngali = { k = 4, every = 5 }"));
+    let beside = run(&scene(
+        orbit,
+        100.0,
+        100,
+        "sali = { every = 5 }\ngali = { k = 4, every = 5 }",
+    ));
     assert_eq!(alone.sali[0].to_bits(), beside.sali[0].to_bits());
     assert!(alone.gali.is_empty() && alone.trajectory_gali.is_empty());
     let last = beside.frames - 1;
@@ -137,7 +160,12 @@ fn sali_is_the_same_beside_any_gali() {
 fn sali_and_gali_agree_between_cpu_and_gpu() {
     let Some(ctx) = common::gpu() else { return };
     for orbit in [(0.1, 0.0, 0.05), (0.0, -0.016, 0.0)] {
-        let text = scene(orbit, 100.0, 50, "sali = { every = 3 }\ngali = { k = 3, every = 3 }");
+        let text = scene(
+            orbit,
+            100.0,
+            50,
+            "sali = { every = 3 }\ngali = { k = 3, every = 3 }",
+        );
         let plan = common::plan(&text);
         let c = cpu::run::<f64>(&plan, None);
         let g = gpu::run::<f64>(ctx, &plan, None).unwrap().observations;
@@ -151,7 +179,10 @@ fn sali_and_gali_agree_between_cpu_and_gpu() {
             assert!(!a.is_empty(), "{what}");
             for (x, y) in a.iter().zip(b) {
                 let close = (x - y).abs() <= 1e-9 * x.abs().max(1e-12);
-                assert!(close || x.is_nan() && y.is_nan(), "{orbit:?} {what}: CPU {x} GPU {y}");
+                assert!(
+                    close || x.is_nan() && y.is_nan(),
+                    "{orbit:?} {what}: CPU {x} GPU {y}"
+                );
             }
         }
     }
@@ -186,10 +217,22 @@ fn bad_alignment_settings_are_refused_at_their_field() {
     let base = "name = \"x\"\nmodel = \"van_der_pol\"\n[params]\nepsilon = 1.0\n[integrator]\nscheme = \"s2\"\ndt = 0.01\nsteps = 100\n[output]\n";
     for (line, field) in [
         ("gali = { k = 1 }", "output.gali.k: 1 is below 2"),
-        ("gali = { k = 3 }", "output.gali.k: 3 is more than the tangent dimension 2"),
-        ("gali = { every = 0 }", "output.gali.every: must be at least 1"),
-        ("sali = { every = 101 }", "output.sali.every: 101 is more than the 100 steps"),
-        ("sali = { every = 2 }\ngali = { k = 2, every = 3 }", "output.gali.every: 3 differs from output.sali.every = 2"),
+        (
+            "gali = { k = 3 }",
+            "output.gali.k: 3 is more than the tangent dimension 2",
+        ),
+        (
+            "gali = { every = 0 }",
+            "output.gali.every: must be at least 1",
+        ),
+        (
+            "sali = { every = 101 }",
+            "output.sali.every: 101 is more than the 100 steps",
+        ),
+        (
+            "sali = { every = 2 }\ngali = { k = 2, every = 3 }",
+            "output.gali.every: 3 differs from output.sali.every = 2",
+        ),
         ("gali = { k = -2 }", "output.gali.k"),
         ("gali = { vectors = 2 }", "vectors"),
         ("sali = 3", "output.sali"),

@@ -3,7 +3,8 @@
 //! continued from a snapshot in a fresh engine (as after a kill), end with
 //! observations bitwise identical to an uninterrupted run, on the CPU (f32
 //! and f64, fused kernels, the op interpreter, formula models) and on the
-//! GPU (across chunks and windows), with every observer.
+//! GPU (across chunks and windows), with every observer (every column of
+//! the observations, checked).
 
 use std::time::{Duration, Instant};
 
@@ -81,6 +82,30 @@ trajectory = { every = 50, vars = ["q"] }
 lyapunov = { vectors = 2, every = 5 }
 fli = true
 megno = true
+"#;
+
+/// SALI and GALI_4 on conservative Hénon–Heiles (a formula model: the
+/// tangent and the samples through the interpreter), with their frames.
+const ALIGNMENT: &str = r#"
+model = "mechanical"
+[formula]
+dof = 2
+potential = "(q1^2 + q2^2)/2 + q1^2*q2 - q2^3/3"
+damping = "0"
+[initial]
+q1 = { linspace = [-0.1, 0.1, 5] }
+q2 = { linspace = [-0.2, 0.3, 13] }
+p1 = 0.3
+p2 = 0.1
+[integrator]
+scheme = "s2"
+dt = 0.05
+steps = 3500
+[output]
+final = ["q", "p"]
+trajectory = { every = 70, vars = ["q1"] }
+sali = { every = 5 }
+gali = { k = 4, every = 5 }
 "#;
 
 /// A formula model (the interpreter) with an exactly sampled section.
@@ -185,18 +210,48 @@ fn on_cpu<R: Flows>(label: &str, plan: &Plan) {
     resumes::<R>(&format!("{label} cpu {}", R::NAME), &run, &header);
 }
 
+const SCENES: [(&str, &str); 5] = [
+    ("van der Pol", VAN_DER_POL),
+    ("spin–orbit", SPIN_ORBIT),
+    ("chaos indicators", CHAOS),
+    ("alignment indices", ALIGNMENT),
+    ("formula Duffing", DUFFING),
+];
+
 #[test]
 fn cpu_runs_continue_bitwise_from_any_snapshot() {
-    for (label, text) in [
-        ("van der Pol", VAN_DER_POL),
-        ("spin–orbit", SPIN_ORBIT),
-        ("chaos indicators", CHAOS),
-        ("formula Duffing", DUFFING),
-    ] {
+    for (label, text) in SCENES {
         let plan = plan(text);
         on_cpu::<f64>(label, &plan);
         on_cpu::<f32>(label, &plan);
     }
+}
+
+/// The scenes above hold every column observations may have, so that the
+/// snapshots' round trip covers each observer's state and outputs: a new
+/// column fails here until a scene asks for it.
+#[test]
+fn the_snapshot_scenes_cover_every_column() {
+    let mut covered = std::collections::BTreeSet::new();
+    for (_, text) in SCENES {
+        let o = Engine::Cpu
+            .run::<f32>(&plan(text), None)
+            .unwrap()
+            .observations;
+        for (name, (_, column)) in o.column_names().into_iter().zip(o.columns()) {
+            let filled = match column {
+                Col::Real(v) => !v.is_empty(),
+                Col::Count(v) => !v.is_empty(),
+            };
+            if filled {
+                covered.insert(name);
+            }
+        }
+    }
+    let all: std::collections::BTreeSet<&str> =
+        Observations::<f32>::COLUMN_NAMES.iter().copied().collect();
+    let missing: Vec<_> = all.difference(&covered).collect();
+    assert!(missing.is_empty(), "no snapshot scene has {missing:?}");
 }
 
 #[test]
@@ -212,6 +267,7 @@ fn gpu_runs_continue_bitwise_from_any_snapshot() {
         ("van der Pol", VAN_DER_POL),
         ("spin–orbit", SPIN_ORBIT),
         ("chaos indicators", CHAOS),
+        ("alignment indices", ALIGNMENT),
     ] {
         let plan = plan(text);
         let run = |cp: Option<&mut Checkpoints>| {

@@ -111,12 +111,21 @@ mod tests {
         let inputs: Vec<[f64; 1]> = vectors.concat().into_iter().map(|x| [x]).collect();
         let mut regs = vec![[0.0; 1]; tape.registers];
         tape.run(&mut regs, inputs.as_slice(), Isa::Baseline);
-        (0..tape.outputs()).map(|k| tape.output(&regs, k)[0]).collect()
+        (0..tape.outputs())
+            .map(|k| tape.output(&regs, k)[0])
+            .collect()
     }
 
     #[test]
     fn orthonormal_vectors_have_sali_root_two_and_unit_volume() {
-        let out = run(3, &[vec![2.0, 0.0, 0.0], vec![0.0, 0.5, 0.0], vec![0.0, 0.0, 3.0]]);
+        let out = run(
+            3,
+            &[
+                vec![2.0, 0.0, 0.0],
+                vec![0.0, 0.5, 0.0],
+                vec![0.0, 0.0, 3.0],
+            ],
+        );
         assert_eq!(&out[..3], &[1.0, 0.0, 0.0]);
         assert!((out[9] - 2f64.sqrt()).abs() < 1e-15, "sali {}", out[9]);
         assert!((out[10] - 1.0).abs() < 1e-15, "gali {}", out[10]);
@@ -129,20 +138,46 @@ mod tests {
             let (s, c) = f64::sin_cos(theta);
             let out = run(2, &[vec![3.0, 0.0], vec![5.0 * c, 5.0 * s]]);
             let sali = 2.0 * (theta.min(std::f64::consts::PI - theta) / 2.0).sin();
-            assert!((out[4] / sali - 1.0).abs() < 1e-6, "θ {theta}: sali {} vs {sali}", out[4]);
-            assert!((out[5] / s - 1.0).abs() < 1e-6, "θ {theta}: gali {} vs {s}", out[5]);
+            assert!(
+                (out[4] / sali - 1.0).abs() < 1e-6,
+                "θ {theta}: sali {} vs {sali}",
+                out[4]
+            );
+            assert!(
+                (out[5] / s - 1.0).abs() < 1e-6,
+                "θ {theta}: gali {} vs {s}",
+                out[5]
+            );
         }
         // Aligned to the last bit: both indices 0, and a vector after
         // them leaves the volume 0, not NaN.
-        let out = run(3, &[vec![2.0, 0.0, 0.0], vec![1.0, 0.0, 0.0], vec![0.0, 1.0, 0.0]]);
+        let out = run(
+            3,
+            &[
+                vec![2.0, 0.0, 0.0],
+                vec![1.0, 0.0, 0.0],
+                vec![0.0, 1.0, 0.0],
+            ],
+        );
         assert_eq!((out[9], out[10]), (0.0, 0.0));
         // GALI_3 of three vectors in 3-D: |det| over the norms' product.
-        let v = [vec![1.0, 2.0, 0.5], vec![-0.3, 1.0, 2.0], vec![0.7, -1.1, 0.4]];
+        let v = [
+            vec![1.0, 2.0, 0.5],
+            vec![-0.3, 1.0, 2.0],
+            vec![0.7, -1.1, 0.4],
+        ];
         let det = v[0][0] * (v[1][1] * v[2][2] - v[1][2] * v[2][1])
             - v[0][1] * (v[1][0] * v[2][2] - v[1][2] * v[2][0])
             + v[0][2] * (v[1][0] * v[2][1] - v[1][1] * v[2][0]);
-        let norms: f64 = v.iter().map(|x| x.iter().map(|y| y * y).sum::<f64>().sqrt()).product();
+        let norms: f64 = v
+            .iter()
+            .map(|x| x.iter().map(|y| y * y).sum::<f64>().sqrt())
+            .product();
         let out = run(3, &v);
-        assert!((out[10] - det.abs() / norms).abs() < 1e-14, "gali {}", out[10]);
+        assert!(
+            (out[10] - det.abs() / norms).abs() < 1e-14,
+            "gali {}",
+            out[10]
+        );
     }
 }

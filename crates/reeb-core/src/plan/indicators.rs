@@ -109,7 +109,8 @@ impl Indicators {
         let d = tangent.space.len();
         let too_many = |field: &str, what: String| {
             let space = tangent.space.join(", ");
-            let message = format!("{what} is more than the tangent dimension {d} of this plan ({space})");
+            let message =
+                format!("{what} is more than the tangent dimension {d} of this plan ({space})");
             Err(err(field, message))
         };
         if k > d {
@@ -119,7 +120,9 @@ impl Indicators {
             return too_many("output.gali.k", format!("{}", g.k));
         }
         if observers.sali.is_some() && d < 2 {
-            return too_many("output.sali", "its two deviation vectors are".into());
+            let message =
+                format!("needs two deviation vectors; this plan's tangent dimension is {d}");
+            return Err(err("output.sali", message));
         }
         let mut s = Indicators {
             deviation_slots: (0..vectors * d).collect(),
@@ -301,10 +304,18 @@ const LYAPUNOV_STATE: [(&str, f64); 4] = [
 /// (`backend/cpu/sample_ops.rs`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SampleShape {
-    Lyapunov { d: usize, k: usize },
-    Chaos { d: usize },
+    Lyapunov {
+        d: usize,
+        k: usize,
+    },
+    Chaos {
+        d: usize,
+    },
     /// SALI and GALI over `m` vectors.
-    Alignment { d: usize, m: usize },
+    Alignment {
+        d: usize,
+        m: usize,
+    },
 }
 
 impl SampleShape {

@@ -73,6 +73,17 @@ macro_rules! observations {
                 out
             }
 
+            /// Each column's field name, in [`Self::columns`]' order (a
+            /// named column once per variable).
+            pub fn column_names(&self) -> Vec<&'static str> {
+                let mut out = vec![];
+                $( observations!(@name $kind, out, &self.$field, stringify!($field)); )*
+                out
+            }
+
+            /// The field name of every column observations may have.
+            pub const COLUMN_NAMES: &'static [&'static str] = &[$(stringify!($field)),*];
+
             /// [`Self::columns`], to write.
             pub fn columns_mut(&mut self) -> Vec<(usize, ColMut<'_, R>)> {
                 let s = self.shape();
@@ -130,6 +141,8 @@ macro_rules! observations {
     };
     (@col Plain R, $out:expr, $v:expr, $w:expr) => { $out.push(($w, Col::Real($v.as_slice()))) };
     (@col Plain u32, $out:expr, $v:expr, $w:expr) => { $out.push(($w, Col::Count($v.as_slice()))) };
+    (@name Named, $out:expr, $v:expr, $name:expr) => { $out.extend($v.iter().map(|_| $name)) };
+    (@name Plain, $out:expr, $v:expr, $name:expr) => { $out.push($name) };
     (@col_mut Named R, $out:expr, $v:expr, $w:expr) => {
         $out.extend($v.iter_mut().map(|(_, x)| ($w, ColMut::Real(x.as_mut_slice()))))
     };
@@ -370,7 +383,12 @@ impl<R: Real> Observations<R> {
     /// The columns of `slots::SCALAR_INDICATORS`, in its order (a column
     /// the plan lacks is empty).
     pub fn scalar_indicators_mut(&mut self) -> [&mut Vec<R>; 4] {
-        [&mut self.fli, &mut self.megno, &mut self.sali, &mut self.gali]
+        [
+            &mut self.fli,
+            &mut self.megno,
+            &mut self.sali,
+            &mut self.gali,
+        ]
     }
 
     /// [`Self::scalar_indicators_mut`] at each trajectory frame.

@@ -357,7 +357,10 @@ impl Observers {
             if g.k < 2 {
                 return Err((
                     "output.gali.k".into(),
-                    format!("{} is below 2: GALI_k measures the volume of k ≥ 2 unit deviation vectors", g.k),
+                    format!(
+                        "{} is below 2: GALI_k measures the volume of k ≥ 2 unit deviation vectors",
+                        g.k
+                    ),
                 ));
             }
         }

@@ -495,10 +495,7 @@ impl<R: Flows> BlockObservers<R> {
         };
         let dt = s.l.at(p.dt_lane);
         let sink = s.sink;
-        let columns = (
-            &sink.trajectory_lyapunov,
-            sink.framed_scalar_indicators(),
-        );
+        let columns = (&sink.trajectory_lyapunov, sink.framed_scalar_indicators());
         for i in 0..s.count {
             let row = (s.base + i) * frames + frame;
             let slot = |k: usize| self.real[k][i];

@@ -19,8 +19,8 @@ use crate::backend::error::BackendError;
 use crate::models::Flows;
 use crate::num::precision::{handed_back, is_f32, Precision};
 use crate::plan::observations::{frames_per_trajectory, Observations};
-use crate::plan::snapshot::{get_array, get_into, invalid, put, put_slice, Header};
 use crate::plan::slots::{self, IndicatorValues};
+use crate::plan::snapshot::{get_array, get_into, invalid, put, put_slice, Header};
 use crate::plan::{ObsVar, Plan};
 
 /// GPU memory a run may take (buffers of one chunk).
@@ -864,7 +864,11 @@ fn put_indicators<R: Copy>(column: &mut [R], row: usize, values: &IndicatorValue
 
 /// The scalar indicators of `values` as row `row` of their columns; a
 /// column the plan lacks is empty.
-fn put_indicators_scalars<R: Copy>(columns: [&mut Vec<R>; 4], row: usize, values: IndicatorValues<R>) {
+fn put_indicators_scalars<R: Copy>(
+    columns: [&mut Vec<R>; 4],
+    row: usize,
+    values: IndicatorValues<R>,
+) {
     for (column, value) in columns.into_iter().zip(values.scalars) {
         if !column.is_empty() {
             column[row] = value;
