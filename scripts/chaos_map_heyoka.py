@@ -7,10 +7,13 @@ one deviation vector, renormalised every time unit, ln‖w‖ summed after the
 first fifth of the run (reeb: `lyapunov = { every = 1/dt, skip = 0.2 }`,
 its exact tangent map of the step; heyoka: the variational equations
 integrated with the orbit, taylor_adaptive_batch, batch mode, a thread per
-core). Accuracy: |λ₁ − λ₁_ref| against heyoka at tol 1e-15, the largest
-over the regular orbits (λ₁_ref < −0.002: periodic attractors, where a
-finite-time exponent converges) and the median over the chaotic ones
-(where it converges only statistically). Time: reeb's
+core). Accuracy: |λ₁ − λ₁_ref| against heyoka at tol 1e-15, its 90th
+percentile over the regular orbits (λ₁_ref < −0.002: periodic attractors,
+where a finite-time exponent converges; the largest is a few orbits near
+the cascade's bifurcations, where coexisting attractors take orbits to
+another one at any tolerance) and its median over the chaotic ones (where
+it converges only statistically); and the orbits whose class (λ₁ above or
+below 0.002) is the reference's. Time: reeb's
 `integration_seconds` from summary.json (CPU backend, every thread);
 heyoka's wall time of the propagation (JIT compilation not counted).
 
@@ -34,8 +37,8 @@ ap.add_argument("--batch", type=int, default=4)
 ap.add_argument("--threads", type=int, default=os.cpu_count())
 ap.add_argument("--tols", default="1e-6,1e-8,1e-10,1e-12")
 ap.add_argument("--ref-tol", type=float, default=1e-15)
-ap.add_argument("--schemes", default="s2:0.0025,s2:0.00125,triple_jump4:0.02,triple_jump4:0.01,"
-                                     "triple_jump4:0.005,yoshida6a:0.04,yoshida6a:0.02,yoshida6a:0.01")
+ap.add_argument("--schemes", default="s2:0.0025,triple_jump4:0.01,triple_jump4:0.005,yoshida6a:0.04,"
+                                     "yoshida6a:0.02,yoshida6a:0.01,kahanli8:0.05,kahanli8:0.025")
 a = ap.parse_args()
 import heyoka as hy
 
@@ -121,9 +124,13 @@ def reeb_lambda(scheme, dt, tmp):
 
 
 def errors(lam, ref):
+    """The 90th percentile of |Δλ₁| over the regular orbits, its median over
+    the chaotic ones, and the fraction of orbits classed as the reference."""
     regular = ref < -0.002
     d = np.abs(lam - ref)
-    return float(np.max(d[regular])), float(np.median(d[~regular])) if (~regular).any() else 0.0
+    chaotic = float(np.median(d[~regular])) if (~regular).any() else 0.0
+    same = float(np.mean((lam > 0.002) == (ref > 0.002)))
+    return float(np.percentile(d[regular], 90)), chaotic, same
 
 
 ref, ref_sec = heyoka_lambda(a.ref_tol)
@@ -133,22 +140,24 @@ print(json.dumps({"reference": f"heyoka tol {a.ref_tol:g}", "seconds": ref_sec,
 rows = []
 for tol in [float(x) for x in a.tols.split(",")]:
     lam, sec = heyoka_lambda(tol)
-    reg, cha = errors(lam, ref)
-    rows.append({"impl": "heyoka", "config": f"tol {tol:g}", "seconds": sec, "regular": reg, "chaotic": cha})
+    reg, cha, same = errors(lam, ref)
+    rows.append({"impl": "heyoka", "config": f"tol {tol:g}", "seconds": sec, "regular": reg,
+                 "chaotic": cha, "same_class": same})
     print(json.dumps(rows[-1]), flush=True)
 tmp = tempfile.mkdtemp(prefix="chaos-map-")
 for item in a.schemes.split(","):
     scheme, dt = item.split(":")
     lam, sec = reeb_lambda(scheme, float(dt), tmp)
-    reg, cha = errors(lam, ref)
-    rows.append({"impl": "reeb", "config": f"{scheme} dt {dt}", "seconds": sec, "regular": reg, "chaotic": cha})
+    reg, cha, same = errors(lam, ref)
+    rows.append({"impl": "reeb", "config": f"{scheme} dt {dt}", "seconds": sec, "regular": reg,
+                 "chaotic": cha, "same_class": same})
     print(json.dumps(rows[-1]), flush=True)
 
 print(f"\n{N} values of ω, t = {T:g}, λ₁ error against heyoka at tol {a.ref_tol:g} "
-      f"(largest over the {regular} regular orbits; median over the {N - regular} chaotic ones)\n")
-print("| error of λ₁ (regular) ≤ | reeb | seconds | heyoka | seconds | heyoka / reeb |")
+      f"(90th percentile over the {regular} regular orbits)\n")
+print("| error of λ₁ (regular, p90) ≤ | reeb | seconds | heyoka | seconds | heyoka / reeb |")
 print("|---|---|---|---|---|---|")
-for target in (1e-2, 1e-3, 1e-4):
+for target in (1e-2, 1e-3, 1e-4, 1e-5):
     best = {}
     for impl in ("reeb", "heyoka"):
         ok = [r for r in rows if r["impl"] == impl and r["regular"] <= target]

@@ -640,8 +640,14 @@ impl<'a> Pictures<'a> {
         }
         let mut files = vec![];
         for (file, label, at) in running {
-            // The alignment indices decay exponentially or as powers of t.
-            let log = matches!(file, "trajectory_sali" | "trajectory_gali");
+            // SALI falls exponentially on chaotic orbits (a line against
+            // the step on a log scale), GALI also as powers of t on
+            // regular ones (lines on log–log axes).
+            let (x_log, y_log) = match file {
+                "trajectory_sali" => (false, true),
+                "trajectory_gali" => (true, true),
+                _ => (false, false),
+            };
             let ys: Vec<Vec<f64>> = chosen
                 .iter()
                 .map(|i| (0..frames).map(|f| at(*i, f)).collect())
@@ -654,8 +660,8 @@ impl<'a> Pictures<'a> {
                 &self.dir.join(&name),
                 &self.figure("step", label),
                 &series,
-                log,
-                log,
+                x_log,
+                y_log,
             )?;
             files.push(name);
         }

@@ -22,9 +22,10 @@ use crate::num::formula::lower::{lower, Lowered};
 use crate::num::formula::{Dag, Func, Func2, Id};
 
 /// The program over `m ≥ 2` vectors of dimension `d`. Inputs: the
-/// vectors' components (vector i's component j at i·d + j); outputs: the
-/// unit vectors in the same order, then SALI (of the first two) and
-/// GALI_m.
+/// vectors' components (vector i's component j at i·d + j), then SALI and
+/// GALI (not read: so that each output is written over its input, as the
+/// CPU's compiled samples keep their state); outputs: the unit vectors in
+/// the same order, then SALI (of the first two) and GALI_m.
 pub fn alignment_program(d: usize, m: usize) -> Lowered {
     assert!(m >= 2, "SALI and GALI need two vectors");
     let mut g = Dag::new();
@@ -108,7 +109,8 @@ mod tests {
     /// The program on one set of vectors, by the tape in f64.
     fn run(d: usize, vectors: &[Vec<f64>]) -> Vec<f64> {
         let tape = Tape::<f64>::new(&alignment_program(d, vectors.len()), |_| false);
-        let inputs: Vec<[f64; 1]> = vectors.concat().into_iter().map(|x| [x]).collect();
+        let mut inputs: Vec<[f64; 1]> = vectors.concat().into_iter().map(|x| [x]).collect();
+        inputs.extend([[f64::NAN], [f64::NAN]]);
         let mut regs = vec![[0.0; 1]; tape.registers];
         tape.run(&mut regs, inputs.as_slice(), Isa::Baseline);
         (0..tape.outputs())

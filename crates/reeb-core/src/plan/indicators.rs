@@ -253,14 +253,14 @@ impl Indicators {
             self.slot("sali".into(), std::f64::consts::SQRT_2),
             self.slot("gali".into(), 1.0),
         ];
-        let mut outputs = w.clone();
+        let mut outputs = w;
         outputs.extend(indices);
         let shape = SampleShape::Alignment { d, m };
         Sampler {
             every,
             program: shape.program(),
             shape,
-            inputs: w.into_iter().map(SampleInput::Slot).collect(),
+            inputs: outputs.iter().map(|s| SampleInput::Slot(*s)).collect(),
             outputs,
         }
     }
@@ -324,7 +324,7 @@ impl SampleShape {
         match self {
             SampleShape::Lyapunov { d, k } => k * d + 4 * k + 1,
             SampleShape::Chaos { d } => d + 7,
-            SampleShape::Alignment { d, m } => m * d,
+            SampleShape::Alignment { d, m } => m * d + 2,
         }
     }
 

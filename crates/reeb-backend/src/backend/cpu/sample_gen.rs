@@ -16,12 +16,13 @@ use crate::plan::indicators::{
 
 /// The shapes compiled: tangent dimensions 2 to 4 (every built-in model,
 /// and formula models of up to two degrees of freedom), every number of
-/// Lyapunov vectors.
+/// Lyapunov vectors and of SALI's and GALI's vectors.
 fn shapes() -> Vec<SampleShape> {
     let mut out = vec![];
     for d in 2..=4 {
         out.extend((1..=d).map(|k| SampleShape::Lyapunov { d, k }));
         out.push(SampleShape::Chaos { d });
+        out.extend((2..=d).map(|m| SampleShape::Alignment { d, m }));
     }
     out
 }

@@ -15,15 +15,21 @@ pub const SHAPES: &[SampleShape] = &[
     SampleShape::Lyapunov { d: 2, k: 1 },
     SampleShape::Lyapunov { d: 2, k: 2 },
     SampleShape::Chaos { d: 2 },
+    SampleShape::Alignment { d: 2, m: 2 },
     SampleShape::Lyapunov { d: 3, k: 1 },
     SampleShape::Lyapunov { d: 3, k: 2 },
     SampleShape::Lyapunov { d: 3, k: 3 },
     SampleShape::Chaos { d: 3 },
+    SampleShape::Alignment { d: 3, m: 2 },
+    SampleShape::Alignment { d: 3, m: 3 },
     SampleShape::Lyapunov { d: 4, k: 1 },
     SampleShape::Lyapunov { d: 4, k: 2 },
     SampleShape::Lyapunov { d: 4, k: 3 },
     SampleShape::Lyapunov { d: 4, k: 4 },
     SampleShape::Chaos { d: 4 },
+    SampleShape::Alignment { d: 4, m: 2 },
+    SampleShape::Alignment { d: 4, m: 3 },
+    SampleShape::Alignment { d: 4, m: 4 },
 ];
 
 /// The most arrays a compiled shape takes.
@@ -45,6 +51,7 @@ pub unsafe fn run<R: Real>(shape: SampleShape, x: &[*mut [R; LANES]], skip: bool
         SampleShape::Lyapunov { d: 2, k: 2 } if !skip => unsafe { lyapunov_2_2_between(x) },
         SampleShape::Lyapunov { d: 2, k: 2 } => unsafe { lyapunov_2_2(x) },
         SampleShape::Chaos { d: 2 } => unsafe { chaos_2(x) },
+        SampleShape::Alignment { d: 2, m: 2 } => unsafe { alignment_2_2(x) },
         SampleShape::Lyapunov { d: 3, k: 1 } if !skip => unsafe { lyapunov_3_1_between(x) },
         SampleShape::Lyapunov { d: 3, k: 1 } => unsafe { lyapunov_3_1(x) },
         SampleShape::Lyapunov { d: 3, k: 2 } if !skip => unsafe { lyapunov_3_2_between(x) },
@@ -52,6 +59,8 @@ pub unsafe fn run<R: Real>(shape: SampleShape, x: &[*mut [R; LANES]], skip: bool
         SampleShape::Lyapunov { d: 3, k: 3 } if !skip => unsafe { lyapunov_3_3_between(x) },
         SampleShape::Lyapunov { d: 3, k: 3 } => unsafe { lyapunov_3_3(x) },
         SampleShape::Chaos { d: 3 } => unsafe { chaos_3(x) },
+        SampleShape::Alignment { d: 3, m: 2 } => unsafe { alignment_3_2(x) },
+        SampleShape::Alignment { d: 3, m: 3 } => unsafe { alignment_3_3(x) },
         SampleShape::Lyapunov { d: 4, k: 1 } if !skip => unsafe { lyapunov_4_1_between(x) },
         SampleShape::Lyapunov { d: 4, k: 1 } => unsafe { lyapunov_4_1(x) },
         SampleShape::Lyapunov { d: 4, k: 2 } if !skip => unsafe { lyapunov_4_2_between(x) },
@@ -61,6 +70,9 @@ pub unsafe fn run<R: Real>(shape: SampleShape, x: &[*mut [R; LANES]], skip: bool
         SampleShape::Lyapunov { d: 4, k: 4 } if !skip => unsafe { lyapunov_4_4_between(x) },
         SampleShape::Lyapunov { d: 4, k: 4 } => unsafe { lyapunov_4_4(x) },
         SampleShape::Chaos { d: 4 } => unsafe { chaos_4(x) },
+        SampleShape::Alignment { d: 4, m: 2 } => unsafe { alignment_4_2(x) },
+        SampleShape::Alignment { d: 4, m: 3 } => unsafe { alignment_4_3(x) },
+        SampleShape::Alignment { d: 4, m: 4 } => unsafe { alignment_4_4(x) },
         _ => unreachable!("{shape:?} is not compiled"),
     }
 }
@@ -385,6 +397,84 @@ fn chaos_2_lanes<R: Real>(
         x4[i] = o4;
         x5[i] = o5;
         x6[i] = o6;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
+pub unsafe fn alignment_2_2<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 6] = x.try_into().expect("6 arrays");
+    let [x0, x1, x2, x3, x4, x5] = *x;
+    unsafe { alignment_2_2_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5) };
+}
+
+#[inline(always)]
+fn alignment_2_2_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = R::sqrt(v2);
+        let v4: R = R::from_f64(1.0) / v3;
+        let v5: R = x0[i] * v4;
+        let v6: R = x1[i] * v4;
+        let v7: R = x2[i] * x2[i];
+        let v8: R = x3[i] * x3[i];
+        let v9: R = v7 + v8;
+        let v10: R = R::sqrt(v9);
+        let v11: R = R::from_f64(1.0) / v10;
+        let v12: R = x2[i] * v11;
+        let v13: R = x3[i] * v11;
+        let v14: R = v5 + v12;
+        let v15: R = v14 * v14;
+        let v16: R = v6 + v13;
+        let v17: R = v16 * v16;
+        let v18: R = v15 + v17;
+        let v19: R = v5 - v12;
+        let v20: R = v19 * v19;
+        let v21: R = v6 - v13;
+        let v22: R = v21 * v21;
+        let v23: R = v20 + v22;
+        let v24: R = R::min_r(v18, v23);
+        let v25: R = R::sqrt(v24);
+        let v26: R = v5 * v5;
+        let v27: R = v6 * v6;
+        let v28: R = v26 + v27;
+        let v29: R = R::max_r(v28, R::from_f64(1.1754943508222875e-38));
+        let v30: R = R::from_f64(1.0) / v29;
+        let v31: R = v5 * v12;
+        let v32: R = v6 * v13;
+        let v33: R = v31 + v32;
+        let v34: R = v30 * v33;
+        let v35: R = v5 * v34;
+        let v36: R = v12 - v35;
+        let v37: R = v36 * v36;
+        let v38: R = v6 * v34;
+        let v39: R = v13 - v38;
+        let v40: R = v39 * v39;
+        let v41: R = v37 + v40;
+        let v42: R = v28 * v41;
+        let v43: R = R::sqrt(v42);
+        let o0: R = v5;
+        let o1: R = v6;
+        let o2: R = v12;
+        let o3: R = v13;
+        let o4: R = v25;
+        let o5: R = v43;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
     }
 }
 
@@ -1079,6 +1169,265 @@ fn chaos_3_lanes<R: Real>(
         x5[i] = o5;
         x6[i] = o6;
         x7[i] = o7;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
+pub unsafe fn alignment_3_2<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 8] = x.try_into().expect("8 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7] = *x;
+    unsafe { alignment_3_2_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7) };
+}
+
+#[inline(always)]
+fn alignment_3_2_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = x2[i] * x2[i];
+        let v4: R = v2 + v3;
+        let v5: R = R::sqrt(v4);
+        let v6: R = R::from_f64(1.0) / v5;
+        let v7: R = x0[i] * v6;
+        let v8: R = x1[i] * v6;
+        let v9: R = x2[i] * v6;
+        let v10: R = x3[i] * x3[i];
+        let v11: R = x4[i] * x4[i];
+        let v12: R = v10 + v11;
+        let v13: R = x5[i] * x5[i];
+        let v14: R = v12 + v13;
+        let v15: R = R::sqrt(v14);
+        let v16: R = R::from_f64(1.0) / v15;
+        let v17: R = x3[i] * v16;
+        let v18: R = x4[i] * v16;
+        let v19: R = x5[i] * v16;
+        let v20: R = v7 + v17;
+        let v21: R = v20 * v20;
+        let v22: R = v8 + v18;
+        let v23: R = v22 * v22;
+        let v24: R = v21 + v23;
+        let v25: R = v9 + v19;
+        let v26: R = v25 * v25;
+        let v27: R = v24 + v26;
+        let v28: R = v7 - v17;
+        let v29: R = v28 * v28;
+        let v30: R = v8 - v18;
+        let v31: R = v30 * v30;
+        let v32: R = v29 + v31;
+        let v33: R = v9 - v19;
+        let v34: R = v33 * v33;
+        let v35: R = v32 + v34;
+        let v36: R = R::min_r(v27, v35);
+        let v37: R = R::sqrt(v36);
+        let v38: R = v7 * v7;
+        let v39: R = v8 * v8;
+        let v40: R = v38 + v39;
+        let v41: R = v9 * v9;
+        let v42: R = v40 + v41;
+        let v43: R = R::max_r(v42, R::from_f64(1.1754943508222875e-38));
+        let v44: R = R::from_f64(1.0) / v43;
+        let v45: R = v7 * v17;
+        let v46: R = v8 * v18;
+        let v47: R = v45 + v46;
+        let v48: R = v9 * v19;
+        let v49: R = v47 + v48;
+        let v50: R = v44 * v49;
+        let v51: R = v7 * v50;
+        let v52: R = v17 - v51;
+        let v53: R = v52 * v52;
+        let v54: R = v8 * v50;
+        let v55: R = v18 - v54;
+        let v56: R = v55 * v55;
+        let v57: R = v53 + v56;
+        let v58: R = v9 * v50;
+        let v59: R = v19 - v58;
+        let v60: R = v59 * v59;
+        let v61: R = v57 + v60;
+        let v62: R = v42 * v61;
+        let v63: R = R::sqrt(v62);
+        let o0: R = v7;
+        let o1: R = v8;
+        let o2: R = v9;
+        let o3: R = v17;
+        let o4: R = v18;
+        let o5: R = v19;
+        let o6: R = v37;
+        let o7: R = v63;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
+pub unsafe fn alignment_3_3<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 11] = x.try_into().expect("11 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10] = *x;
+    unsafe { alignment_3_3_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10) };
+}
+
+#[inline(always)]
+fn alignment_3_3_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &mut [R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = x2[i] * x2[i];
+        let v4: R = v2 + v3;
+        let v5: R = R::sqrt(v4);
+        let v6: R = R::from_f64(1.0) / v5;
+        let v7: R = x0[i] * v6;
+        let v8: R = x1[i] * v6;
+        let v9: R = x2[i] * v6;
+        let v10: R = x3[i] * x3[i];
+        let v11: R = x4[i] * x4[i];
+        let v12: R = v10 + v11;
+        let v13: R = x5[i] * x5[i];
+        let v14: R = v12 + v13;
+        let v15: R = R::sqrt(v14);
+        let v16: R = R::from_f64(1.0) / v15;
+        let v17: R = x3[i] * v16;
+        let v18: R = x4[i] * v16;
+        let v19: R = x5[i] * v16;
+        let v20: R = x6[i] * x6[i];
+        let v21: R = x7[i] * x7[i];
+        let v22: R = v20 + v21;
+        let v23: R = x8[i] * x8[i];
+        let v24: R = v22 + v23;
+        let v25: R = R::sqrt(v24);
+        let v26: R = R::from_f64(1.0) / v25;
+        let v27: R = x6[i] * v26;
+        let v28: R = x7[i] * v26;
+        let v29: R = x8[i] * v26;
+        let v30: R = v7 + v17;
+        let v31: R = v30 * v30;
+        let v32: R = v8 + v18;
+        let v33: R = v32 * v32;
+        let v34: R = v31 + v33;
+        let v35: R = v9 + v19;
+        let v36: R = v35 * v35;
+        let v37: R = v34 + v36;
+        let v38: R = v7 - v17;
+        let v39: R = v38 * v38;
+        let v40: R = v8 - v18;
+        let v41: R = v40 * v40;
+        let v42: R = v39 + v41;
+        let v43: R = v9 - v19;
+        let v44: R = v43 * v43;
+        let v45: R = v42 + v44;
+        let v46: R = R::min_r(v37, v45);
+        let v47: R = R::sqrt(v46);
+        let v48: R = v7 * v7;
+        let v49: R = v8 * v8;
+        let v50: R = v48 + v49;
+        let v51: R = v9 * v9;
+        let v52: R = v50 + v51;
+        let v53: R = R::max_r(v52, R::from_f64(1.1754943508222875e-38));
+        let v54: R = R::from_f64(1.0) / v53;
+        let v55: R = v7 * v17;
+        let v56: R = v8 * v18;
+        let v57: R = v55 + v56;
+        let v58: R = v9 * v19;
+        let v59: R = v57 + v58;
+        let v60: R = v54 * v59;
+        let v61: R = v7 * v60;
+        let v62: R = v17 - v61;
+        let v63: R = v62 * v62;
+        let v64: R = v8 * v60;
+        let v65: R = v18 - v64;
+        let v66: R = v65 * v65;
+        let v67: R = v63 + v66;
+        let v68: R = v9 * v60;
+        let v69: R = v19 - v68;
+        let v70: R = v69 * v69;
+        let v71: R = v67 + v70;
+        let v72: R = v52 * v71;
+        let v73: R = v7 * v27;
+        let v74: R = v8 * v28;
+        let v75: R = v73 + v74;
+        let v76: R = v9 * v29;
+        let v77: R = v75 + v76;
+        let v78: R = v54 * v77;
+        let v79: R = v7 * v78;
+        let v80: R = v27 - v79;
+        let v81: R = R::max_r(v71, R::from_f64(1.1754943508222875e-38));
+        let v82: R = R::from_f64(1.0) / v81;
+        let v83: R = v62 * v80;
+        let v84: R = v8 * v78;
+        let v85: R = v28 - v84;
+        let v86: R = v65 * v85;
+        let v87: R = v83 + v86;
+        let v88: R = v9 * v78;
+        let v89: R = v29 - v88;
+        let v90: R = v69 * v89;
+        let v91: R = v87 + v90;
+        let v92: R = v82 * v91;
+        let v93: R = v62 * v92;
+        let v94: R = v80 - v93;
+        let v95: R = v94 * v94;
+        let v96: R = v65 * v92;
+        let v97: R = v85 - v96;
+        let v98: R = v97 * v97;
+        let v99: R = v95 + v98;
+        let v100: R = v69 * v92;
+        let v101: R = v89 - v100;
+        let v102: R = v101 * v101;
+        let v103: R = v99 + v102;
+        let v104: R = v72 * v103;
+        let v105: R = R::sqrt(v104);
+        let o0: R = v7;
+        let o1: R = v8;
+        let o2: R = v9;
+        let o3: R = v17;
+        let o4: R = v18;
+        let o5: R = v19;
+        let o6: R = v27;
+        let o7: R = v28;
+        let o8: R = v29;
+        let o9: R = v47;
+        let o10: R = v105;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+        x10[i] = o10;
     }
 }
 
@@ -2444,6 +2793,613 @@ fn chaos_4_lanes<R: Real>(
         x6[i] = o6;
         x7[i] = o7;
         x8[i] = o8;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
+pub unsafe fn alignment_4_2<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 10] = x.try_into().expect("10 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9] = *x;
+    unsafe { alignment_4_2_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9) };
+}
+
+#[inline(always)]
+fn alignment_4_2_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = x2[i] * x2[i];
+        let v4: R = v2 + v3;
+        let v5: R = x3[i] * x3[i];
+        let v6: R = v4 + v5;
+        let v7: R = R::sqrt(v6);
+        let v8: R = R::from_f64(1.0) / v7;
+        let v9: R = x0[i] * v8;
+        let v10: R = x1[i] * v8;
+        let v11: R = x2[i] * v8;
+        let v12: R = x3[i] * v8;
+        let v13: R = x4[i] * x4[i];
+        let v14: R = x5[i] * x5[i];
+        let v15: R = v13 + v14;
+        let v16: R = x6[i] * x6[i];
+        let v17: R = v15 + v16;
+        let v18: R = x7[i] * x7[i];
+        let v19: R = v17 + v18;
+        let v20: R = R::sqrt(v19);
+        let v21: R = R::from_f64(1.0) / v20;
+        let v22: R = x4[i] * v21;
+        let v23: R = x5[i] * v21;
+        let v24: R = x6[i] * v21;
+        let v25: R = x7[i] * v21;
+        let v26: R = v9 + v22;
+        let v27: R = v26 * v26;
+        let v28: R = v10 + v23;
+        let v29: R = v28 * v28;
+        let v30: R = v27 + v29;
+        let v31: R = v11 + v24;
+        let v32: R = v31 * v31;
+        let v33: R = v30 + v32;
+        let v34: R = v12 + v25;
+        let v35: R = v34 * v34;
+        let v36: R = v33 + v35;
+        let v37: R = v9 - v22;
+        let v38: R = v37 * v37;
+        let v39: R = v10 - v23;
+        let v40: R = v39 * v39;
+        let v41: R = v38 + v40;
+        let v42: R = v11 - v24;
+        let v43: R = v42 * v42;
+        let v44: R = v41 + v43;
+        let v45: R = v12 - v25;
+        let v46: R = v45 * v45;
+        let v47: R = v44 + v46;
+        let v48: R = R::min_r(v36, v47);
+        let v49: R = R::sqrt(v48);
+        let v50: R = v9 * v9;
+        let v51: R = v10 * v10;
+        let v52: R = v50 + v51;
+        let v53: R = v11 * v11;
+        let v54: R = v52 + v53;
+        let v55: R = v12 * v12;
+        let v56: R = v54 + v55;
+        let v57: R = R::max_r(v56, R::from_f64(1.1754943508222875e-38));
+        let v58: R = R::from_f64(1.0) / v57;
+        let v59: R = v9 * v22;
+        let v60: R = v10 * v23;
+        let v61: R = v59 + v60;
+        let v62: R = v11 * v24;
+        let v63: R = v61 + v62;
+        let v64: R = v12 * v25;
+        let v65: R = v63 + v64;
+        let v66: R = v58 * v65;
+        let v67: R = v9 * v66;
+        let v68: R = v22 - v67;
+        let v69: R = v68 * v68;
+        let v70: R = v10 * v66;
+        let v71: R = v23 - v70;
+        let v72: R = v71 * v71;
+        let v73: R = v69 + v72;
+        let v74: R = v11 * v66;
+        let v75: R = v24 - v74;
+        let v76: R = v75 * v75;
+        let v77: R = v73 + v76;
+        let v78: R = v12 * v66;
+        let v79: R = v25 - v78;
+        let v80: R = v79 * v79;
+        let v81: R = v77 + v80;
+        let v82: R = v56 * v81;
+        let v83: R = R::sqrt(v82);
+        let o0: R = v9;
+        let o1: R = v10;
+        let o2: R = v11;
+        let o3: R = v12;
+        let o4: R = v22;
+        let o5: R = v23;
+        let o6: R = v24;
+        let o7: R = v25;
+        let o8: R = v49;
+        let o9: R = v83;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
+pub unsafe fn alignment_4_3<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 14] = x.try_into().expect("14 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13] = *x;
+    unsafe { alignment_4_3_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12, &mut *x13) };
+}
+
+#[inline(always)]
+fn alignment_4_3_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &mut [R; LANES],
+    x11: &mut [R; LANES],
+    x12: &mut [R; LANES],
+    x13: &mut [R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = x2[i] * x2[i];
+        let v4: R = v2 + v3;
+        let v5: R = x3[i] * x3[i];
+        let v6: R = v4 + v5;
+        let v7: R = R::sqrt(v6);
+        let v8: R = R::from_f64(1.0) / v7;
+        let v9: R = x0[i] * v8;
+        let v10: R = x1[i] * v8;
+        let v11: R = x2[i] * v8;
+        let v12: R = x3[i] * v8;
+        let v13: R = x4[i] * x4[i];
+        let v14: R = x5[i] * x5[i];
+        let v15: R = v13 + v14;
+        let v16: R = x6[i] * x6[i];
+        let v17: R = v15 + v16;
+        let v18: R = x7[i] * x7[i];
+        let v19: R = v17 + v18;
+        let v20: R = R::sqrt(v19);
+        let v21: R = R::from_f64(1.0) / v20;
+        let v22: R = x4[i] * v21;
+        let v23: R = x5[i] * v21;
+        let v24: R = x6[i] * v21;
+        let v25: R = x7[i] * v21;
+        let v26: R = x8[i] * x8[i];
+        let v27: R = x9[i] * x9[i];
+        let v28: R = v26 + v27;
+        let v29: R = x10[i] * x10[i];
+        let v30: R = v28 + v29;
+        let v31: R = x11[i] * x11[i];
+        let v32: R = v30 + v31;
+        let v33: R = R::sqrt(v32);
+        let v34: R = R::from_f64(1.0) / v33;
+        let v35: R = x8[i] * v34;
+        let v36: R = x9[i] * v34;
+        let v37: R = x10[i] * v34;
+        let v38: R = x11[i] * v34;
+        let v39: R = v9 + v22;
+        let v40: R = v39 * v39;
+        let v41: R = v10 + v23;
+        let v42: R = v41 * v41;
+        let v43: R = v40 + v42;
+        let v44: R = v11 + v24;
+        let v45: R = v44 * v44;
+        let v46: R = v43 + v45;
+        let v47: R = v12 + v25;
+        let v48: R = v47 * v47;
+        let v49: R = v46 + v48;
+        let v50: R = v9 - v22;
+        let v51: R = v50 * v50;
+        let v52: R = v10 - v23;
+        let v53: R = v52 * v52;
+        let v54: R = v51 + v53;
+        let v55: R = v11 - v24;
+        let v56: R = v55 * v55;
+        let v57: R = v54 + v56;
+        let v58: R = v12 - v25;
+        let v59: R = v58 * v58;
+        let v60: R = v57 + v59;
+        let v61: R = R::min_r(v49, v60);
+        let v62: R = R::sqrt(v61);
+        let v63: R = v9 * v9;
+        let v64: R = v10 * v10;
+        let v65: R = v63 + v64;
+        let v66: R = v11 * v11;
+        let v67: R = v65 + v66;
+        let v68: R = v12 * v12;
+        let v69: R = v67 + v68;
+        let v70: R = R::max_r(v69, R::from_f64(1.1754943508222875e-38));
+        let v71: R = R::from_f64(1.0) / v70;
+        let v72: R = v9 * v22;
+        let v73: R = v10 * v23;
+        let v74: R = v72 + v73;
+        let v75: R = v11 * v24;
+        let v76: R = v74 + v75;
+        let v77: R = v12 * v25;
+        let v78: R = v76 + v77;
+        let v79: R = v71 * v78;
+        let v80: R = v9 * v79;
+        let v81: R = v22 - v80;
+        let v82: R = v81 * v81;
+        let v83: R = v10 * v79;
+        let v84: R = v23 - v83;
+        let v85: R = v84 * v84;
+        let v86: R = v82 + v85;
+        let v87: R = v11 * v79;
+        let v88: R = v24 - v87;
+        let v89: R = v88 * v88;
+        let v90: R = v86 + v89;
+        let v91: R = v12 * v79;
+        let v92: R = v25 - v91;
+        let v93: R = v92 * v92;
+        let v94: R = v90 + v93;
+        let v95: R = v69 * v94;
+        let v96: R = v9 * v35;
+        let v97: R = v10 * v36;
+        let v98: R = v96 + v97;
+        let v99: R = v11 * v37;
+        let v100: R = v98 + v99;
+        let v101: R = v12 * v38;
+        let v102: R = v100 + v101;
+        let v103: R = v71 * v102;
+        let v104: R = v9 * v103;
+        let v105: R = v35 - v104;
+        let v106: R = R::max_r(v94, R::from_f64(1.1754943508222875e-38));
+        let v107: R = R::from_f64(1.0) / v106;
+        let v108: R = v81 * v105;
+        let v109: R = v10 * v103;
+        let v110: R = v36 - v109;
+        let v111: R = v84 * v110;
+        let v112: R = v108 + v111;
+        let v113: R = v11 * v103;
+        let v114: R = v37 - v113;
+        let v115: R = v88 * v114;
+        let v116: R = v112 + v115;
+        let v117: R = v12 * v103;
+        let v118: R = v38 - v117;
+        let v119: R = v92 * v118;
+        let v120: R = v116 + v119;
+        let v121: R = v107 * v120;
+        let v122: R = v81 * v121;
+        let v123: R = v105 - v122;
+        let v124: R = v123 * v123;
+        let v125: R = v84 * v121;
+        let v126: R = v110 - v125;
+        let v127: R = v126 * v126;
+        let v128: R = v124 + v127;
+        let v129: R = v88 * v121;
+        let v130: R = v114 - v129;
+        let v131: R = v130 * v130;
+        let v132: R = v128 + v131;
+        let v133: R = v92 * v121;
+        let v134: R = v118 - v133;
+        let v135: R = v134 * v134;
+        let v136: R = v132 + v135;
+        let v137: R = v95 * v136;
+        let v138: R = R::sqrt(v137);
+        let o0: R = v9;
+        let o1: R = v10;
+        let o2: R = v11;
+        let o3: R = v12;
+        let o4: R = v22;
+        let o5: R = v23;
+        let o6: R = v24;
+        let o7: R = v25;
+        let o8: R = v35;
+        let o9: R = v36;
+        let o10: R = v37;
+        let o11: R = v38;
+        let o12: R = v62;
+        let o13: R = v138;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+        x10[i] = o10;
+        x11[i] = o11;
+        x12[i] = o12;
+        x13[i] = o13;
+    }
+}
+
+/// # Safety
+/// See [`run`].
+#[inline(always)]
+pub unsafe fn alignment_4_4<R: Real>(x: &[*mut [R; LANES]]) {
+    let x: &[*mut [R; LANES]; 18] = x.try_into().expect("18 arrays");
+    let [x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11, x12, x13, x14, x15, x16, x17] = *x;
+    unsafe { alignment_4_4_lanes(&mut *x0, &mut *x1, &mut *x2, &mut *x3, &mut *x4, &mut *x5, &mut *x6, &mut *x7, &mut *x8, &mut *x9, &mut *x10, &mut *x11, &mut *x12, &mut *x13, &mut *x14, &mut *x15, &mut *x16, &mut *x17) };
+}
+
+#[inline(always)]
+fn alignment_4_4_lanes<R: Real>(
+    x0: &mut [R; LANES],
+    x1: &mut [R; LANES],
+    x2: &mut [R; LANES],
+    x3: &mut [R; LANES],
+    x4: &mut [R; LANES],
+    x5: &mut [R; LANES],
+    x6: &mut [R; LANES],
+    x7: &mut [R; LANES],
+    x8: &mut [R; LANES],
+    x9: &mut [R; LANES],
+    x10: &mut [R; LANES],
+    x11: &mut [R; LANES],
+    x12: &mut [R; LANES],
+    x13: &mut [R; LANES],
+    x14: &mut [R; LANES],
+    x15: &mut [R; LANES],
+    x16: &mut [R; LANES],
+    x17: &mut [R; LANES],
+) {
+    for i in 0..LANES {
+        let v0: R = x0[i] * x0[i];
+        let v1: R = x1[i] * x1[i];
+        let v2: R = v0 + v1;
+        let v3: R = x2[i] * x2[i];
+        let v4: R = v2 + v3;
+        let v5: R = x3[i] * x3[i];
+        let v6: R = v4 + v5;
+        let v7: R = R::sqrt(v6);
+        let v8: R = R::from_f64(1.0) / v7;
+        let v9: R = x0[i] * v8;
+        let v10: R = x1[i] * v8;
+        let v11: R = x2[i] * v8;
+        let v12: R = x3[i] * v8;
+        let v13: R = x4[i] * x4[i];
+        let v14: R = x5[i] * x5[i];
+        let v15: R = v13 + v14;
+        let v16: R = x6[i] * x6[i];
+        let v17: R = v15 + v16;
+        let v18: R = x7[i] * x7[i];
+        let v19: R = v17 + v18;
+        let v20: R = R::sqrt(v19);
+        let v21: R = R::from_f64(1.0) / v20;
+        let v22: R = x4[i] * v21;
+        let v23: R = x5[i] * v21;
+        let v24: R = x6[i] * v21;
+        let v25: R = x7[i] * v21;
+        let v26: R = x8[i] * x8[i];
+        let v27: R = x9[i] * x9[i];
+        let v28: R = v26 + v27;
+        let v29: R = x10[i] * x10[i];
+        let v30: R = v28 + v29;
+        let v31: R = x11[i] * x11[i];
+        let v32: R = v30 + v31;
+        let v33: R = R::sqrt(v32);
+        let v34: R = R::from_f64(1.0) / v33;
+        let v35: R = x8[i] * v34;
+        let v36: R = x9[i] * v34;
+        let v37: R = x10[i] * v34;
+        let v38: R = x11[i] * v34;
+        let v39: R = x12[i] * x12[i];
+        let v40: R = x13[i] * x13[i];
+        let v41: R = v39 + v40;
+        let v42: R = x14[i] * x14[i];
+        let v43: R = v41 + v42;
+        let v44: R = x15[i] * x15[i];
+        let v45: R = v43 + v44;
+        let v46: R = R::sqrt(v45);
+        let v47: R = R::from_f64(1.0) / v46;
+        let v48: R = x12[i] * v47;
+        let v49: R = x13[i] * v47;
+        let v50: R = x14[i] * v47;
+        let v51: R = x15[i] * v47;
+        let v52: R = v9 + v22;
+        let v53: R = v52 * v52;
+        let v54: R = v10 + v23;
+        let v55: R = v54 * v54;
+        let v56: R = v53 + v55;
+        let v57: R = v11 + v24;
+        let v58: R = v57 * v57;
+        let v59: R = v56 + v58;
+        let v60: R = v12 + v25;
+        let v61: R = v60 * v60;
+        let v62: R = v59 + v61;
+        let v63: R = v9 - v22;
+        let v64: R = v63 * v63;
+        let v65: R = v10 - v23;
+        let v66: R = v65 * v65;
+        let v67: R = v64 + v66;
+        let v68: R = v11 - v24;
+        let v69: R = v68 * v68;
+        let v70: R = v67 + v69;
+        let v71: R = v12 - v25;
+        let v72: R = v71 * v71;
+        let v73: R = v70 + v72;
+        let v74: R = R::min_r(v62, v73);
+        let v75: R = R::sqrt(v74);
+        let v76: R = v9 * v9;
+        let v77: R = v10 * v10;
+        let v78: R = v76 + v77;
+        let v79: R = v11 * v11;
+        let v80: R = v78 + v79;
+        let v81: R = v12 * v12;
+        let v82: R = v80 + v81;
+        let v83: R = R::max_r(v82, R::from_f64(1.1754943508222875e-38));
+        let v84: R = R::from_f64(1.0) / v83;
+        let v85: R = v9 * v22;
+        let v86: R = v10 * v23;
+        let v87: R = v85 + v86;
+        let v88: R = v11 * v24;
+        let v89: R = v87 + v88;
+        let v90: R = v12 * v25;
+        let v91: R = v89 + v90;
+        let v92: R = v84 * v91;
+        let v93: R = v9 * v92;
+        let v94: R = v22 - v93;
+        let v95: R = v94 * v94;
+        let v96: R = v10 * v92;
+        let v97: R = v23 - v96;
+        let v98: R = v97 * v97;
+        let v99: R = v95 + v98;
+        let v100: R = v11 * v92;
+        let v101: R = v24 - v100;
+        let v102: R = v101 * v101;
+        let v103: R = v99 + v102;
+        let v104: R = v12 * v92;
+        let v105: R = v25 - v104;
+        let v106: R = v105 * v105;
+        let v107: R = v103 + v106;
+        let v108: R = v82 * v107;
+        let v109: R = v9 * v35;
+        let v110: R = v10 * v36;
+        let v111: R = v109 + v110;
+        let v112: R = v11 * v37;
+        let v113: R = v111 + v112;
+        let v114: R = v12 * v38;
+        let v115: R = v113 + v114;
+        let v116: R = v84 * v115;
+        let v117: R = v9 * v116;
+        let v118: R = v35 - v117;
+        let v119: R = R::max_r(v107, R::from_f64(1.1754943508222875e-38));
+        let v120: R = R::from_f64(1.0) / v119;
+        let v121: R = v94 * v118;
+        let v122: R = v10 * v116;
+        let v123: R = v36 - v122;
+        let v124: R = v97 * v123;
+        let v125: R = v121 + v124;
+        let v126: R = v11 * v116;
+        let v127: R = v37 - v126;
+        let v128: R = v101 * v127;
+        let v129: R = v125 + v128;
+        let v130: R = v12 * v116;
+        let v131: R = v38 - v130;
+        let v132: R = v105 * v131;
+        let v133: R = v129 + v132;
+        let v134: R = v120 * v133;
+        let v135: R = v94 * v134;
+        let v136: R = v118 - v135;
+        let v137: R = v136 * v136;
+        let v138: R = v97 * v134;
+        let v139: R = v123 - v138;
+        let v140: R = v139 * v139;
+        let v141: R = v137 + v140;
+        let v142: R = v101 * v134;
+        let v143: R = v127 - v142;
+        let v144: R = v143 * v143;
+        let v145: R = v141 + v144;
+        let v146: R = v105 * v134;
+        let v147: R = v131 - v146;
+        let v148: R = v147 * v147;
+        let v149: R = v145 + v148;
+        let v150: R = v108 * v149;
+        let v151: R = v9 * v48;
+        let v152: R = v10 * v49;
+        let v153: R = v151 + v152;
+        let v154: R = v11 * v50;
+        let v155: R = v153 + v154;
+        let v156: R = v12 * v51;
+        let v157: R = v155 + v156;
+        let v158: R = v84 * v157;
+        let v159: R = v9 * v158;
+        let v160: R = v48 - v159;
+        let v161: R = v94 * v160;
+        let v162: R = v10 * v158;
+        let v163: R = v49 - v162;
+        let v164: R = v97 * v163;
+        let v165: R = v161 + v164;
+        let v166: R = v11 * v158;
+        let v167: R = v50 - v166;
+        let v168: R = v101 * v167;
+        let v169: R = v165 + v168;
+        let v170: R = v12 * v158;
+        let v171: R = v51 - v170;
+        let v172: R = v105 * v171;
+        let v173: R = v169 + v172;
+        let v174: R = v120 * v173;
+        let v175: R = v94 * v174;
+        let v176: R = v160 - v175;
+        let v177: R = R::max_r(v149, R::from_f64(1.1754943508222875e-38));
+        let v178: R = R::from_f64(1.0) / v177;
+        let v179: R = v136 * v176;
+        let v180: R = v97 * v174;
+        let v181: R = v163 - v180;
+        let v182: R = v139 * v181;
+        let v183: R = v179 + v182;
+        let v184: R = v101 * v174;
+        let v185: R = v167 - v184;
+        let v186: R = v143 * v185;
+        let v187: R = v183 + v186;
+        let v188: R = v105 * v174;
+        let v189: R = v171 - v188;
+        let v190: R = v147 * v189;
+        let v191: R = v187 + v190;
+        let v192: R = v178 * v191;
+        let v193: R = v136 * v192;
+        let v194: R = v176 - v193;
+        let v195: R = v194 * v194;
+        let v196: R = v139 * v192;
+        let v197: R = v181 - v196;
+        let v198: R = v197 * v197;
+        let v199: R = v195 + v198;
+        let v200: R = v143 * v192;
+        let v201: R = v185 - v200;
+        let v202: R = v201 * v201;
+        let v203: R = v199 + v202;
+        let v204: R = v147 * v192;
+        let v205: R = v189 - v204;
+        let v206: R = v205 * v205;
+        let v207: R = v203 + v206;
+        let v208: R = v150 * v207;
+        let v209: R = R::sqrt(v208);
+        let o0: R = v9;
+        let o1: R = v10;
+        let o2: R = v11;
+        let o3: R = v12;
+        let o4: R = v22;
+        let o5: R = v23;
+        let o6: R = v24;
+        let o7: R = v25;
+        let o8: R = v35;
+        let o9: R = v36;
+        let o10: R = v37;
+        let o11: R = v38;
+        let o12: R = v48;
+        let o13: R = v49;
+        let o14: R = v50;
+        let o15: R = v51;
+        let o16: R = v75;
+        let o17: R = v209;
+        x0[i] = o0;
+        x1[i] = o1;
+        x2[i] = o2;
+        x3[i] = o3;
+        x4[i] = o4;
+        x5[i] = o5;
+        x6[i] = o6;
+        x7[i] = o7;
+        x8[i] = o8;
+        x9[i] = o9;
+        x10[i] = o10;
+        x11[i] = o11;
+        x12[i] = o12;
+        x13[i] = o13;
+        x14[i] = o14;
+        x15[i] = o15;
+        x16[i] = o16;
+        x17[i] = o17;
     }
 }
 
