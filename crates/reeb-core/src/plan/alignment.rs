@@ -21,6 +21,8 @@
 use crate::num::formula::lower::{lower, Lowered};
 use crate::num::formula::{Dag, Func, Func2, Id};
 
+use super::vectors::{dot, minus_projections};
+
 /// The program over `m ≥ 2` vectors of dimension `d`. Inputs: the
 /// vectors' components (vector i's component j at i·d + j), then SALI and
 /// GALI (not read: so that each output is written over its input, as the
@@ -66,19 +68,7 @@ fn gali(g: &mut Dag, unit: &[Vec<Id>]) -> Id {
     let mut basis: Vec<(Vec<Id>, Id)> = vec![];
     let mut volume2 = g.num(1.0);
     for w in unit {
-        let mut v = w.clone();
-        for (b, inv) in &basis {
-            let c = dot(g, &v, b);
-            let proj = g.mul(c, *inv);
-            v = v
-                .iter()
-                .zip(b)
-                .map(|(x, y)| {
-                    let p = g.mul(proj, *y);
-                    g.sub(*x, p)
-                })
-                .collect();
-        }
+        let v = minus_projections(g, w.clone(), &basis);
         let n2 = dot(g, &v, &v);
         volume2 = g.mul(volume2, n2);
         // A part that round-off left at 0 projects as 0, not NaN (its
@@ -89,15 +79,6 @@ fn gali(g: &mut Dag, unit: &[Vec<Id>]) -> Id {
         basis.push((v, g.div(one, floored)));
     }
     g.call(Func::Sqrt, volume2)
-}
-
-fn dot(g: &mut Dag, a: &[Id], b: &[Id]) -> Id {
-    let mut s = g.num(0.0);
-    for (x, y) in a.iter().zip(b) {
-        let p = g.mul(*x, *y);
-        s = g.add(s, p);
-    }
-    s
 }
 
 #[cfg(test)]

@@ -36,6 +36,7 @@ use super::alignment::alignment_program;
 use super::observers::Observers;
 use super::problem::{err, PlanError};
 use super::tangent::{StepSpec, TangentInput, TangentStep};
+use super::vectors::{dot, minus_projections};
 
 /// What a sample program reads besides slots.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -374,19 +375,8 @@ fn lyapunov_lowered(d: usize, k: usize, starts: bool) -> Lowered {
     let mut vectors = vec![];
     let mut state: Vec<Vec<Id>> = vec![vec![]; 4];
     for i in 0..k {
-        let mut v: Vec<Id> = (0..d).map(|j| var(&mut g, i * d + j)).collect();
-        for (b, inv) in &basis {
-            let c = dot(&mut g, &v, b);
-            let proj = g.mul(c, *inv);
-            v = v
-                .iter()
-                .zip(b)
-                .map(|(x, y)| {
-                    let p = g.mul(proj, *y);
-                    g.sub(*x, p)
-                })
-                .collect();
-        }
+        let w: Vec<Id> = (0..d).map(|j| var(&mut g, i * d + j)).collect();
+        let v = minus_projections(&mut g, w, &basis);
         let n2 = dot(&mut g, &v, &v);
         let octave = var(&mut g, k * d + i);
         let (scaled, e, s) = rescale(&mut g, &v, octave, n2);
@@ -549,15 +539,6 @@ fn rescale(g: &mut Dag, v: &[Id], octave: Id, n2: Id) -> (Vec<Id>, Id, Id) {
     let s = g.call(Func::Rescale, a);
     let scaled = v.iter().map(|x| g.mul(*x, s)).collect();
     (scaled, g.sub(octave, a), s)
-}
-
-fn dot(g: &mut Dag, a: &[Id], b: &[Id]) -> Id {
-    let mut s = g.num(0.0);
-    for (x, y) in a.iter().zip(b) {
-        let p = g.mul(*x, *y);
-        s = g.add(s, p);
-    }
-    s
 }
 
 /// 1/x: one division, then a product per component (a division each

@@ -24,6 +24,7 @@ pub mod snapshot;
 pub mod step;
 pub mod stop;
 pub mod tangent;
+pub mod vectors;
 
 use crate::models::spec::{ModelSpec, TimeDependence};
 use crate::models::{lanes, Model};
