@@ -328,7 +328,7 @@ impl Observers {
                 every(name, o.every)?;
             }
         }
-        self.validate_alignment(&every)?;
+        self.validate_alignment(every)?;
         if let (Some(f), Some(m)) = (&self.fli, &self.megno) {
             if f.every != m.every {
                 return Err((
