@@ -30,6 +30,12 @@ for p in f32 f64; do echo "### wall, $p"; TIMEFORMAT="wall %R s"; time (timeout 
 # Issue 33's point 5 on a hardware GPU: each chaos indicator against its
 # plain run (README, "Chaos indicators"; lavapipe's numbers are there).
 echo "### indicators' cost"; timeout 120 "$B" bench --indicators --backend gpu --repeats 3 --json "$OUT/indicators.jsonl"
+# SALI and GALI_2 against the plain run of the same scene on a hardware GPU
+# (10^6 van der Pol orbits x 10^4 S2 steps, f32, integration seconds).
+for extra in "" "sali = true" "gali = { k = 2 }"; do
+  printf 'name = "align"\nmodel = "van_der_pol"\n[params]\nepsilon = { linspace = [0.5, 2.0, 1000] }\n[initial]\nq = { linspace = [0.5, 2.5, 1000] }\n[integrator]\nscheme = "s2"\ndt = 0.01\nsteps = 10000\n[output]\nfinal = ["q"]\n%s\n[run]\nprecision = "f32"\n' "$extra" > /tmp/align.toml
+  echo "### alignment: ${extra:-plain}"; timeout 60 "$B" run /tmp/align.toml --backend gpu --out /tmp/align 2>&1 | tail -1; grep -o '"integration_seconds"[^,]*' /tmp/align/summary.json
+done
 } 2>&1 | tee "$OUT/reeb.txt"
 wait $NV; cat /tmp/nvcc.txt
 for p in f32 f64; do timeout 30 /tmp/vdp_cuda --precision $p --n 10000000 --steps 10000 --repeat 5; done 2>&1 | tee "$OUT/peers.jsonl"

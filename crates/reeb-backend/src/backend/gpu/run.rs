@@ -848,8 +848,8 @@ fn read_frames<R: Flows>(
             let frame = frame0 + f;
             let values = slots::indicators_at(plan, slot, dt, true, frame * every);
             let row = g * out.frames + frame as usize;
-            put_indicators(&mut out.trajectory_lyapunov, row, &values);
-            put_indicators_scalars(out.framed_scalar_indicators_mut(), row, values);
+            put_exponents(&mut out.trajectory_lyapunov, row, &values);
+            put_scalar_indicators(out.framed_scalar_indicators_mut(), row, values);
         }
     }
     Ok(())
@@ -857,14 +857,14 @@ fn read_frames<R: Flows>(
 
 /// The Lyapunov exponents of `values` as row `row` of their column
 /// (outputs or running values).
-fn put_indicators<R: Copy>(column: &mut [R], row: usize, values: &IndicatorValues<R>) {
+fn put_exponents<R: Copy>(column: &mut [R], row: usize, values: &IndicatorValues<R>) {
     let k = values.lyapunov.len();
     column[row * k..(row + 1) * k].copy_from_slice(&values.lyapunov);
 }
 
 /// The scalar indicators of `values` as row `row` of their columns; a
 /// column the plan lacks is empty.
-fn put_indicators_scalars<R: Copy>(
+fn put_scalar_indicators<R: Copy>(
     columns: [&mut Vec<R>; 4],
     row: usize,
     values: IndicatorValues<R>,
@@ -1042,8 +1042,8 @@ fn collect_observers<R: Flows>(
         }
         if plan.indicators.is_some() {
             let values = slots::indicators_finish(plan, slot, lane_dt::<R>(plan, g), ok, stop);
-            put_indicators(&mut out.lyapunov, g, &values);
-            put_indicators_scalars(out.scalar_indicators_mut(), g, values);
+            put_exponents(&mut out.lyapunov, g, &values);
+            put_scalar_indicators(out.scalar_indicators_mut(), g, values);
         }
     }
     Ok(())
