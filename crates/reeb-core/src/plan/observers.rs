@@ -330,15 +330,8 @@ impl Observers {
         }
         self.validate_alignment(every)?;
         if let (Some(f), Some(m)) = (&self.fli, &self.megno) {
-            if f.every != m.every {
-                return Err((
-                    "output.megno.every".into(),
-                    format!(
-                        "{} differs from output.fli.every = {}: FLI and MEGNO share one deviation vector, sampled at one rate",
-                        m.every, f.every
-                    ),
-                ));
-            }
+            let shared = "FLI and MEGNO share one deviation vector";
+            one_rate(("fli", f.every), ("megno", m.every), shared)?;
         }
         Ok(())
     }
@@ -365,15 +358,8 @@ impl Observers {
             }
         }
         if let (Some(s), Some(g)) = (&self.sali, &self.gali) {
-            if s.every != g.every {
-                return Err((
-                    "output.gali.every".into(),
-                    format!(
-                        "{} differs from output.sali.every = {}: SALI and GALI share their deviation vectors, sampled at one rate",
-                        g.every, s.every
-                    ),
-                ));
-            }
+            let shared = "SALI and GALI share their deviation vectors";
+            one_rate(("sali", s.every), ("gali", g.every), shared)?;
         }
         Ok(())
     }
@@ -392,6 +378,22 @@ impl Observers {
     /// The FLI/MEGNO vector's sampling period, if either is asked for.
     pub fn chaos_every(&self) -> Option<u64> {
         self.fli.as_ref().or(self.megno.as_ref()).map(|o| o.every)
+    }
+}
+
+/// Two indicators whose deviation vectors are `shared` sample at one rate:
+/// the second's `every` is refused where it differs from the first's.
+fn one_rate(
+    (first, a): (&str, u64),
+    (second, b): (&str, u64),
+    shared: &str,
+) -> Result<(), (String, String)> {
+    match a == b {
+        true => Ok(()),
+        false => Err((
+            format!("output.{second}.every"),
+            format!("{b} differs from output.{first}.every = {a}: {shared}, sampled at one rate"),
+        )),
     }
 }
 
