@@ -92,8 +92,11 @@ fn a_checkpoint_that_does_not_fit_is_skipped_and_the_run_goes_on() {
 "$REEB" run {scene} --out "$DISK/run" --checkpoint-every 0.05 2> "$log" &
 pid=$!
 while [ ! -e "$DISK/run.partial/.reeb-chunks/0.state" ]; do kill -0 $pid || exit 1; sleep 0.01; done
-avail=$(df -B1 --output=avail "$DISK" | tail -1)
-fallocate -l $((avail - 65536)) "$DISK/filler" || exit 1
+# The run writes on meanwhile: a filler sized from a free space it has
+# since taken fails, and is sized again.
+until fallocate -l $(( $(df -B1 --output=avail "$DISK" | tail -1) - 65536 )) "$DISK/filler" 2>/dev/null; do
+  rm -f "$DISK/filler"; kill -0 $pid || exit 1; sleep 0.01
+done
 while ! grep -q "checkpoint was not written" "$log"; do kill -0 $pid || break; sleep 0.01; done
 rm "$DISK/filler"
 wait $pid || {{ cat "$log"; exit 1; }}
