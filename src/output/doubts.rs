@@ -87,10 +87,8 @@ fn dropped_points<R: Real>(scene: &Scene, d: &Observations<R>, out: &mut Doubts)
 
 /// Whether the run has chaos indicators.
 fn has_indicators(scene: &Scene) -> bool {
-    let scalars = [&scene.fli, &scene.megno, &scene.sali]
-        .iter()
-        .any(|o| o.is_some());
-    scene.lyapunov.is_some() || scalars || scene.gali.is_some()
+    let sampled = [&scene.fli, &scene.megno, &scene.sali];
+    scene.lyapunov.is_some() || sampled.iter().any(|o| o.is_some()) || scene.gali.is_some()
 }
 
 /// Trajectories the stop condition ended: their indicators cover less time.

@@ -610,33 +610,19 @@ impl<'a> Pictures<'a> {
                 Box::new(|i, f| d.trajectory_lyapunov[(i * frames + f) * k].to_f64()),
             ));
         }
-        if !d.trajectory_fli.is_empty() {
-            running.push((
-                "trajectory_fli",
-                "FLI so far",
-                Box::new(|i, f| d.trajectory_fli[i * frames + f].to_f64()),
-            ));
-        }
-        if !d.trajectory_megno.is_empty() {
-            running.push((
-                "trajectory_megno",
-                "MEGNO ⟨Y⟩ so far",
-                Box::new(|i, f| d.trajectory_megno[i * frames + f].to_f64()),
-            ));
-        }
-        if !d.trajectory_sali.is_empty() {
-            running.push((
-                "trajectory_sali",
-                "SALI",
-                Box::new(|i, f| d.trajectory_sali[i * frames + f].to_f64()),
-            ));
-        }
-        if !d.trajectory_gali.is_empty() {
-            running.push((
-                "trajectory_gali",
-                "GALI",
-                Box::new(|i, f| d.trajectory_gali[i * frames + f].to_f64()),
-            ));
+        for (file, label, v) in [
+            ("trajectory_fli", "FLI so far", &d.trajectory_fli),
+            ("trajectory_megno", "MEGNO ⟨Y⟩ so far", &d.trajectory_megno),
+            ("trajectory_sali", "SALI", &d.trajectory_sali),
+            ("trajectory_gali", "GALI", &d.trajectory_gali),
+        ] {
+            if !v.is_empty() {
+                running.push((
+                    file,
+                    label,
+                    Box::new(move |i, f| v[i * frames + f].to_f64()),
+                ));
+            }
         }
         let mut files = vec![];
         for (file, label, at) in running {

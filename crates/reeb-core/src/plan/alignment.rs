@@ -21,7 +21,7 @@
 use crate::num::formula::lower::{lower, Lowered};
 use crate::num::formula::{Dag, Func, Func2, Id};
 
-use super::vectors::{dot, minus_projections};
+use super::vectors::{dot, minus_projections, reciprocal};
 
 /// The program over `m ≥ 2` vectors of dimension `d`. Inputs: the
 /// vectors' components (vector i's component j at i·d + j), then SALI and
@@ -48,8 +48,7 @@ pub fn alignment_program(d: usize, m: usize) -> Lowered {
 fn normalised(g: &mut Dag, w: &[Id]) -> Vec<Id> {
     let n2 = dot(g, w, w);
     let norm = g.call(Func::Sqrt, n2);
-    let one = g.num(1.0);
-    let inv = g.div(one, norm);
+    let inv = reciprocal(g, norm);
     w.iter().map(|x| g.mul(*x, inv)).collect()
 }
 
@@ -75,8 +74,7 @@ fn gali(g: &mut Dag, unit: &[Vec<Id>]) -> Id {
         // volume is 0 already); f32's least normal number is one in f64.
         let least = g.num(f64::from(f32::MIN_POSITIVE));
         let floored = g.call2(Func2::Max, n2, least);
-        let one = g.num(1.0);
-        basis.push((v, g.div(one, floored)));
+        basis.push((v, reciprocal(g, floored)));
     }
     g.call(Func::Sqrt, volume2)
 }

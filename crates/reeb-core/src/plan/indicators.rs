@@ -36,7 +36,7 @@ use super::alignment::alignment_program;
 use super::observers::Observers;
 use super::problem::{err, PlanError};
 use super::tangent::{StepSpec, TangentInput, TangentStep};
-use super::vectors::{dot, minus_projections};
+use super::vectors::{dot, minus_projections, reciprocal};
 
 /// What a sample program reads besides slots.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -81,7 +81,16 @@ pub struct Indicators {
     /// into this list; the plan's real slots hold it after the averages'
     /// (`slots::indicator_first`).
     pub slots: Vec<(String, f64)>,
+    /// The slot of each of [`SCALAR_INDICATORS`] the plan has, found once
+    /// (its finish runs per trajectory and frame).
+    pub scalar_slots: [Option<usize>; 4],
 }
+
+/// The indicators read from one slot each, in the order of
+/// `slots::IndicatorValues::scalars` and of
+/// `Observations::scalar_indicators`: the FLI so far, MEGNO's ⟨Y⟩, SALI
+/// and GALI at the last sample.
+pub const SCALAR_INDICATORS: [&str; 4] = ["fli_max", "megno_mean", "sali", "gali"];
 
 impl Indicators {
     /// The indicators `observers` ask for, on the step `step` of a run of
@@ -133,6 +142,7 @@ impl Indicators {
             alignment: None,
             skip_step: 0,
             slots: vec![],
+            scalar_slots: [None; 4],
         };
         s.slots = s.deviation_inits(k, chaos.is_some(), m);
         if let Some(l) = &observers.lyapunov {
@@ -146,6 +156,7 @@ impl Indicators {
             let first = k + usize::from(chaos.is_some());
             s.alignment = Some(s.alignment_sampler(first, m, every));
         }
+        s.scalar_slots = SCALAR_INDICATORS.map(|name| s.slot_of(name));
         Ok(Some(s))
     }
 
@@ -539,13 +550,6 @@ fn rescale(g: &mut Dag, v: &[Id], octave: Id, n2: Id) -> (Vec<Id>, Id, Id) {
     let s = g.call(Func::Rescale, a);
     let scaled = v.iter().map(|x| g.mul(*x, s)).collect();
     (scaled, g.sub(octave, a), s)
-}
-
-/// 1/x: one division, then a product per component (a division each
-/// would be d of them, the costliest operation of a sample).
-fn reciprocal(g: &mut Dag, x: Id) -> Id {
-    let one = g.num(1.0);
-    g.div(one, x)
 }
 
 /// The Lyapunov exponents from the indicators' slots (`slot(k)` the value

@@ -285,7 +285,7 @@ impl Shape {
 }
 
 impl<R> Sink<R> {
-    /// The columns of `slots::SCALAR_INDICATORS`, in its order.
+    /// The columns of `indicators::SCALAR_INDICATORS`, in its order.
     pub fn scalar_indicators(&self) -> [&Rows<R>; 4] {
         [&self.fli, &self.megno, &self.sali, &self.gali]
     }
@@ -380,7 +380,7 @@ impl<R: Real> Observations<R> {
         }
     }
 
-    /// The columns of `slots::SCALAR_INDICATORS`, in its order (a column
+    /// The columns of `indicators::SCALAR_INDICATORS`, in its order (a column
     /// the plan lacks is empty).
     pub fn scalar_indicators_mut(&mut self) -> [&mut Vec<R>; 4] {
         [

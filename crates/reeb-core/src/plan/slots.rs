@@ -149,12 +149,7 @@ pub fn mean_finish<R: Flows>(plan: &Plan, mean: R, ok: bool, stop_step: u32) -> 
     }
 }
 
-/// The indicators read from one slot each, in the order of
-/// [`IndicatorValues::scalars`] and of `Observations::scalar_indicators`:
-/// the FLI so far, MEGNO's ⟨Y⟩, SALI and GALI at the last sample.
-pub const SCALAR_INDICATORS: [&str; 4] = ["fli_max", "megno_mean", "sali", "gali"];
-
-/// The sampling period of scalar indicator `k` of [`SCALAR_INDICATORS`],
+/// The sampling period of scalar indicator `k` of `indicators::SCALAR_INDICATORS`,
 /// if the plan asks for it.
 pub fn scalar_every(o: &Observers, k: usize) -> Option<u64> {
     match k {
@@ -166,7 +161,7 @@ pub fn scalar_every(o: &Observers, k: usize) -> Option<u64> {
 }
 
 /// A trajectory's chaos indicators: its Lyapunov exponents (largest
-/// first; none where not asked for) and the [`SCALAR_INDICATORS`] (NaN
+/// first; none where not asked for) and the `indicators::SCALAR_INDICATORS` (NaN
 /// where not asked for).
 #[derive(Debug, Clone, PartialEq)]
 pub struct IndicatorValues<R> {
@@ -215,7 +210,7 @@ pub fn indicators_at<R: Flows>(
     let exponents = lyapunov_finish(ind, dt.to_f64(), last, ok, |k| slot(k).to_f64());
     let value = |k: usize| {
         let sampled = ok && scalar_every(&plan.observers, k).is_some_and(|e| last >= e);
-        match (sampled, ind.slot_of(SCALAR_INDICATORS[k])) {
+        match (sampled, ind.scalar_slots[k]) {
             (true, Some(s)) => slot(s),
             _ => R::nan(),
         }
@@ -232,7 +227,7 @@ pub fn indicator_frame_slots(plan: &Plan) -> Vec<usize> {
     match (&plan.indicators, &plan.observers.trajectory) {
         (Some(ind), Some(_)) => {
             let first = indicator_first(plan);
-            let chaos = SCALAR_INDICATORS.map(|name| ind.slot_of(name));
+            let chaos = ind.scalar_slots;
             lyapunov_slots(ind)
                 .into_iter()
                 .chain(chaos.into_iter().flatten())

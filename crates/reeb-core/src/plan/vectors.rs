@@ -1,5 +1,5 @@
 //! Formulas of deviation vectors that the indicators' sample programs
-//! share: dot products and Gram–Schmidt's projections.
+//! share: dot products, Gram–Schmidt's projections, reciprocals.
 
 use crate::num::formula::{Dag, Id};
 
@@ -29,4 +29,11 @@ pub fn dot(g: &mut Dag, a: &[Id], b: &[Id]) -> Id {
         s = g.add(s, p);
     }
     s
+}
+
+/// 1/x: one division, then a product per component (a division each
+/// would be d of them, the costliest operation of a sample).
+pub fn reciprocal(g: &mut Dag, x: Id) -> Id {
+    let one = g.num(1.0);
+    g.div(one, x)
 }
