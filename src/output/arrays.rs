@@ -12,7 +12,7 @@ use anyhow::{Context, Result};
 
 use crate::num::precision::Real;
 use crate::output::npy;
-use crate::plan::observations::{Observations, Status};
+use crate::plan::observations::{Col, Column, File, Observations, Status};
 use crate::plan::observers::ResonanceObs;
 use crate::scene::{OutVar, Scene};
 
@@ -74,53 +74,26 @@ impl Array<'_> {
 }
 
 /// Every per-trajectory array of `obs` (a chunk of a scene's rows, or the
-/// whole), in file order: final values, trajectories, Poincaré points and
-/// counts, cycle statistics, status. With `obs.n = 0` it lists the arrays
-/// (their bytes empty).
+/// whole), in the order of its columns' declaration: final values,
+/// trajectories, Poincaré points and counts, cycle statistics, means and
+/// resonances, indicators, status. Listing needs a row: with `obs.n = 0`
+/// no column could tell present from absent.
 pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Vec<Array<'a>>> {
     let mut out = vec![];
-    vars(&scene.final_vars, &obs.final_values, 0, "final", &mut out)?;
-    if let Some((_, vs)) = &scene.trajectory {
-        vars(vs, &obs.trajectory, obs.frames, "trajectory", &mut out)?;
+    for (file, column) in obs.files() {
+        match column {
+            Column::Named(arrays) => {
+                for v in out_vars(scene, file.field) {
+                    out.push(var(v, arrays, file, obs)?);
+                }
+            }
+            Column::Plain(values) if !values.is_empty() => out.push(plain(file, obs, values)),
+            Column::Plain(_) => {}
+        }
+        if let (Some(r), "mean") = (&scene.resonance, file.field) {
+            out.push(owned(scalar("resonance.npy", "<i4", &resonance(r, obs)?)));
+        }
     }
-    if let Some((_, vs, _)) = &scene.poincare {
-        vars(vs, &obs.poincare, obs.max_points, "poincare", &mut out)?;
-        out.push(scalar("poincare_count.npy", "<u4", &obs.poincare_count));
-    }
-    if scene.cycle.is_some() {
-        out.push(scalar(
-            "cycle_amplitude.npy",
-            real::<R>(),
-            &obs.cycle_amplitude,
-        ));
-        out.push(scalar("cycle_period.npy", real::<R>(), &obs.cycle_period));
-    }
-    if let Some((vs, _)) = &scene.average {
-        vars(vs, &obs.mean, 0, "mean", &mut out)?;
-    }
-    if let Some(r) = &scene.resonance {
-        out.push(owned(scalar("resonance.npy", "<i4", &resonance(r, obs)?)));
-    }
-    if scene.lyapunov.is_some() {
-        out.push(Array {
-            inner: vec![obs.exponents as u64],
-            inner_names: vec!["exponent"],
-            ..scalar("lyapunov.npy", real::<R>(), &obs.lyapunov)
-        });
-    }
-    if scene.fli.is_some() {
-        out.push(scalar("fli.npy", real::<R>(), &obs.fli));
-    }
-    if scene.megno.is_some() {
-        out.push(scalar("megno.npy", real::<R>(), &obs.megno));
-    }
-    if scene.sali.is_some() {
-        out.push(scalar("sali.npy", real::<R>(), &obs.sali));
-    }
-    if scene.gali.is_some() {
-        out.push(scalar("gali.npy", real::<R>(), &obs.gali));
-    }
-    out.extend(indicator_frames(scene, obs));
     // status: 0 ok, 1 non-finite, 2 stopped; status_step: the step it
     // became non-finite or stopped after (−1: neither).
     let (status, step): (Vec<u8>, Vec<i64>) = (0..obs.n)
@@ -135,39 +108,31 @@ pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Ve
     Ok(out)
 }
 
-/// The indicators' running values per trajectory frame:
-/// `trajectory_lyapunov.npy` (axes × frame × exponent),
-/// `trajectory_fli.npy`, `trajectory_megno.npy`, `trajectory_sali.npy`,
-/// `trajectory_gali.npy` (axes × frame).
-fn indicator_frames<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Vec<Array<'a>> {
-    let mut out = vec![];
-    if scene.trajectory.is_none() || obs.frames == 0 {
-        return out;
+/// The scene's variables of a named column (vectors whole, as the scene
+/// names them); none where the scene does not ask for the column.
+pub fn out_vars<'s>(scene: &'s Scene, field: &str) -> &'s [OutVar] {
+    match field {
+        "final_values" => &scene.final_vars,
+        "trajectory" => scene.trajectory.as_ref().map_or(&[], |(_, v)| v),
+        "poincare" => scene.poincare.as_ref().map_or(&[], |(_, v, _)| v),
+        "mean" => scene.average.as_ref().map_or(&[], |(v, _)| v),
+        _ => &[],
     }
-    let framed = |file: &str, data: &'a [R]| Array {
-        inner: vec![obs.frames as u64],
-        inner_names: vec!["frame"],
-        ..scalar(file, real::<R>(), data)
+}
+
+/// A plain column's array.
+fn plain<'a, R: Real>(file: File, obs: &Observations<R>, values: Col<'a, R>) -> Array<'a> {
+    let (descr, bytes): (_, &[u8]) = match values {
+        Col::Real(v) => (real::<R>(), bytemuck::cast_slice(v)),
+        Col::Count(v) => ("<u4", bytemuck::cast_slice(v)),
     };
-    if scene.lyapunov.is_some() {
-        let mut a = framed("trajectory_lyapunov.npy", &obs.trajectory_lyapunov);
-        a.inner.push(obs.exponents as u64);
-        a.inner_names.push("exponent");
-        out.push(a);
+    Array {
+        file: format!("{}.npy", file.name),
+        descr,
+        inner: file.dims.iter().map(|d| d.len(obs) as u64).collect(),
+        inner_names: file.dims.iter().map(|d| d.name()).collect(),
+        bytes: Cow::Borrowed(bytes),
     }
-    if scene.fli.is_some() {
-        out.push(framed("trajectory_fli.npy", &obs.trajectory_fli));
-    }
-    if scene.megno.is_some() {
-        out.push(framed("trajectory_megno.npy", &obs.trajectory_megno));
-    }
-    if scene.sali.is_some() {
-        out.push(framed("trajectory_sali.npy", &obs.trajectory_sali));
-    }
-    if scene.gali.is_some() {
-        out.push(framed("trajectory_gali.npy", &obs.trajectory_gali));
-    }
-    out
 }
 
 /// Each trajectory's resonance: the index into `r.ratios` of the one its
@@ -211,57 +176,43 @@ fn owned(a: Array) -> Array<'static> {
     }
 }
 
-/// `<prefix>_<var>.npy` per output variable, `inner` values per trajectory
-/// (frames, points; 0: one), a trailing component axis for vectors
-/// (Kepler's `q` is `[q1, q2]`).
-fn vars<'a, R: Real>(
-    vars: &[OutVar],
+/// `<name>_<var>.npy` of output variable `v`, with a trailing component
+/// axis for vectors (Kepler's `q` is `[q1, q2]`).
+fn var<'a, R: Real>(
+    v: &OutVar,
     arrays: &'a [(String, Vec<R>)],
-    inner: usize,
-    prefix: &str,
-    out: &mut Vec<Array<'a>>,
-) -> Result<()> {
-    for v in vars {
-        let comps: Vec<&'a Vec<R>> = v
-            .components
-            .iter()
-            .map(|c| {
-                arrays
-                    .iter()
-                    .find(|(n, _)| n == c)
-                    .map(|(_, x)| x)
-                    .context("recorded component")
-            })
-            .collect::<Result<_>>()?;
-        let mut dims = if inner > 0 {
-            vec![inner as u64]
-        } else {
-            vec![]
-        };
-        let per = if prefix == "poincare" {
-            "point"
-        } else {
-            "frame"
-        };
-        let mut names = if inner > 0 { vec![per] } else { vec![] };
-        let bytes = if comps.len() == 1 {
-            Cow::Borrowed(bytemuck::cast_slice(comps[0].as_slice()))
-        } else {
-            dims.push(comps.len() as u64);
-            names.push("component");
-            let len = comps[0].len();
-            let values: Vec<R> = (0..len)
-                .flat_map(|i| comps.iter().map(move |c| c[i]))
-                .collect();
-            Cow::Owned(bytemuck::cast_slice(&values).to_vec())
-        };
-        out.push(Array {
-            file: format!("{prefix}_{}.npy", v.name),
-            descr: real::<R>(),
-            inner: dims,
-            inner_names: names,
-            bytes,
-        });
-    }
-    Ok(())
+    file: File,
+    obs: &Observations<R>,
+) -> Result<Array<'a>> {
+    let comps: Vec<&'a Vec<R>> = v
+        .components
+        .iter()
+        .map(|c| {
+            arrays
+                .iter()
+                .find(|(n, _)| n == c)
+                .map(|(_, x)| x)
+                .context("recorded component")
+        })
+        .collect::<Result<_>>()?;
+    let mut dims: Vec<u64> = file.dims.iter().map(|d| d.len(obs) as u64).collect();
+    let mut names: Vec<&'static str> = file.dims.iter().map(|d| d.name()).collect();
+    let bytes = if comps.len() == 1 {
+        Cow::Borrowed(bytemuck::cast_slice(comps[0].as_slice()))
+    } else {
+        dims.push(comps.len() as u64);
+        names.push("component");
+        let len = comps[0].len();
+        let values: Vec<R> = (0..len)
+            .flat_map(|i| comps.iter().map(move |c| c[i]))
+            .collect();
+        Cow::Owned(bytemuck::cast_slice(&values).to_vec())
+    };
+    Ok(Array {
+        file: format!("{}_{}.npy", file.name, v.name),
+        descr: real::<R>(),
+        inner: dims,
+        inner_names: names,
+        bytes,
+    })
 }

@@ -111,8 +111,8 @@ fn stopped_indicators<R: Real>(
 fn indicators_finite<R: Real>(d: &Observations<R>, i: usize) -> bool {
     let k = d.exponents;
     let finite = |v: &[R], i: usize| v.get(i).is_none_or(|x| x.finite());
-    let scalars = [&d.fli, &d.megno, &d.sali, &d.gali];
-    (0..k).all(|j| finite(&d.lyapunov, i * k + j)) && scalars.iter().all(|v| finite(v, i))
+    (0..k).all(|j| finite(&d.lyapunov, i * k + j))
+        && d.scalar_indicators().iter().all(|v| finite(v, i))
 }
 
 /// Trajectories that ran to the end with indicators that are not finite:

@@ -16,13 +16,13 @@ use crate::backend::checkpoint::{Checkpoints, Contents};
 use crate::backend::{Engine, Integration};
 use crate::models::Flows;
 use crate::num::precision::Real;
-use crate::output::arrays::{arrays, Array};
+use crate::output::arrays::{arrays, out_vars, Array};
 use crate::output::chunks::Chunks;
 use crate::output::journal::{self, Done, Written};
 use crate::output::npy::{read_rows, Slabs};
 use crate::output::progress::{self, Followed};
 use crate::output::zarr;
-use crate::plan::observations::Observations;
+use crate::plan::observations::{ColMut, ColumnMut, Observations};
 use crate::plan::size::bytes;
 use crate::plan::snapshot::{get_one, put, read_observations, write_observations, Header};
 use crate::plan::Plan;
@@ -508,7 +508,7 @@ fn longest(subs: &[SubRun], n: usize) -> Plan {
 
 /// The per-trajectory arrays of the scene's run (bytes empty).
 pub fn array_list<R: Flows>(scene: &Scene, subs: &[SubRun]) -> Result<Vec<Array<'static>>> {
-    let empty = Observations::<R>::for_plan(&longest(subs, 0));
+    let empty = Observations::<R>::for_plan(&longest(subs, 1));
     Ok(arrays(scene, &empty)?
         .into_iter()
         .map(|a| Array {
@@ -580,6 +580,22 @@ impl Source<'_> {
         Ok(bytemuck::pod_collect_to_vec(&raw))
     }
 
+    /// Fills `dst` (`n` rows) from array `file`.
+    fn fill<T: bytemuck::Pod>(&self, file: &str, n: u64, dst: &mut [T]) -> Result<()> {
+        let row_bytes = (dst.len() as u64 / n.max(1)) * std::mem::size_of::<T>() as u64;
+        let values: Vec<T> = self.values(file, n, row_bytes)?;
+        if values.len() != dst.len() {
+            bail!(
+                "{}: {file} holds {} values where {} were expected",
+                self.dir.display(),
+                values.len(),
+                dst.len()
+            );
+        }
+        dst.copy_from_slice(&values);
+        Ok(())
+    }
+
     /// Spreads the interleaved components of `file` into the arrays `dst`
     /// of their names.
     fn components<R: Real>(
@@ -607,68 +623,26 @@ impl Source<'_> {
     }
 }
 
-/// Fills `obs` from the finished arrays (the inverse of [`arrays`]).
+/// Fills `obs` from the finished arrays (the inverse of [`arrays`]): every
+/// column it has room for.
 fn load<R: Real>(scene: &Scene, src: &Source, obs: &mut Observations<R>) -> Result<()> {
     let n = obs.n as u64;
-    for v in &scene.final_vars {
-        let file = format!("final_{}.npy", v.name);
-        src.components(&file, n, &v.components, &mut obs.final_values)?;
-    }
-    if let (Some((_, vars)), true) = (&scene.trajectory, obs.frames > 0) {
-        for v in vars {
-            let file = format!("trajectory_{}.npy", v.name);
-            src.components(&file, n, &v.components, &mut obs.trajectory)?;
-        }
-    }
-    if let (Some((_, vars, _)), true) = (&scene.poincare, obs.max_points > 0) {
-        for v in vars {
-            let file = format!("poincare_{}.npy", v.name);
-            src.components(&file, n, &v.components, &mut obs.poincare)?;
-        }
-        obs.poincare_count = src.values("poincare_count.npy", n, 4)?;
-    }
-    if scene.cycle.is_some() {
-        let size = std::mem::size_of::<R>() as u64;
-        obs.cycle_amplitude = src.values("cycle_amplitude.npy", n, size)?;
-        obs.cycle_period = src.values("cycle_period.npy", n, size)?;
-    }
-    for v in scene.average.iter().flat_map(|(vars, _)| vars) {
-        let file = format!("mean_{}.npy", v.name);
-        src.components(&file, n, &v.components, &mut obs.mean)?;
-    }
-    let size = std::mem::size_of::<R>() as u64;
-    if scene.lyapunov.is_some() {
-        obs.lyapunov = src.values("lyapunov.npy", n, size * obs.exponents as u64)?;
-    }
-    if scene.fli.is_some() {
-        obs.fli = src.values("fli.npy", n, size)?;
-    }
-    if scene.megno.is_some() {
-        obs.megno = src.values("megno.npy", n, size)?;
-    }
-    if scene.sali.is_some() {
-        obs.sali = src.values("sali.npy", n, size)?;
-    }
-    if scene.gali.is_some() {
-        obs.gali = src.values("gali.npy", n, size)?;
-    }
-    if scene.trajectory.is_some() && obs.frames > 0 {
-        let frame = size * obs.frames as u64;
-        if scene.lyapunov.is_some() {
-            let row = frame * obs.exponents as u64;
-            obs.trajectory_lyapunov = src.values("trajectory_lyapunov.npy", n, row)?;
-        }
-        if scene.fli.is_some() {
-            obs.trajectory_fli = src.values("trajectory_fli.npy", n, frame)?;
-        }
-        if scene.megno.is_some() {
-            obs.trajectory_megno = src.values("trajectory_megno.npy", n, frame)?;
-        }
-        if scene.sali.is_some() {
-            obs.trajectory_sali = src.values("trajectory_sali.npy", n, frame)?;
-        }
-        if scene.gali.is_some() {
-            obs.trajectory_gali = src.values("trajectory_gali.npy", n, frame)?;
+    for (file, column) in obs.files_mut() {
+        match column {
+            ColumnMut::Named(dst) => {
+                for v in out_vars(scene, file.field) {
+                    let name = format!("{}_{}.npy", file.name, v.name);
+                    src.components(&name, n, &v.components, dst)?;
+                }
+            }
+            ColumnMut::Plain(dst) if !dst.is_empty() => {
+                let name = format!("{}.npy", file.name);
+                match dst {
+                    ColMut::Real(d) => src.fill(&name, n, d)?,
+                    ColMut::Count(d) => src.fill(&name, n, d)?,
+                }
+            }
+            ColumnMut::Plain(_) => {}
         }
     }
     let steps: Vec<i64> = src.values("status_step.npy", n, 8)?;

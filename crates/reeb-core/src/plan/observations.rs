@@ -22,15 +22,19 @@ pub enum Status {
 /// The columns of [`Observations`], each declared once: its field, whether
 /// it holds one array per observed variable (`Named`, from the plan's list)
 /// or one array (`Plain`), its element type, how many values each trajectory
-/// has in it (`per`: `one`, `frames`, `max_points`), and when the plan has
-/// it (`when`: a plain column the plan lacks is empty). From this list come
-/// the struct, its allocation, [`Observations::place_rows`],
+/// has in it (`per`: `one`, `frames`, `max_points`, …), when the plan has
+/// it (`when`, every flag listed: a plain column the plan lacks is empty),
+/// and its file and dimensions after the axes (`file`: a named column has
+/// one per variable; a column without one is not written as it is). From
+/// this list come the
+/// struct, its allocation, [`Observations::place_rows`],
 /// [`Observations::convert`], [`Observations::columns`] (what snapshots
-/// write and read, in this order), the CPU's [`Sink`] and
-/// [`bytes_per_trajectory`]. A new output is one line here.
+/// write and read, in this order), [`Observations::files`] (what the run
+/// directory's arrays are written from and read back into), the CPU's
+/// [`Sink`] and [`bytes_per_trajectory`]. A new output is one line here.
 macro_rules! observations {
     ($( $(#[$doc:meta])* $field:ident: $kind:ident $(($list:ident))? $elem:ident,
-        per $width:ident, when $when:ident; )*) => {
+        per $width:ident, when $($when:ident)&+ $(, file $file:literal [$($dim:ident),*])?; )*) => {
         /// Observations of a whole ensemble. Arrays are indexed by trajectory
         /// (the row-major index over the plan's axes), then frame or point.
         #[derive(Debug, Clone)]
@@ -56,18 +60,18 @@ macro_rules! observations {
             fn allocate(plan: &Plan, s: &Shape) -> Self {
                 Observations {
                     n: s.n,
-                    frames: s.frames as usize,
-                    max_points: s.max_points as usize,
-                    exponents: s.exponents as usize,
+                    frames: s.per.frames as usize,
+                    max_points: s.per.max_points as usize,
+                    exponents: s.per.exponents as usize,
                     $( $field: observations!(@alloc $kind [$($list)?] $elem,
-                        plan, s.n * s.$width as usize, s.$when), )*
+                        plan, s.n * s.per.$width as usize, $(s.$when)&&+), )*
                 }
             }
 
             /// Every column in declaration order, with its values per
             /// trajectory (a named column: one per variable).
             pub fn columns(&self) -> Vec<(usize, Col<'_, R>)> {
-                let s = self.shape();
+                let s = self.widths();
                 let mut out = vec![];
                 $( observations!(@col $kind $elem, out, &self.$field, s.$width as usize); )*
                 out
@@ -84,9 +88,29 @@ macro_rules! observations {
             /// The field name of every column observations may have.
             pub const COLUMN_NAMES: &'static [&'static str] = &[$(stringify!($field)),*];
 
+            /// Every column that has a file, in declaration order, with it.
+            pub fn files(&self) -> Vec<(File, Column<'_, R>)> {
+                let mut out = vec![];
+                $( $( out.push((
+                    File { field: stringify!($field), name: $file, dims: &[$(Dim::$dim),*] },
+                    observations!(@column $kind $elem, &self.$field),
+                )); )? )*
+                out
+            }
+
+            /// [`Self::files`], to fill.
+            pub fn files_mut(&mut self) -> Vec<(File, ColumnMut<'_, R>)> {
+                let mut out = vec![];
+                $( $( out.push((
+                    File { field: stringify!($field), name: $file, dims: &[$(Dim::$dim),*] },
+                    observations!(@column_mut $kind $elem, &mut self.$field),
+                )); )? )*
+                out
+            }
+
             /// [`Self::columns`], to write.
             pub fn columns_mut(&mut self) -> Vec<(usize, ColMut<'_, R>)> {
-                let s = self.shape();
+                let s = self.widths();
                 let mut out = vec![];
                 $( observations!(@col_mut $kind $elem, out, &mut self.$field, s.$width as usize); )*
                 out
@@ -117,10 +141,10 @@ macro_rules! observations {
             let real = precision.bytes() as u64;
             let mut total = STATUS_ON_DISK_EXTRA;
             $(
-                if s.$when {
+                if $(s.$when)&&+ {
                     let vars = observations!(@count $kind [$($list)?], plan);
                     let elem = observations!(@bytes $elem, real);
-                    total = total.checked_add(vars.checked_mul(s.$width)?.checked_mul(elem)?)?;
+                    total = total.checked_add(vars.checked_mul(s.per.$width)?.checked_mul(elem)?)?;
                 }
             )*
             Some(total)
@@ -141,6 +165,12 @@ macro_rules! observations {
     };
     (@col Plain R, $out:expr, $v:expr, $w:expr) => { $out.push(($w, Col::Real($v.as_slice()))) };
     (@col Plain u32, $out:expr, $v:expr, $w:expr) => { $out.push(($w, Col::Count($v.as_slice()))) };
+    (@column Named R, $v:expr) => { Column::Named($v.as_slice()) };
+    (@column Plain R, $v:expr) => { Column::Plain(Col::Real($v.as_slice())) };
+    (@column Plain u32, $v:expr) => { Column::Plain(Col::Count($v.as_slice())) };
+    (@column_mut Named R, $v:expr) => { ColumnMut::Named($v) };
+    (@column_mut Plain R, $v:expr) => { ColumnMut::Plain(ColMut::Real($v)) };
+    (@column_mut Plain u32, $v:expr) => { ColumnMut::Plain(ColMut::Count($v)) };
     (@name Named, $out:expr, $v:expr, $name:expr) => { $out.extend($v.iter().map(|_| $name)) };
     (@name Plain, $out:expr, $v:expr, $name:expr) => { $out.push($name) };
     (@col_mut Named R, $out:expr, $v:expr, $w:expr) => {
@@ -165,40 +195,42 @@ macro_rules! observations {
 
 observations! {
     /// `(variable, values[n])`; NaN for trajectories that did not finish.
-    final_values: Named(final_vars) R, per one, when always;
+    final_values: Named(final_vars) R, per one, when always, file "final" [];
     /// `(variable, values[n × frames])`, NaN after a trajectory stopped.
-    trajectory: Named(trajectory_vars) R, per frames, when always;
+    trajectory: Named(trajectory_vars) R, per frames, when always, file "trajectory" [Frame];
     /// `(variable, values[n × max_points])`, NaN-padded.
-    poincare: Named(poincare_vars) R, per max_points, when always;
+    poincare: Named(poincare_vars) R, per max_points, when always, file "poincare" [Point];
     /// Points found per trajectory (may exceed `max_points`; only that many kept).
-    poincare_count: Plain u32, per one, when points;
+    poincare_count: Plain u32, per one, when points, file "poincare_count" [];
     /// Half the peak-to-peak range of the cycle variable over the measuring window.
-    cycle_amplitude: Plain R, per one, when cycle;
+    cycle_amplitude: Plain R, per one, when cycle, file "cycle_amplitude" [];
     /// Mean time between upward crossings of the cycle level in the window (NaN if fewer than two).
-    cycle_period: Plain R, per one, when cycle;
+    cycle_period: Plain R, per one, when cycle, file "cycle_period" [];
     /// `(variable, means[n])`: each averaged variable's time average.
-    mean: Named(average_vars) R, per one, when always;
+    mean: Named(average_vars) R, per one, when always, file "mean" [];
     /// Finite-time Lyapunov exponents, largest first (`exponents` per trajectory).
-    lyapunov: Plain R, per exponents, when lyapunov;
+    lyapunov: Plain R, per exponents, when lyapunov, file "lyapunov" [Exponent];
     /// Fast Lyapunov Indicator: the largest ln‖w‖ over the samples.
-    fli: Plain R, per one, when fli;
+    fli: Plain R, per one, when fli, file "fli" [];
     /// MEGNO ⟨Y⟩ at the last sample.
-    megno: Plain R, per one, when megno;
+    megno: Plain R, per one, when megno, file "megno" [];
     /// SALI at the last sample.
-    sali: Plain R, per one, when sali;
+    sali: Plain R, per one, when sali, file "sali" [];
     /// GALI_k at the last sample.
-    gali: Plain R, per one, when gali;
+    gali: Plain R, per one, when gali, file "gali" [];
     /// The exponents so far at each trajectory frame (`frames × exponents`
     /// per trajectory; NaN before the first counted sample).
-    trajectory_lyapunov: Plain R, per frame_exponents, when lyapunov_frames;
+    trajectory_lyapunov: Plain R, per frame_exponents, when lyapunov & framed,
+        file "trajectory_lyapunov" [Frame, Exponent];
     /// The FLI so far at each trajectory frame (NaN before the first sample).
-    trajectory_fli: Plain R, per frames, when fli_frames;
+    trajectory_fli: Plain R, per frames, when fli & framed, file "trajectory_fli" [Frame];
     /// ⟨Y⟩ so far at each trajectory frame (NaN before the first sample).
-    trajectory_megno: Plain R, per frames, when megno_frames;
+    trajectory_megno: Plain R, per frames, when megno & framed,
+        file "trajectory_megno" [Frame];
     /// SALI at the last sample at each trajectory frame.
-    trajectory_sali: Plain R, per frames, when sali_frames;
+    trajectory_sali: Plain R, per frames, when sali & framed, file "trajectory_sali" [Frame];
     /// GALI_k at the last sample at each trajectory frame.
-    trajectory_gali: Plain R, per frames, when gali_frames;
+    trajectory_gali: Plain R, per frames, when gali & framed, file "trajectory_gali" [Frame];
     /// 0: ok; k > 0: non-finite at step k.
     nonfinite_step: Plain u32, per one, when always;
     /// 0: not stopped; k > 0: stopped by the stop condition after step k.
@@ -228,13 +260,81 @@ pub enum ColMut<'a, R> {
     Count(&'a mut [u32]),
 }
 
+impl<R> Col<'_, R> {
+    pub fn is_empty(&self) -> bool {
+        match self {
+            Col::Real(v) => v.is_empty(),
+            Col::Count(v) => v.is_empty(),
+        }
+    }
+}
+
+impl<R> ColMut<'_, R> {
+    pub fn is_empty(&self) -> bool {
+        match self {
+            ColMut::Real(v) => v.is_empty(),
+            ColMut::Count(v) => v.is_empty(),
+        }
+    }
+}
+
+/// How a column is written: `<name>.npy`, or for a named column
+/// `<name>_<variable>.npy` per variable; `dims`: its dimensions after the
+/// scene's axes (a vector variable adds `component`).
+#[derive(Debug, Clone, Copy)]
+pub struct File {
+    /// The column's field in [`Observations`].
+    pub field: &'static str,
+    pub name: &'static str,
+    pub dims: &'static [Dim],
+}
+
+/// A dimension of a column after the scene's axes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dim {
+    Frame,
+    Point,
+    Exponent,
+}
+
+impl Dim {
+    /// Its name in the run's `dims` (what xarray labels it with).
+    pub fn name(self) -> &'static str {
+        match self {
+            Dim::Frame => "frame",
+            Dim::Point => "point",
+            Dim::Exponent => "exponent",
+        }
+    }
+
+    /// Its length in `obs`.
+    pub fn len<R>(self, obs: &Observations<R>) -> usize {
+        match self {
+            Dim::Frame => obs.frames,
+            Dim::Point => obs.max_points,
+            Dim::Exponent => obs.exponents,
+        }
+    }
+}
+
+/// A column of [`Observations`] with a file: one array per variable, or one.
+#[derive(Debug)]
+pub enum Column<'a, R> {
+    Named(&'a [(String, Vec<R>)]),
+    Plain(Col<'a, R>),
+}
+
+/// [`Column`], to fill.
+#[derive(Debug)]
+pub enum ColumnMut<'a, R> {
+    Named(&'a mut Named<R>),
+    Plain(ColMut<'a, R>),
+}
+
 /// What a plan's observations hold per trajectory, and which columns.
 struct Shape {
     n: usize,
-    one: u64,
-    frames: u64,
-    max_points: u64,
-    exponents: u64,
+    per: Widths,
     always: bool,
     points: bool,
     cycle: bool,
@@ -243,13 +343,18 @@ struct Shape {
     megno: bool,
     sali: bool,
     gali: bool,
-    /// The indicators' running values per trajectory frame.
+    /// Trajectory frames: the indicators' running values are kept per frame.
+    framed: bool,
+}
+
+/// How many values each trajectory has in a column.
+struct Widths {
+    one: u64,
+    frames: u64,
+    max_points: u64,
+    exponents: u64,
+    /// The exponents at each trajectory frame.
     frame_exponents: u64,
-    lyapunov_frames: bool,
-    fli_frames: bool,
-    megno_frames: bool,
-    sali_frames: bool,
-    gali_frames: bool,
 }
 
 impl Shape {
@@ -259,27 +364,24 @@ impl Shape {
         let frames = frames_per_trajectory(plan)?;
         let exponents = plan.indicators.as_ref().map_or(0, |i| i.exponents()) as u64;
         let o = &plan.observers;
-        let framed = frames > 0;
         Some(Shape {
             n: plan.n,
-            one: 1,
-            frames,
-            max_points,
+            per: Widths {
+                one: 1,
+                frames,
+                max_points,
+                exponents,
+                frame_exponents: frames.checked_mul(exponents)?,
+            },
             always: true,
             points: max_points > 0,
             cycle: plan.cycle_var.is_some(),
-            exponents,
             lyapunov: o.lyapunov.is_some(),
             fli: o.fli.is_some(),
             megno: o.megno.is_some(),
-            frame_exponents: frames.checked_mul(exponents)?,
-            lyapunov_frames: framed && o.lyapunov.is_some(),
-            fli_frames: framed && o.fli.is_some(),
-            megno_frames: framed && o.megno.is_some(),
             sali: o.sali.is_some(),
             gali: o.gali.is_some(),
-            sali_frames: framed && o.sali.is_some(),
-            gali_frames: framed && o.gali.is_some(),
+            framed: frames > 0,
         })
     }
 }
@@ -355,33 +457,24 @@ impl<R: Real> Observations<R> {
         Ok(Self::allocate(plan, &shape))
     }
 
-    /// The shape these observations were sized for.
-    fn shape(&self) -> Shape {
-        Shape {
-            n: self.n,
+    /// The widths these observations were sized for.
+    fn widths(&self) -> Widths {
+        Widths {
             one: 1,
             frames: self.frames as u64,
             max_points: self.max_points as u64,
-            always: true,
-            points: !self.poincare_count.is_empty(),
-            cycle: !self.cycle_period.is_empty(),
             exponents: self.exponents as u64,
-            lyapunov: !self.lyapunov.is_empty(),
-            fli: !self.fli.is_empty(),
-            megno: !self.megno.is_empty(),
             frame_exponents: (self.frames * self.exponents) as u64,
-            lyapunov_frames: !self.trajectory_lyapunov.is_empty(),
-            fli_frames: !self.trajectory_fli.is_empty(),
-            megno_frames: !self.trajectory_megno.is_empty(),
-            sali: !self.sali.is_empty(),
-            gali: !self.gali.is_empty(),
-            sali_frames: !self.trajectory_sali.is_empty(),
-            gali_frames: !self.trajectory_gali.is_empty(),
         }
     }
 
     /// The columns of `indicators::SCALAR_INDICATORS`, in its order (a column
     /// the plan lacks is empty).
+    pub fn scalar_indicators(&self) -> [&[R]; 4] {
+        [&self.fli, &self.megno, &self.sali, &self.gali]
+    }
+
+    /// [`Self::scalar_indicators`], to fill.
     pub fn scalar_indicators_mut(&mut self) -> [&mut Vec<R>; 4] {
         [
             &mut self.fli,
