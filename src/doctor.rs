@@ -329,7 +329,7 @@ fn ensemble(model: &str, scheme: &str) -> Option<Problem> {
         .vars
         .iter()
         .filter(|v| splitting || spec.optional_var != Some(**v))
-        .map(|v| v.to_string())
+        .map(|v| (*v).into())
         .collect();
     Some(p)
 }

@@ -482,7 +482,7 @@ fn order_error(
     }
     p.dt = Source::Const(op.t_end / steps as f64);
     p.steps = steps;
-    p.observers.final_vars = op.vars.iter().map(|v| v.to_string()).collect();
+    p.observers.final_vars = op.vars.iter().map(|v| (*v).into()).collect();
     let o = engine.run(&plan(&p)?)?;
     Ok(op
         .vars

@@ -105,7 +105,7 @@ fn order_problem(scene: &Scene) -> Result<OrderProblem, String> {
     }
     p.dt = Source::Const(t_end);
     p.steps = 1;
-    p.observers.final_vars = vars.iter().map(|v| v.to_string()).collect();
+    p.observers.final_vars = vars.iter().map(|v| (*v).into()).collect();
     let plan = Plan::new(&p).map_err(|e| e.to_string())?;
     let truth = dop853_of(&plan, 0, &[t0 + t_end], 1e-14).map_err(|e| e.to_string())?;
     let reference = vars

@@ -3,7 +3,8 @@
 # such folders compared array by array (every .npy byte for byte).
 #
 #   scripts/dev/scene_bits.sh run REEB OUTDIR [cpu|gpu]   # runs every scene
-#   scripts/dev/scene_bits.sh compare DIR_A DIR_B        # cmp of every .npy
+#   scripts/dev/scene_bits.sh compare DIR_A DIR_B        # cmp of every .npy,
+#                                                        # and summary.json
 #
 # For comparing a build of the starting commit with a new one before
 # landing a change that must leave every shipped scene's arrays as they were.
@@ -40,7 +41,32 @@ case "${1:-}" in
       done
     done
     echo "$n arrays compared, $bad differ or are missing"
+    # summary.json but what differs from run to run (clock, speed, command)
+    python3 - "$a" "$b" <<'PY' || bad=$((bad + 1))
+import json, os, sys
+a, b = sys.argv[1], sys.argv[2]
+volatile = {"utc", "command_line", "traj_steps_per_s"}
+def strip(v):
+    if isinstance(v, dict):
+        return {k: strip(x) for k, x in v.items()
+                if k not in volatile and "seconds" not in k and k != "timing"}
+    if isinstance(v, list):
+        return [strip(x) for x in v]
+    return v
+bad = 0
+for name in sorted(os.listdir(a)):
+    pa, pb = (os.path.join(d, name, "summary.json") for d in (a, b))
+    if not os.path.exists(pa):
+        continue
+    ja, jb = (strip(json.load(open(p))) for p in (pa, pb))
+    for k in sorted(set(ja) | set(jb)):
+        if ja.get(k) != jb.get(k):
+            print(f"summary differs: {name}: {k}")
+            bad += 1
+print(f"summaries compared, {bad} keys differ")
+sys.exit(bad > 0)
+PY
     [ "$bad" -eq 0 ]
     ;;
-  *) sed -n 2,9p "$0"; exit 2 ;;
+  *) sed -n 2,10p "$0"; exit 2 ;;
 esac

@@ -90,7 +90,7 @@ pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Ve
             Column::Plain(values) if !values.is_empty() => out.push(plain(file, obs, values)),
             Column::Plain(_) => {}
         }
-        if let (Some(r), "mean") = (&scene.resonance, file.field) {
+        if let (Some(r), "mean") = (&scene.observers.resonance, file.field) {
             out.push(owned(scalar("resonance.npy", "<i4", &resonance(r, obs)?)));
         }
     }
@@ -111,11 +111,12 @@ pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Ve
 /// The scene's variables of a named column (vectors whole, as the scene
 /// names them); none where the scene does not ask for the column.
 pub fn out_vars<'s>(scene: &'s Scene, field: &str) -> &'s [OutVar] {
+    let o = &scene.observers;
     match field {
-        "final_values" => &scene.final_vars,
-        "trajectory" => scene.trajectory.as_ref().map_or(&[], |(_, v)| v),
-        "poincare" => scene.poincare.as_ref().map_or(&[], |(_, v, _)| v),
-        "mean" => scene.average.as_ref().map_or(&[], |(v, _)| v),
+        "final_values" => &o.final_vars,
+        "trajectory" => o.trajectory.as_ref().map_or(&[], |t| &t.vars),
+        "poincare" => o.poincare.as_ref().map_or(&[], |p| &p.vars),
+        "mean" => o.average.as_ref().map_or(&[], |a| &a.vars),
         _ => &[],
     }
 }

@@ -60,7 +60,7 @@ pub fn of<R: Real>(scene: &Scene, subs: &[SubRun], d: &Observations<R>) -> Doubt
 
 /// Points a Poincaré section found beyond `max_points` (counted, not kept).
 fn dropped_points<R: Real>(scene: &Scene, d: &Observations<R>, out: &mut Doubts) {
-    if scene.poincare.is_none() {
+    if scene.observers.poincare.is_none() {
         return;
     }
     let max = d.max_points as u64;
@@ -87,8 +87,14 @@ fn dropped_points<R: Real>(scene: &Scene, d: &Observations<R>, out: &mut Doubts)
 
 /// Whether the run has chaos indicators.
 fn has_indicators(scene: &Scene) -> bool {
-    let sampled = [&scene.fli, &scene.megno, &scene.sali];
-    scene.lyapunov.is_some() || sampled.iter().any(|o| o.is_some()) || scene.gali.is_some()
+    let sampled = [
+        &scene.observers.fli,
+        &scene.observers.megno,
+        &scene.observers.sali,
+    ];
+    scene.observers.lyapunov.is_some()
+        || sampled.iter().any(|o| o.is_some())
+        || scene.observers.gali.is_some()
 }
 
 /// Trajectories the stop condition ended: their indicators cover less time.

@@ -74,7 +74,7 @@ pub fn draw<R: Real>(
     files.extend(pictures.poincare_by_fli(d)?);
     files.extend(pictures.running_indicators(d)?);
     files.extend(pictures.bifurcation_diagram(d)?);
-    if let Some(r) = &scene.resonance {
+    if let Some(r) = &scene.observers.resonance {
         let index = crate::output::arrays::resonance(r, d)?;
         files.extend(pictures.resonance_map(r, &index)?);
         files.push(pictures.capture_fractions(r, &index)?);
@@ -356,6 +356,7 @@ impl<'a> Pictures<'a> {
         // The resonances' values p/q, marked on the colour bar of their mean.
         let resonant: Vec<(f64, String)> = self
             .scene
+            .observers
             .resonance
             .iter()
             .flat_map(|r| {
@@ -366,7 +367,7 @@ impl<'a> Pictures<'a> {
             })
             .collect();
         let marks_of = |file: &str| -> Vec<(f64, &str)> {
-            match &self.scene.resonance {
+            match &self.scene.observers.resonance {
                 Some(r) if file == format!("mean_{}", r.var) => {
                     resonant.iter().map(|(v, l)| (*v, l.as_str())).collect()
                 }
@@ -589,7 +590,12 @@ impl<'a> Pictures<'a> {
         if frames <= 1 {
             return Ok(vec![]);
         }
-        let every = self.scene.trajectory.as_ref().map_or(1, |(e, _)| *e);
+        let every = self
+            .scene
+            .observers
+            .trajectory
+            .as_ref()
+            .map_or(1, |t| t.every);
         let step: Vec<f64> = (0..frames).map(|f| (f as u64 * every) as f64).collect();
         let count = self.scene.plot.max_trajectories.max(1).min(self.n);
         let chosen: Vec<usize> = (0..count).map(|c| c * self.n / count).collect();

@@ -655,7 +655,7 @@ fn finish<R: Flows>(
     for (key, value) in doubts.summary {
         summary[key] = value;
     }
-    if let Some(r) = &scene.resonance {
+    if let Some(r) = &scene.observers.resonance {
         summary["resonance"] = capture(r, &crate::output::arrays::resonance(r, &observations)?);
     }
     if format == Format::Zarr {

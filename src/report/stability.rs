@@ -19,7 +19,7 @@ use crate::plan::observations::Observations;
 use crate::plan::observers::CycleObs;
 use crate::plan::Plan;
 use crate::reference::truth::{dop853_of, lane_of};
-use crate::scene::{OutVar, ReportSettings, Scene, SubRun};
+use crate::scene::{ReportSettings, Scene, SubRun};
 
 use super::options::{claim_dir, finish, precisions, settings, ReportOptions};
 
@@ -146,17 +146,14 @@ impl Map {
 fn cycle_scene(scene: &Scene) -> (Scene, CycleObs) {
     let mut sc = scene.clone();
     let first_var = scene.model.spec().vars[0].to_string();
-    let cycle = sc.cycle.clone().unwrap_or(CycleObs {
+    let cycle = sc.observers.cycle.clone().unwrap_or(CycleObs {
         var: first_var.clone(),
         ..CycleObs::default()
     });
-    sc.cycle = Some(cycle.clone());
-    sc.trajectory = None;
-    sc.poincare = None;
-    sc.final_vars = vec![OutVar {
-        name: first_var.clone(),
-        components: vec![first_var],
-    }];
+    sc.observers.cycle = Some(cycle.clone());
+    sc.observers.trajectory = None;
+    sc.observers.poincare = None;
+    sc.observers.final_vars = vec![first_var.as_str().into()];
     (sc, cycle)
 }
 

@@ -17,10 +17,11 @@ use crate::backend::Engine;
 use crate::num::precision::Precision;
 use crate::output::plot::{self, Figure, Series, Slope};
 use crate::plan::observations::Observations;
+use crate::plan::observers::TrajectoryObs;
 use crate::plan::scheme::Scheme;
 use crate::plan::Plan;
 use crate::reference::truth::{dop853_of, truth, Truth};
-use crate::scene::{Horizon, OutVar, ReportSettings, Scene, SubRun};
+use crate::scene::{Horizon, ReportSettings, Scene, SubRun};
 
 use super::options::{claim_dir, finish, precisions, settings, ReportOptions};
 
@@ -110,7 +111,7 @@ pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
     }
 
     let mut md = String::new();
-    let over = if base.trajectory.is_some() {
+    let over = if base.observers.trajectory.is_some() {
         ""
     } else {
         " (the final time)"
@@ -144,6 +145,7 @@ pub fn work_precision(scene: &Scene, opts: &ReportOptions) -> Result<PathBuf> {
 fn error_vars(scene: &Scene, set: &ReportSettings) -> Result<Vec<String>> {
     let error_vars: Vec<String> = if set.error_vars.is_empty() {
         scene
+            .observers
             .final_vars
             .iter()
             .flat_map(|v| v.components.clone())
@@ -154,6 +156,7 @@ fn error_vars(scene: &Scene, set: &ReportSettings) -> Result<Vec<String>> {
             .iter()
             .flat_map(|n| {
                 scene
+                    .observers
                     .final_vars
                     .iter()
                     .find(|v| &v.name == n)
@@ -176,19 +179,13 @@ fn error_vars(scene: &Scene, set: &ReportSettings) -> Result<Vec<String>> {
 /// trajectory), and nothing else.
 fn measured_scene(scene: &Scene, error_vars: &[String]) -> Scene {
     let mut base = scene.clone();
-    base.final_vars = error_vars
-        .iter()
-        .map(|v| OutVar {
-            name: v.clone(),
-            components: vec![v.clone()],
-        })
-        .collect();
-    base.trajectory = scene
-        .trajectory
-        .as_ref()
-        .map(|(every, _)| (*every, base.final_vars.clone()));
-    base.poincare = None;
-    base.cycle = None;
+    base.observers.final_vars = error_vars.iter().map(|v| v.as_str().into()).collect();
+    base.observers.trajectory = scene.observers.trajectory.as_ref().map(|t| TrajectoryObs {
+        every: t.every,
+        vars: base.observers.final_vars.clone(),
+    });
+    base.observers.poincare = None;
+    base.observers.cycle = None;
     base
 }
 

@@ -36,10 +36,10 @@ use std::path::PathBuf;
 pub use crate::backend::BackendChoice;
 use crate::models::Model;
 use crate::num::precision::Precision;
-use crate::plan::observers::{CycleObs, GaliObs, LyapunovObs, ResonanceObs, SampledObs, Section};
+use crate::plan::observers::Observers;
+pub use crate::plan::observers::OutVar;
 use crate::plan::scheme::Scheme;
 use crate::plan::size::{self, Estimate, SizeError};
-use crate::plan::stop::StopObs;
 use crate::plan::Plan;
 pub use error::SceneError;
 pub use error::SceneWarning;
@@ -62,14 +62,6 @@ pub enum Horizon {
     /// Steps = round((t_end − t0)/dt) for each trajectory.
     TEnd(f64),
     Steps(u64),
-}
-
-/// A variable of the output files: a state variable, `t`, or a vector
-/// (`q` of Kepler is `[q1, q2]`: its arrays carry a trailing component axis).
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct OutVar {
-    pub name: String,
-    pub components: Vec<String>,
 }
 
 /// The format of a run's arrays: `.npy` files, or one Zarr v3 store.
@@ -165,21 +157,8 @@ pub struct Scene {
     /// Parsed once, here; everything downstream takes the `Scheme`.
     pub scheme: Scheme,
     pub order: Option<String>,
-    pub final_vars: Vec<OutVar>,
-    pub trajectory: Option<(u64, Vec<OutVar>)>,
-    pub poincare: Option<(Section, Vec<OutVar>, usize)>,
-    pub cycle: Option<CycleObs>,
-    /// Time averages: the variables and the fraction of the run skipped.
-    pub average: Option<(Vec<OutVar>, f64)>,
-    pub resonance: Option<ResonanceObs>,
-    /// Stops a trajectory after the first step at which it holds.
-    pub stop: Option<StopObs>,
-    /// Chaos indicators.
-    pub lyapunov: Option<LyapunovObs>,
-    pub fli: Option<SampledObs>,
-    pub megno: Option<SampledObs>,
-    pub sali: Option<SampledObs>,
-    pub gali: Option<GaliObs>,
+    /// What the run records and when it stops, as its plans take it.
+    pub observers: Observers,
     /// How the arrays are written (`output.format`).
     pub format: Format,
     pub backend: BackendChoice,
@@ -279,8 +258,8 @@ impl Scene {
         }
         s.step_cap = Some(steps);
         s.preview = Some((values, steps));
-        if let Some((every, _)) = &mut s.trajectory {
-            *every = (*every).min((steps / 10).max(1));
+        if let Some(t) = &mut s.observers.trajectory {
+            t.every = t.every.min((steps / 10).max(1));
         }
         s
     }
@@ -502,7 +481,7 @@ cycle = true
     #[test]
     fn kepler_vectors_and_lienard_coefficients() {
         let s = parse("model = \"kepler\"\n[initial]\nq1 = 0.5\np2 = 1.7\n[integrator]\ndt = 0.01\nsteps = 10\n[output]\nfinal = [\"q\", \"p2\"]\n").unwrap();
-        assert_eq!(s.final_vars[0].components, ["q1", "q2"]);
+        assert_eq!(s.observers.final_vars[0].components, ["q1", "q2"]);
         let s = parse("model = \"lienard\"\n[params]\nf = [-1.0, 0.0, 1.0]\ng = [0.0, 1.0]\n[integrator]\ndt = 0.01\nsteps = 10\n").unwrap();
         assert_eq!(
             s.model,

@@ -16,8 +16,8 @@ use crate::models::spec::ModelSpec;
 use crate::models::{Model, MODEL_NAMES};
 use crate::num::precision::Precision;
 use crate::plan::observers::{
-    check_skip, check_strobe, CycleObs, Direction, GaliObs, LyapunovObs, ResonanceObs, SampledObs,
-    Section,
+    check_skip, check_strobe, AverageObs, CycleObs, Direction, GaliObs, LyapunovObs, Observers,
+    PoincareObs, ResonanceObs, SampledObs, Section, TrajectoryObs,
 };
 use crate::plan::scheme::{Scheme, SCHEME_NAMES};
 use crate::plan::size;
@@ -308,7 +308,7 @@ impl Scene {
         let (backend, precision) = run(&mut p, &doc)?;
         let plot = plot(&mut p, &doc, &model)?;
         let report = report(&mut p, &doc, &integ.scheme)?;
-        check_bifurcation(&p, &plot, &axes, out.poincare.is_some())?;
+        check_bifurcation(&p, &plot, &axes, out.observers.poincare.is_some())?;
         check_plot_vars(&p, &plot, &out)?;
         let scene = Scene {
             path: path.to_path_buf(),
@@ -322,18 +322,7 @@ impl Scene {
             horizon: integ.horizon,
             scheme: integ.scheme,
             order: integ.order,
-            final_vars: out.final_vars,
-            trajectory: out.trajectory,
-            poincare: out.poincare,
-            cycle: out.cycle,
-            average: out.average,
-            resonance: out.resonance,
-            stop: out.stop,
-            lyapunov: out.chaos.lyapunov,
-            fli: out.chaos.fli,
-            megno: out.chaos.megno,
-            sali: out.chaos.sali,
-            gali: out.chaos.gali,
+            observers: out.observers,
             format: out.format,
             backend,
             precision,
@@ -605,24 +594,8 @@ fn deserialize<T: DeserializeOwned + Default>(
 
 /// What `[output]` gives.
 struct Out {
-    final_vars: Vec<OutVar>,
-    trajectory: Option<(u64, Vec<OutVar>)>,
-    poincare: Option<(Section, Vec<OutVar>, usize)>,
-    cycle: Option<CycleObs>,
-    average: Option<(Vec<OutVar>, f64)>,
-    resonance: Option<ResonanceObs>,
-    stop: Option<StopObs>,
-    chaos: Chaos,
+    observers: Observers,
     format: Format,
-}
-
-/// The chaos indicators `[output]` asks for.
-struct Chaos {
-    lyapunov: Option<LyapunovObs>,
-    fli: Option<SampledObs>,
-    megno: Option<SampledObs>,
-    sali: Option<SampledObs>,
-    gali: Option<GaliObs>,
 }
 
 /// Resolves output variable names against the model: a variable, `t`, or a
@@ -748,7 +721,7 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
                 Some(v) => ov.list(p, "output.trajectory.vars", v)?,
                 None => ov.defaults(),
             };
-            Some((every, vars))
+            Some(TrajectoryObs { every, vars })
         }
     };
     let poincare = match o.poincare {
@@ -779,18 +752,17 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
         }
     };
     let format = parsed(p, "output.format", &o.format)?.unwrap_or(Format::Npy);
-    let chaos = indicators(o.lyapunov, o.fli, o.megno, o.sali, o.gali);
-    Ok(Out {
+    let observers = Observers {
         final_vars,
         trajectory,
         poincare,
         cycle,
-        average,
+        average: average.map(|(vars, skip)| AverageObs { vars, skip }),
         resonance,
         stop,
-        chaos,
-        format,
-    })
+        ..indicators(o.lyapunov, o.fli, o.megno, o.sali, o.gali)
+    };
+    Ok(Out { observers, format })
 }
 
 /// `output.lyapunov`, `output.fli`, `output.megno`, `output.sali`,
@@ -802,7 +774,7 @@ fn indicators(
     megno: Option<Spanned<Sampled>>,
     sali: Option<Spanned<Sampled>>,
     gali: Option<Spanned<tables::Gali>>,
-) -> Chaos {
+) -> Observers {
     let whole =
         |x: Option<Spanned<tables::Int>>, default: u64| x.map_or(default, |v| v.into_inner().0);
     let lyapunov = match lyapunov.map(Spanned::into_inner) {
@@ -829,12 +801,13 @@ fn indicators(
             every: whole(t.every, 1),
         }),
     };
-    Chaos {
+    Observers {
         lyapunov,
         fli: sampled(fli),
         megno: sampled(megno),
         sali: sampled(sali),
         gali,
+        ..Observers::default()
     }
 }
 
@@ -962,7 +935,7 @@ fn poincare(
     ov: &OutVars,
     model: &Model,
     pc: Spanned<Table<tables::Poincare>>,
-) -> Result<(Section, Vec<OutVar>, usize), SceneError> {
+) -> Result<PoincareObs, SceneError> {
     let span = pc.span();
     let Table(pc) = pc.into_inner();
     other_sections_keys(p, &pc)?;
@@ -982,7 +955,11 @@ fn poincare(
         None => ov.defaults(),
     };
     let max_points = pc.max_points.map_or(1000, |m| m.into_inner().0 as usize);
-    Ok((section, vars, max_points))
+    Ok(PoincareObs {
+        section,
+        vars,
+        max_points,
+    })
 }
 
 /// Refuses a key of the other kind of section, which would be ignored: a
@@ -1267,13 +1244,16 @@ fn check_plot_vars(p: &Parser, plot: &PlotSettings, out: &Out) -> Result<(), Sce
             "plot.phase",
             &plot.phase,
             "output.trajectory",
-            out.trajectory.as_ref().map(|(_, v)| components(v)),
+            out.observers
+                .trajectory
+                .as_ref()
+                .map(|t| components(&t.vars)),
         ),
         (
             "plot.poincare",
             &plot.poincare,
             "output.poincare",
-            out.poincare.as_ref().map(|(_, v, _)| components(v)),
+            out.observers.poincare.as_ref().map(|p| components(&p.vars)),
         ),
     ];
     for (field, pair, observer, recorded) in checks {

@@ -5,12 +5,12 @@
 use crate::models::formula::{FormulaModel, Function};
 use crate::models::lanes::Lane;
 use crate::num::precision::Precision;
-use crate::plan::observers::{AverageObs, Observers, PoincareObs, Section, TrajectoryObs};
+use crate::plan::observers::Section;
 use crate::plan::precision::{self as fits, apart, short, Limits};
 use crate::plan::{Plan, PlanError, PlanWarning, Problem, Source};
 use crate::reference::truth::lane_of;
 
-use super::{Horizon, Input, OutVar, Scene, SceneError, SceneWarning, SubRun};
+use super::{Horizon, Input, Scene, SceneError, SceneWarning, SubRun};
 
 impl Scene {
     pub(crate) fn t0_input(&self) -> Input {
@@ -82,7 +82,7 @@ impl Scene {
         found.extend(self.merged(per_plan));
         found.extend(self.equal_in(lim));
         found.extend(self.t_end_missed(&subs)?);
-        if let Some(r) = &self.resonance {
+        if let Some(r) = &self.observers.resonance {
             found.extend(r.overlaps().into_iter().map(|(k, j)| PlanWarning {
                 field: "output.resonance.ratios".into(),
                 message: format!(
@@ -370,7 +370,7 @@ impl Scene {
                 _ => unreachable!("dt and t0 are fixed in every sub-run when t_end is given"),
             },
         };
-        problem.observers = self.observers();
+        problem.observers = self.observers.clone();
         if let Some(cap) = self.step_cap.filter(|cap| problem.steps > *cap) {
             let fraction = cap as f64 / problem.steps as f64;
             problem.steps = cap;
@@ -427,40 +427,6 @@ impl Scene {
             ));
         }
         Ok((steps as u64).max(1))
-    }
-
-    /// The scene's observers, vectors expanded into their components.
-    fn observers(&self) -> Observers {
-        let comps = |vars: &[OutVar]| -> Vec<String> {
-            vars.iter().flat_map(|v| v.components.clone()).collect()
-        };
-        Observers {
-            final_vars: comps(&self.final_vars),
-            trajectory: self.trajectory.as_ref().map(|(every, vars)| TrajectoryObs {
-                every: *every,
-                vars: comps(vars),
-            }),
-            poincare: self
-                .poincare
-                .as_ref()
-                .map(|(section, vars, max_points)| PoincareObs {
-                    section: section.clone(),
-                    vars: comps(vars),
-                    max_points: *max_points,
-                }),
-            cycle: self.cycle.clone(),
-            average: self.average.as_ref().map(|(vars, skip)| AverageObs {
-                vars: comps(vars),
-                skip: *skip,
-            }),
-            resonance: self.resonance.clone(),
-            stop: self.stop.clone(),
-            lyapunov: self.lyapunov.clone(),
-            fli: self.fli.clone(),
-            megno: self.megno.clone(),
-            sali: self.sali.clone(),
-            gali: self.gali.clone(),
-        }
     }
 }
 

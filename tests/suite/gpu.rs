@@ -132,8 +132,8 @@ fn ensemble(model: &str, scheme: &str) -> Option<Problem> {
             .spec()
             .vars
             .iter()
-            .map(|v| v.to_string())
-            .chain(["t".to_string()])
+            .map(|v| (*v).into())
+            .chain(["t".into()])
             .collect();
     }
     p.observers.trajectory = Some(TrajectoryObs {

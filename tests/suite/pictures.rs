@@ -56,31 +56,7 @@ fn scene(dir: &Path, text: &str) -> Scene {
 
 /// Observations of `n` trajectories with nothing recorded yet.
 fn observations(n: usize) -> Observations<f64> {
-    Observations {
-        n,
-        final_values: vec![],
-        frames: 0,
-        trajectory: vec![],
-        max_points: 0,
-        poincare: vec![],
-        poincare_count: vec![0; n],
-        cycle_amplitude: vec![],
-        cycle_period: vec![],
-        mean: vec![],
-        exponents: 0,
-        lyapunov: vec![],
-        fli: vec![],
-        megno: vec![],
-        sali: vec![],
-        gali: vec![],
-        trajectory_lyapunov: vec![],
-        trajectory_fli: vec![],
-        trajectory_megno: vec![],
-        trajectory_sali: vec![],
-        trajectory_gali: vec![],
-        nonfinite_step: vec![0; n],
-        stop_step: vec![0; n],
-    }
+    Observations::bare(n)
 }
 
 /// The runs of one colour (not a grey, so neither text nor background)

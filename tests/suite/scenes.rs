@@ -75,20 +75,20 @@ fn every_scene_runs_on_the_cpu_and_writes_its_files() {
         for f in ["status.npy", "status_step.npy"] {
             assert!(out.join(f).exists(), "{}: no {f}", path.display());
         }
-        for v in &small.final_vars {
+        for v in &small.observers.final_vars {
             assert!(out.join(format!("final_{}.npy", v.name)).exists());
         }
         for a in &small.axes {
             assert!(out.join(format!("axis_{}.npy", a.name)).exists());
         }
-        if small.poincare.is_some() {
+        if small.observers.poincare.is_some() {
             assert!(
                 out.join("poincare_count.npy").exists() && out.join("poincare.png").exists(),
                 "{}",
                 path.display()
             );
         }
-        if small.cycle.is_some() {
+        if small.observers.cycle.is_some() {
             assert!(
                 out.join("cycle_amplitude.npy").exists() && out.join("cycle_period.npy").exists()
             );

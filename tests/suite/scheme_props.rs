@@ -111,7 +111,7 @@ impl Case {
         p.observers.final_vars = vec![];
         p.observers.trajectory = Some(TrajectoryObs {
             every: steps / FRAMES,
-            vars: self.vars().iter().map(|v| v.to_string()).collect(),
+            vars: self.vars().iter().map(|v| (*v).into()).collect(),
         });
         p
     }

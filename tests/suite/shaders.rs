@@ -29,7 +29,7 @@ fn every_kernel_validates() {
             let mut variants = vec![base.clone()];
             let mut full = base.clone();
             if Scheme::by_name(scheme).unwrap().is_splitting() {
-                full.observers.final_vars = all.clone();
+                full.observers.final_vars = all.iter().map(|v| v.as_str().into()).collect();
             }
             full.observers.trajectory = Some(TrajectoryObs {
                 every: 2,

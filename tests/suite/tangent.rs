@@ -461,7 +461,7 @@ fn indicators_leave_the_state_bitwise_unchanged() {
             .filter(|v| optional || Some(**v) != spec.optional_var)
             .map(|v| v.to_string())
             .collect();
-        p.observers.final_vars = vars.clone();
+        p.observers.final_vars = vars.iter().map(|v| v.as_str().into()).collect();
         let mut plain = p.clone();
         (plain.dt, plain.steps) = (C(0.01), 300);
         let (plain, with) = (Plan::new(&plain).unwrap(), indicators(p, 1, 1, 300, 0.01));
@@ -536,7 +536,7 @@ fn runs_and_steps(p: Problem, k: usize, megno: bool, steps: u64, dt: f64) -> (Pl
     }
     let mut by_step = runs.clone();
     by_step.observers.average = Some(AverageObs {
-        vars: vec![var.to_string()],
+        vars: vec![var.into()],
         skip: 0.0,
     });
     (Plan::new(&runs).unwrap(), Plan::new(&by_step).unwrap())
@@ -578,7 +578,7 @@ fn runs_of_steps_are_the_steps_one_by_one() {
         p = p.initial(var, q0);
         p.observers.trajectory = Some(TrajectoryObs {
             every: 60,
-            vars: vec![var.to_string()],
+            vars: vec![var.into()],
         });
         // One exponent, and the FLI without MEGNO: their samples wait while
         // the vectors stay in the band. Without exponents, the FLI alone

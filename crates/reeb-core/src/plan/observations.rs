@@ -68,6 +68,18 @@ macro_rules! observations {
                 }
             }
 
+            /// `n` trajectories with none of the columns a plan may lack, and
+            /// no frames or points: observations to fill by hand.
+            pub fn bare(n: usize) -> Self {
+                Observations {
+                    n,
+                    frames: 0,
+                    max_points: 0,
+                    exponents: 0,
+                    $( $field: observations!(@bare $kind $elem, n, $($when)&+), )*
+                }
+            }
+
             /// Every column in declaration order, with its values per
             /// trajectory (a named column: one per variable).
             pub fn columns(&self) -> Vec<(usize, Col<'_, R>)> {
@@ -90,22 +102,18 @@ macro_rules! observations {
 
             /// Every column that has a file, in declaration order, with it.
             pub fn files(&self) -> Vec<(File, Column<'_, R>)> {
-                let mut out = vec![];
-                $( $( out.push((
+                vec![$( $( (
                     File { field: stringify!($field), name: $file, dims: &[$(Dim::$dim),*] },
                     observations!(@column $kind $elem, &self.$field),
-                )); )? )*
-                out
+                ), )? )*]
             }
 
             /// [`Self::files`], to fill.
             pub fn files_mut(&mut self) -> Vec<(File, ColumnMut<'_, R>)> {
-                let mut out = vec![];
-                $( $( out.push((
+                vec![$( $( (
                     File { field: stringify!($field), name: $file, dims: &[$(Dim::$dim),*] },
                     observations!(@column_mut $kind $elem, &mut self.$field),
-                )); )? )*
-                out
+                ), )? )*]
             }
 
             /// [`Self::columns`], to write.
@@ -158,6 +166,9 @@ macro_rules! observations {
     (@alloc Plain [] $e:ident, $plan:expr, $len:expr, $when:expr) => {
         if $when { vec![observations!(@init $e); $len] } else { vec![] }
     };
+    (@bare Named $e:ident, $n:expr, $($when:ident)&+) => { vec![] };
+    (@bare Plain $e:ident, $n:expr, always) => { vec![observations!(@init $e); $n] };
+    (@bare Plain $e:ident, $n:expr, $($when:ident)&+) => { vec![] };
     (@init R) => { R::nan() };
     (@init u32) => { 0u32 };
     (@col Named R, $out:expr, $v:expr, $w:expr) => {

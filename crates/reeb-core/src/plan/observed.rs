@@ -1,7 +1,7 @@
 //! The observed variables of a plan resolved to what it integrates: state
 //! variables by index, or time.
 
-use super::observers::{Observers, Section};
+use super::observers::{components, Observers, OutVar, Section};
 use super::problem::{err, PlanError};
 
 /// A state variable or time, as observers see it.
@@ -36,10 +36,8 @@ impl Observed {
                 .map(ObsVar::State)
                 .ok_or_else(|| err(field, format!("`{name}` is not integrated by this plan")))
         };
-        let list = |names: Option<&Vec<String>>, field: &str| -> Result<Vec<ObsVar>, PlanError> {
-            names
-                .into_iter()
-                .flatten()
+        let list = |vars: Option<&Vec<OutVar>>, field: &str| -> Result<Vec<ObsVar>, PlanError> {
+            components(vars.map_or(&[], |v| v.as_slice()))
                 .map(|v| resolve(v, field))
                 .collect()
         };
@@ -71,7 +69,7 @@ impl Observed {
             average_vars: obs
                 .average
                 .iter()
-                .flat_map(|a| &a.vars)
+                .flat_map(|a| components(&a.vars))
                 .map(|v| match resolve(v, "output.average")? {
                     ObsVar::Time => Err(err("output.average", "time has no average to take")),
                     state => Ok(state),

@@ -32,12 +32,36 @@ pub enum Section {
     },
 }
 
+/// A variable an observer records: a state variable, `t`, or a vector
+/// (`q` of Kepler is `[q1, q2]`: its arrays carry a trailing component
+/// axis), as the scene names it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct OutVar {
+    pub name: String,
+    pub components: Vec<String>,
+}
+
+impl From<&str> for OutVar {
+    /// A variable of one component, itself.
+    fn from(name: &str) -> OutVar {
+        OutVar {
+            name: name.into(),
+            components: vec![name.into()],
+        }
+    }
+}
+
+/// The components of `vars`, in order.
+pub fn components(vars: &[OutVar]) -> impl Iterator<Item = &String> {
+    vars.iter().flat_map(|v| &v.components)
+}
+
 /// Poincaré-section observer.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct PoincareObs {
     pub section: Section,
     /// Variables recorded at each point (state names or `t`).
-    pub vars: Vec<String>,
+    pub vars: Vec<OutVar>,
     /// Points kept per trajectory (later ones are counted but dropped).
     pub max_points: usize,
 }
@@ -46,7 +70,7 @@ pub struct PoincareObs {
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct TrajectoryObs {
     pub every: u64,
-    pub vars: Vec<String>,
+    pub vars: Vec<OutVar>,
 }
 
 /// Limit-cycle statistics over the last part of the run.
@@ -74,8 +98,8 @@ impl Default for CycleObs {
 /// the steps after the first `skip` fraction of the run.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct AverageObs {
-    /// State variables (components of vectors spelled out).
-    pub vars: Vec<String>,
+    /// State variables.
+    pub vars: Vec<OutVar>,
     pub skip: f64,
 }
 
@@ -178,7 +202,7 @@ impl Default for GaliObs {
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct Observers {
     /// Variables whose final value is recorded (state names or `t`).
-    pub final_vars: Vec<String>,
+    pub final_vars: Vec<OutVar>,
     pub trajectory: Option<TrajectoryObs>,
     pub poincare: Option<PoincareObs>,
     pub cycle: Option<CycleObs>,
@@ -200,12 +224,12 @@ pub struct Observers {
 impl Observers {
     /// Every variable name an observer refers to.
     pub fn variables(&self) -> Vec<String> {
-        let mut v: Vec<String> = self.final_vars.clone();
+        let mut v: Vec<String> = components(&self.final_vars).cloned().collect();
         if let Some(t) = &self.trajectory {
-            v.extend(t.vars.iter().cloned());
+            v.extend(components(&t.vars).cloned());
         }
         if let Some(p) = &self.poincare {
-            v.extend(p.vars.iter().cloned());
+            v.extend(components(&p.vars).cloned());
             if let Section::Crossing { var, .. } = &p.section {
                 v.push(var.clone());
             }
@@ -214,7 +238,7 @@ impl Observers {
             v.push(c.var.clone());
         }
         if let Some(a) = &self.average {
-            v.extend(a.vars.iter().cloned());
+            v.extend(components(&a.vars).cloned());
         }
         if let Some(s) = &self.stop {
             v.extend(s.reads.iter().filter(|r| s.state(r)).cloned());

@@ -166,7 +166,7 @@ impl Problem {
             .vars
             .iter()
             .filter(|v| Some(**v) != spec.optional_var)
-            .map(|v| v.to_string())
+            .map(|v| (*v).into())
             .collect();
         Problem {
             model,
