@@ -47,7 +47,7 @@ pub fn of<R: Real>(scene: &Scene, subs: &[SubRun], d: &Observations<R>) -> Doubt
     let mut out = Doubts::default();
     dropped_points(scene, d, &mut out);
     let mut indicators = Map::new();
-    if has_indicators(scene) {
+    if scene.observers.has_indicators() {
         stopped_indicators(d, &mut indicators, &mut out);
         lost_indicators(d, &mut indicators, &mut out);
     }
@@ -83,18 +83,6 @@ fn dropped_points<R: Real>(scene: &Scene, d: &Observations<R>, out: &mut Doubts)
             d.n
         ));
     }
-}
-
-/// Whether the run has chaos indicators.
-fn has_indicators(scene: &Scene) -> bool {
-    let sampled = [
-        &scene.observers.fli,
-        &scene.observers.megno,
-        &scene.observers.sali,
-    ];
-    scene.observers.lyapunov.is_some()
-        || sampled.iter().any(|o| o.is_some())
-        || scene.observers.gali.is_some()
 }
 
 /// Trajectories the stop condition ended: their indicators cover less time.

@@ -199,32 +199,75 @@ fn indicators<'a, R: Real>(d: &'a Observations<R>, doubts: &'a Doubts) -> Vec<St
             )
         })
         .collect();
-    if !d.fli.is_empty() {
-        stats.push((
-            "fli".into(),
-            "FLI".into(),
-            Box::new(move |i| value(i, d.fli[i])),
-        ));
-    }
-    if !d.megno.is_empty() {
-        stats.push((
-            "megno".into(),
-            "MEGNO ⟨Y⟩".into(),
-            Box::new(move |i| value(i, d.megno[i])),
-        ));
-    }
     let floor = alignment_floor(R::UNIT_ROUNDOFF);
-    for (file, label, v) in [
-        ("sali", "log₁₀ SALI", &d.sali),
-        ("gali", "log₁₀ GALI", &d.gali),
-    ] {
-        if !v.is_empty() {
-            let log = move |i: usize| value(i, v[i]).map(|x| x.max(floor).log10());
-            stats.push((file.into(), label.into(), Box::new(log)));
+    for (look, v) in LOOKS.iter().zip(d.scalar_indicators()) {
+        if v.is_empty() {
+            continue;
         }
+        let at = move |i: usize| value(i, v[i]);
+        let stat: Box<dyn Fn(usize) -> Result<f64, Undefined>> = match look.log {
+            true => Box::new(move |i| at(i).map(|x| x.max(floor).log10())),
+            false => Box::new(at),
+        };
+        stats.push((look.file.into(), look.label.into(), stat));
     }
     stats
 }
+
+/// How one of `indicators::SCALAR_INDICATORS` is drawn.
+struct Look {
+    /// Its map's file and label.
+    file: &'static str,
+    label: &'static str,
+    /// Drawn as its decimal logarithm, values below the precision's ε at ε.
+    log: bool,
+    /// The map's colour range, for the scene and the precision's unit
+    /// round-off.
+    range: fn(&Scene, f64) -> (f64, f64),
+    /// Its running values' label, and whether their axes (step, value) are
+    /// logarithmic.
+    running: &'static str,
+    log_axes: (bool, bool),
+}
+
+/// The looks of `indicators::SCALAR_INDICATORS`, in its order. SALI falls
+/// exponentially on chaotic orbits (a line against the step on a log
+/// scale), GALI also as powers of t on regular ones (lines on log–log
+/// axes).
+const LOOKS: [Look; 4] = [
+    Look {
+        file: "fli",
+        label: "FLI",
+        log: false,
+        range: |scene, _| fli_range(scene),
+        running: "FLI so far",
+        log_axes: (false, false),
+    },
+    Look {
+        file: "megno",
+        label: "MEGNO ⟨Y⟩",
+        log: false,
+        range: |_, _| MEGNO_RANGE,
+        running: "MEGNO ⟨Y⟩ so far",
+        log_axes: (false, false),
+    },
+    Look {
+        file: "sali",
+        label: "log₁₀ SALI",
+        log: true,
+        range: |_, u| (alignment_floor(u).log10(), SQRT_2.log10()),
+        running: "SALI",
+        log_axes: (false, true),
+    },
+    Look {
+        file: "gali",
+        label: "log₁₀ GALI",
+        log: true,
+        range: |_, u| (alignment_floor(u).log10(), 0.0),
+        running: "GALI",
+        log_axes: (true, true),
+    },
+];
 
 /// The smallest SALI or GALI the maps tell apart: the precision's ε (twice
 /// its unit round-off `u`), where the unit vectors' differences are
@@ -388,18 +431,9 @@ impl<'a> Pictures<'a> {
                 }
             }
             let label = &round_off_label(label, &grid, self.precision);
-            let label = &match file.as_str() {
-                "megno" => clip_to(&mut grid, label, MEGNO_RANGE),
-                "fli" => clip_to(&mut grid, label, fli_range(self.scene)),
-                "sali" | "gali" => {
-                    let top = if file == "sali" { SQRT_2.log10() } else { 0.0 };
-                    clip_to(
-                        &mut grid,
-                        label,
-                        (alignment_floor(self.precision.1).log10(), top),
-                    )
-                }
-                _ => clip_outliers(&mut grid, label),
+            let label = &match LOOKS.iter().find(|l| l.file == file) {
+                Some(l) => clip_to(&mut grid, label, (l.range)(self.scene, self.precision.1)),
+                None => clip_outliers(&mut grid, label),
             };
             let name = format!("{file}.png");
             let map = HeatMap {
@@ -603,43 +637,34 @@ impl<'a> Pictures<'a> {
             .iter()
             .map(|i| trajectory_label(self.scene, *i, &self.strides))
             .collect();
+        // (file, label, logarithmic axes, value at trajectory and frame)
         type Running<'d> = (
+            String,
             &'static str,
-            &'static str,
+            (bool, bool),
             Box<dyn Fn(usize, usize) -> f64 + 'd>,
         );
         let mut running: Vec<Running> = vec![];
         if !d.trajectory_lyapunov.is_empty() && k > 0 {
             running.push((
-                "trajectory_lyapunov_1",
+                "trajectory_lyapunov_1".into(),
                 "λ1 so far",
+                (false, false),
                 Box::new(|i, f| d.trajectory_lyapunov[(i * frames + f) * k].to_f64()),
             ));
         }
-        for (file, label, v) in [
-            ("trajectory_fli", "FLI so far", &d.trajectory_fli),
-            ("trajectory_megno", "MEGNO ⟨Y⟩ so far", &d.trajectory_megno),
-            ("trajectory_sali", "SALI", &d.trajectory_sali),
-            ("trajectory_gali", "GALI", &d.trajectory_gali),
-        ] {
+        for (look, v) in LOOKS.iter().zip(d.framed_scalar_indicators()) {
             if !v.is_empty() {
                 running.push((
-                    file,
-                    label,
+                    format!("trajectory_{}", look.file),
+                    look.running,
+                    look.log_axes,
                     Box::new(move |i, f| v[i * frames + f].to_f64()),
                 ));
             }
         }
         let mut files = vec![];
-        for (file, label, at) in running {
-            // SALI falls exponentially on chaotic orbits (a line against
-            // the step on a log scale), GALI also as powers of t on
-            // regular ones (lines on log–log axes).
-            let (x_log, y_log) = match file {
-                "trajectory_sali" => (false, true),
-                "trajectory_gali" => (true, true),
-                _ => (false, false),
-            };
+        for (file, label, (x_log, y_log), at) in running {
             let ys: Vec<Vec<f64>> = chosen
                 .iter()
                 .map(|i| (0..frames).map(|f| at(*i, f)).collect())

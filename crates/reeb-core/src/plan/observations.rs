@@ -485,6 +485,16 @@ impl<R: Real> Observations<R> {
         [&self.fli, &self.megno, &self.sali, &self.gali]
     }
 
+    /// [`Self::scalar_indicators`] at each trajectory frame.
+    pub fn framed_scalar_indicators(&self) -> [&[R]; 4] {
+        [
+            &self.trajectory_fli,
+            &self.trajectory_megno,
+            &self.trajectory_sali,
+            &self.trajectory_gali,
+        ]
+    }
+
     /// [`Self::scalar_indicators`], to fill.
     pub fn scalar_indicators_mut(&mut self) -> [&mut Vec<R>; 4] {
         [

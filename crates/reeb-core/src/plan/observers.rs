@@ -399,6 +399,11 @@ impl Observers {
         }
     }
 
+    /// Whether any chaos indicator is asked for.
+    pub fn has_indicators(&self) -> bool {
+        self.lyapunov.is_some() || self.chaos_every().is_some() || self.alignment().is_some()
+    }
+
     /// The FLI/MEGNO vector's sampling period, if either is asked for.
     pub fn chaos_every(&self) -> Option<u64> {
         self.fli.as_ref().or(self.megno.as_ref()).map(|o| o.every)
