@@ -15,6 +15,7 @@ use toml::Spanned;
 use crate::models::spec::ModelSpec;
 use crate::models::{Model, MODEL_NAMES};
 use crate::num::precision::Precision;
+use crate::plan::indicators::SCALAR_INDICATORS;
 use crate::plan::observers::{
     check_skip, check_strobe, AverageObs, CycleObs, Direction, GaliObs, LyapunovObs, Observers,
     PoincareObs, ResonanceObs, SampledObs, Section, TrajectoryObs,
@@ -691,17 +692,12 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
     }
     let o: tables::Output = deserialize(p, doc.get("output"))?;
     let (average, resonance) = averages(p, &ov, &o)?;
+    let chaos = indicators(o.lyapunov, o.fli, o.megno, o.sali, o.gali);
     // The indicators a stop condition may read, by name.
-    let readable: Vec<&str> = [
-        ("fli", o.fli.is_some()),
-        ("megno", o.megno.is_some()),
-        ("sali", o.sali.is_some()),
-        ("gali", o.gali.is_some()),
-    ]
-    .iter()
-    .filter(|(_, on)| *on)
-    .map(|(n, _)| *n)
-    .collect();
+    let readable = SCALAR_INDICATORS
+        .iter()
+        .filter(|i| (i.every)(&chaos).is_some())
+        .map(|i| i.key);
     let params: Vec<&str> = params.iter().copied().chain(readable).collect();
     let stop = o
         .stop
@@ -760,7 +756,7 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
         average: average.map(|(vars, skip)| AverageObs { vars, skip }),
         resonance,
         stop,
-        ..indicators(o.lyapunov, o.fli, o.megno, o.sali, o.gali)
+        ..chaos
     };
     Ok(Out { observers, format })
 }

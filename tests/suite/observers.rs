@@ -236,6 +236,12 @@ fn bad_observers_are_refused_at_their_field() {
             "output.stop: column 1: unknown function",
         ),
         ("stop = { if = \"q > 1\" }", "output.stop.if: unknown key"),
+        // An indicator switched off is not a name a stop condition reads
+        // (it reached the CPU backend once, and panicked there).
+        (
+            "megno = false\nstop = \"megno > 2\"",
+            "output.stop: column 1: unknown name `megno`",
+        ),
         (
             "average = [\"x\"]",
             "output.average: model `damped_oscillator` has no variable `x`",

@@ -86,11 +86,43 @@ pub struct Indicators {
     pub scalar_slots: [Option<usize>; 4],
 }
 
+/// An indicator read from one slot.
+pub struct ScalarIndicator {
+    /// Its scene key (`output.KEY`), and the name a stop condition reads
+    /// it by.
+    pub key: &'static str,
+    /// The slot it is read from.
+    pub slot: &'static str,
+    /// Its sampling period, if `observers` ask for it.
+    pub every: fn(&Observers) -> Option<u64>,
+}
+
 /// The indicators read from one slot each, in the order of
 /// `slots::IndicatorValues::scalars` and of
 /// `Observations::scalar_indicators`: the FLI so far, MEGNO's ⟨Y⟩, SALI
 /// and GALI at the last sample.
-pub const SCALAR_INDICATORS: [&str; 4] = ["fli_max", "megno_mean", "sali", "gali"];
+pub const SCALAR_INDICATORS: [ScalarIndicator; 4] = [
+    ScalarIndicator {
+        key: "fli",
+        slot: "fli_max",
+        every: |o| o.fli.as_ref().map(|f| f.every),
+    },
+    ScalarIndicator {
+        key: "megno",
+        slot: "megno_mean",
+        every: |o| o.megno.as_ref().map(|m| m.every),
+    },
+    ScalarIndicator {
+        key: "sali",
+        slot: "sali",
+        every: |o| o.sali.as_ref().map(|s| s.every),
+    },
+    ScalarIndicator {
+        key: "gali",
+        slot: "gali",
+        every: |o| o.gali.as_ref().map(|g| g.every),
+    },
+];
 
 impl Indicators {
     /// The indicators `observers` ask for, on the step `step` of a run of
@@ -156,7 +188,7 @@ impl Indicators {
             let first = k + usize::from(chaos.is_some());
             s.alignment = Some(s.alignment_sampler(first, m, every));
         }
-        s.scalar_slots = SCALAR_INDICATORS.map(|name| s.slot_of(name));
+        s.scalar_slots = SCALAR_INDICATORS.map(|i| s.slot_of(i.slot));
         Ok(Some(s))
     }
 

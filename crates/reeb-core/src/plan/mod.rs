@@ -140,13 +140,8 @@ fn stop_plan(
 /// FLI so far, MEGNO's running ⟨Y⟩, SALI and GALI at the last sample
 /// (`plan/indicators.rs`).
 pub fn indicator_slot(name: &str) -> Option<&'static str> {
-    match name {
-        "fli" => Some("fli_max"),
-        "megno" => Some("megno_mean"),
-        "sali" => Some("sali"),
-        "gali" => Some("gali"),
-        _ => None,
-    }
+    let mut scalars = indicators::SCALAR_INDICATORS.iter();
+    scalars.find(|i| i.key == name).map(|i| i.slot)
 }
 
 /// Name of a lane field with a static lifetime.

@@ -495,6 +495,28 @@ impl<R: Real> Observations<R> {
         ]
     }
 
+    /// Every column with values per trajectory frame (the frames, the
+    /// indicators' running values), with how many values each frame has.
+    pub fn framed_columns_mut(&mut self) -> Vec<(&mut [R], usize)> {
+        let exponents = self.exponents;
+        let mut out = vec![];
+        for (file, column) in self.files_mut() {
+            if file.dims.first() != Some(&Dim::Frame) {
+                continue;
+            }
+            let width = match file.dims.contains(&Dim::Exponent) {
+                true => exponents,
+                false => 1,
+            };
+            match column {
+                ColumnMut::Named(v) => out.extend(v.iter_mut().map(|(_, x)| (&mut x[..], width))),
+                ColumnMut::Plain(ColMut::Real(x)) => out.push((x, width)),
+                ColumnMut::Plain(ColMut::Count(_)) => {}
+            }
+        }
+        out
+    }
+
     /// [`Self::scalar_indicators`], to fill.
     pub fn scalar_indicators_mut(&mut self) -> [&mut Vec<R>; 4] {
         [

@@ -6,7 +6,7 @@
 //! made of from its slots, is here too, so both backends share it.
 
 use crate::models::Flows;
-use crate::plan::indicators::{lyapunov_finish, lyapunov_slots};
+use crate::plan::indicators::{lyapunov_finish, lyapunov_slots, SCALAR_INDICATORS};
 use crate::plan::observers::Observers;
 use crate::plan::Plan;
 
@@ -152,12 +152,7 @@ pub fn mean_finish<R: Flows>(plan: &Plan, mean: R, ok: bool, stop_step: u32) -> 
 /// The sampling period of scalar indicator `k` of `indicators::SCALAR_INDICATORS`,
 /// if the plan asks for it.
 pub fn scalar_every(o: &Observers, k: usize) -> Option<u64> {
-    match k {
-        0 => o.fli.as_ref().map(|f| f.every),
-        1 => o.megno.as_ref().map(|m| m.every),
-        2 => o.sali.as_ref().map(|s| s.every),
-        _ => o.gali.as_ref().map(|g| g.every),
-    }
+    (SCALAR_INDICATORS[k].every)(o)
 }
 
 /// A trajectory's chaos indicators: its Lyapunov exponents (largest

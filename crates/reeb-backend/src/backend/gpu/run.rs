@@ -955,16 +955,7 @@ fn collect<R: Flows>(
         };
         if let (Some(first), true) = (first_nan, every > 0) {
             let frames = out.frames;
-            let framed = out.trajectory.iter_mut().map(|(_, x)| (x, 1));
-            let k = out.exponents;
-            let indicators = [
-                (&mut out.trajectory_lyapunov, k),
-                (&mut out.trajectory_fli, 1),
-                (&mut out.trajectory_megno, 1),
-                (&mut out.trajectory_sali, 1),
-                (&mut out.trajectory_gali, 1),
-            ];
-            for (dst, width) in framed.chain(indicators) {
+            for (dst, width) in out.framed_columns_mut() {
                 if !dst.is_empty() {
                     dst[(g * frames + first as usize) * width..(g + 1) * frames * width]
                         .fill(R::nan());
