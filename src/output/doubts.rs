@@ -106,7 +106,7 @@ fn indicators_finite<R: Real>(d: &Observations<R>, i: usize) -> bool {
     let k = d.exponents;
     let finite = |v: &[R], i: usize| v.get(i).is_none_or(|x| x.finite());
     (0..k).all(|j| finite(&d.lyapunov, i * k + j))
-        && d.scalar_indicators().iter().all(|v| finite(v, i))
+        && d.scalar_indicators(false).iter().all(|v| finite(v, i))
 }
 
 /// Trajectories that ran to the end with indicators that are not finite:

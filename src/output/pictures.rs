@@ -200,7 +200,7 @@ fn indicators<'a, R: Real>(d: &'a Observations<R>, doubts: &'a Doubts) -> Vec<St
         })
         .collect();
     let floor = alignment_floor(R::UNIT_ROUNDOFF);
-    for (look, v) in LOOKS.iter().zip(d.scalar_indicators()) {
+    for (look, v) in LOOKS.iter().zip(d.scalar_indicators(false)) {
         if v.is_empty() {
             continue;
         }
@@ -653,7 +653,7 @@ impl<'a> Pictures<'a> {
                 Box::new(|i, f| d.trajectory_lyapunov[(i * frames + f) * k].to_f64()),
             ));
         }
-        for (look, v) in LOOKS.iter().zip(d.framed_scalar_indicators()) {
+        for (look, v) in LOOKS.iter().zip(d.scalar_indicators(true)) {
             if !v.is_empty() {
                 running.push((
                     format!("trajectory_{}", look.file),

@@ -398,19 +398,25 @@ impl Shape {
 }
 
 impl<R> Sink<R> {
-    /// The columns of `indicators::SCALAR_INDICATORS`, in its order.
-    pub fn scalar_indicators(&self) -> [&Rows<R>; 4] {
-        [&self.fli, &self.megno, &self.sali, &self.gali]
-    }
-
-    /// [`Self::scalar_indicators`] at each trajectory frame.
-    pub fn framed_scalar_indicators(&self) -> [&Rows<R>; 4] {
-        [
-            &self.trajectory_fli,
-            &self.trajectory_megno,
-            &self.trajectory_sali,
-            &self.trajectory_gali,
-        ]
+    /// The indicators' columns: the exponents', then those of
+    /// `indicators::SCALAR_INDICATORS` in its order; `framed`: their running
+    /// values at each trajectory frame.
+    pub fn indicators(&self, framed: bool) -> (&Rows<R>, [&Rows<R>; 4]) {
+        match framed {
+            false => (
+                &self.lyapunov,
+                [&self.fli, &self.megno, &self.sali, &self.gali],
+            ),
+            true => (
+                &self.trajectory_lyapunov,
+                [
+                    &self.trajectory_fli,
+                    &self.trajectory_megno,
+                    &self.trajectory_sali,
+                    &self.trajectory_gali,
+                ],
+            ),
+        }
     }
 }
 
@@ -435,6 +441,31 @@ impl<T> Rows<T> {
     pub fn set(&self, i: usize, v: T) {
         assert!(i < self.len);
         unsafe { *self.ptr.add(i) = v }
+    }
+}
+
+/// A column one trajectory's values are written into: the CPU's rows of a
+/// sink, or the observations themselves. Empty where the plan lacks it.
+pub trait Put<R> {
+    fn is_empty(&self) -> bool;
+    fn put(&mut self, i: usize, v: R);
+}
+
+impl<R> Put<R> for &Rows<R> {
+    fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    fn put(&mut self, i: usize, v: R) {
+        self.set(i, v)
+    }
+}
+
+impl<R> Put<R> for &mut Vec<R> {
+    fn is_empty(&self) -> bool {
+        self.as_slice().is_empty()
+    }
+    fn put(&mut self, i: usize, v: R) {
+        self[i] = v
     }
 }
 
@@ -480,19 +511,18 @@ impl<R: Real> Observations<R> {
     }
 
     /// The columns of `indicators::SCALAR_INDICATORS`, in its order (a column
-    /// the plan lacks is empty).
-    pub fn scalar_indicators(&self) -> [&[R]; 4] {
-        [&self.fli, &self.megno, &self.sali, &self.gali]
-    }
-
-    /// [`Self::scalar_indicators`] at each trajectory frame.
-    pub fn framed_scalar_indicators(&self) -> [&[R]; 4] {
-        [
-            &self.trajectory_fli,
-            &self.trajectory_megno,
-            &self.trajectory_sali,
-            &self.trajectory_gali,
-        ]
+    /// the plan lacks is empty); `framed`: their running values at each
+    /// trajectory frame.
+    pub fn scalar_indicators(&self, framed: bool) -> [&[R]; 4] {
+        match framed {
+            false => [&self.fli, &self.megno, &self.sali, &self.gali],
+            true => [
+                &self.trajectory_fli,
+                &self.trajectory_megno,
+                &self.trajectory_sali,
+                &self.trajectory_gali,
+            ],
+        }
     }
 
     /// Every column with values per trajectory frame (the frames, the
@@ -517,24 +547,28 @@ impl<R: Real> Observations<R> {
         out
     }
 
-    /// [`Self::scalar_indicators`], to fill.
-    pub fn scalar_indicators_mut(&mut self) -> [&mut Vec<R>; 4] {
-        [
-            &mut self.fli,
-            &mut self.megno,
-            &mut self.sali,
-            &mut self.gali,
-        ]
-    }
-
-    /// [`Self::scalar_indicators_mut`] at each trajectory frame.
-    pub fn framed_scalar_indicators_mut(&mut self) -> [&mut Vec<R>; 4] {
-        [
-            &mut self.trajectory_fli,
-            &mut self.trajectory_megno,
-            &mut self.trajectory_sali,
-            &mut self.trajectory_gali,
-        ]
+    /// [`Sink::indicators`]' columns, to fill.
+    pub fn indicators_mut(&mut self, framed: bool) -> (&mut Vec<R>, [&mut Vec<R>; 4]) {
+        match framed {
+            false => (
+                &mut self.lyapunov,
+                [
+                    &mut self.fli,
+                    &mut self.megno,
+                    &mut self.sali,
+                    &mut self.gali,
+                ],
+            ),
+            true => (
+                &mut self.trajectory_lyapunov,
+                [
+                    &mut self.trajectory_fli,
+                    &mut self.trajectory_megno,
+                    &mut self.trajectory_sali,
+                    &mut self.trajectory_gali,
+                ],
+            ),
+        }
     }
 
     /// The lengths of the arrays of `plan`, counted with checked arithmetic

@@ -7,6 +7,7 @@
 
 use crate::models::Flows;
 use crate::plan::indicators::{lyapunov_finish, lyapunov_slots, SCALAR_INDICATORS};
+use crate::plan::observations::Put;
 use crate::plan::observers::Observers;
 use crate::plan::Plan;
 
@@ -162,6 +163,23 @@ pub fn scalar_every(o: &Observers, k: usize) -> Option<u64> {
 pub struct IndicatorValues<R> {
     pub lyapunov: Vec<R>,
     pub scalars: [R; 4],
+}
+
+impl<R: Copy> IndicatorValues<R> {
+    /// These values as row `row` of the indicators' columns (the outputs,
+    /// or the running values at a frame): the exponents' row of `lyapunov`,
+    /// each scalar in its column where the plan has it.
+    pub fn put<C: Put<R>>(&self, mut lyapunov: C, scalars: [C; 4], row: usize) {
+        let k = self.lyapunov.len();
+        for (j, x) in self.lyapunov.iter().enumerate() {
+            lyapunov.put(row * k + j, *x);
+        }
+        for (mut column, x) in scalars.into_iter().zip(self.scalars) {
+            if !column.is_empty() {
+                column.put(row, x);
+            }
+        }
+    }
 }
 
 /// The chaos indicators' outputs from a trajectory's real slots

@@ -13,11 +13,11 @@ use std::io::{self, Read, Write};
 use crate::models::lanes::{Lane, LaneArrays, Lanes, LANES};
 use crate::models::pieces::MAX_VARS;
 use crate::models::Flows;
-use crate::plan::observations::{Rows, Sink};
+use crate::plan::observations::Sink;
 use crate::plan::section::{Recorded, SectionKind, SectionStep};
-use crate::plan::slots::{self, IndicatorValues};
+use crate::plan::slots;
 use crate::plan::snapshot::{get, put};
-use crate::plan::{ObsVar, Plan};
+use crate::plan::ObsVar;
 
 use super::program::Program;
 use super::tangent::TangentScratch;
@@ -482,8 +482,8 @@ impl<R: Flows> BlockObservers<R> {
             let (nonfinite, stop) = slots::split_status(status[i]);
             let slot = |k: usize| self.real[k][i];
             let values = slots::indicators_finish(p.plan, slot, dt[i], nonfinite == 0, stop);
-            let columns = (&sink.lyapunov, sink.scalar_indicators());
-            put_indicators(p.plan, columns, base + i, values);
+            let (lyapunov, scalars) = sink.indicators(false);
+            values.put(lyapunov, scalars, base + i);
         }
     }
 
@@ -495,12 +495,12 @@ impl<R: Flows> BlockObservers<R> {
         };
         let dt = s.l.at(p.dt_lane);
         let sink = s.sink;
-        let columns = (&sink.trajectory_lyapunov, sink.framed_scalar_indicators());
+        let (lyapunov, scalars) = sink.indicators(true);
         for i in 0..s.count {
             let row = (s.base + i) * frames + frame;
             let slot = |k: usize| self.real[k][i];
             let values = slots::indicators_at(p.plan, slot, dt[i], s.status[i] == 0, s.n1);
-            put_indicators(p.plan, columns, row, values);
+            values.put(lyapunov, scalars, row);
         }
     }
 
@@ -667,26 +667,6 @@ pub fn running_lanes(status: &[u64]) -> (u64, u64) {
         bits |= u64::from(x == 0) << i;
     }
     (bits, padding)
-}
-
-/// The indicators' values as row `row` of their columns (outputs or
-/// running values: the exponents', then the scalar indicators'), those
-/// the plan asks for.
-fn put_indicators<R: Copy>(
-    plan: &Plan,
-    (lyapunov, scalars): (&Rows<R>, [&Rows<R>; 4]),
-    row: usize,
-    values: IndicatorValues<R>,
-) {
-    let k = values.lyapunov.len();
-    for (j, x) in values.lyapunov.iter().enumerate() {
-        lyapunov.set(row * k + j, *x);
-    }
-    for (j, (column, x)) in scalars.into_iter().zip(values.scalars).enumerate() {
-        if slots::scalar_every(&plan.observers, j).is_some() {
-            column.set(row, x);
-        }
-    }
 }
 
 /// A trajectory frame, if step `n1` is one: the state at the step's end.

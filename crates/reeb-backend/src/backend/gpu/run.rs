@@ -19,7 +19,7 @@ use crate::backend::error::BackendError;
 use crate::models::Flows;
 use crate::num::precision::{handed_back, is_f32, Precision};
 use crate::plan::observations::{frames_per_trajectory, Observations};
-use crate::plan::slots::{self, IndicatorValues};
+use crate::plan::slots;
 use crate::plan::snapshot::{get_array, get_into, invalid, put, put_slice, Header};
 use crate::plan::{ObsVar, Plan};
 
@@ -848,32 +848,11 @@ fn read_frames<R: Flows>(
             let frame = frame0 + f;
             let values = slots::indicators_at(plan, slot, dt, true, frame * every);
             let row = g * out.frames + frame as usize;
-            put_exponents(&mut out.trajectory_lyapunov, row, &values);
-            put_scalar_indicators(out.framed_scalar_indicators_mut(), row, values);
+            let (lyapunov, scalars) = out.indicators_mut(true);
+            values.put(lyapunov, scalars, row);
         }
     }
     Ok(())
-}
-
-/// The Lyapunov exponents of `values` as row `row` of their column
-/// (outputs or running values).
-fn put_exponents<R: Copy>(column: &mut [R], row: usize, values: &IndicatorValues<R>) {
-    let k = values.lyapunov.len();
-    column[row * k..(row + 1) * k].copy_from_slice(&values.lyapunov);
-}
-
-/// The scalar indicators of `values` as row `row` of their columns; a
-/// column the plan lacks is empty.
-fn put_scalar_indicators<R: Copy>(
-    columns: [&mut Vec<R>; 4],
-    row: usize,
-    values: IndicatorValues<R>,
-) {
-    for (column, value) in columns.into_iter().zip(values.scalars) {
-        if !column.is_empty() {
-            column[row] = value;
-        }
-    }
 }
 
 /// Trajectory `g`'s step in the working precision.
@@ -1033,8 +1012,8 @@ fn collect_observers<R: Flows>(
         }
         if plan.indicators.is_some() {
             let values = slots::indicators_finish(plan, slot, lane_dt::<R>(plan, g), ok, stop);
-            put_exponents(&mut out.lyapunov, g, &values);
-            put_scalar_indicators(out.scalar_indicators_mut(), g, values);
+            let (lyapunov, scalars) = out.indicators_mut(false);
+            values.put(lyapunov, scalars, g);
         }
     }
     Ok(())
