@@ -26,8 +26,7 @@ pub enum Status {
 /// it (`when`, every flag listed: a plain column the plan lacks is empty),
 /// and its file and dimensions after the axes (`file`: a named column has
 /// one per variable; a column without one is not written as it is). From
-/// this list come the
-/// struct, its allocation, [`Observations::place_rows`],
+/// this list come the struct, its allocation, [`Observations::place_rows`],
 /// [`Observations::convert`], [`Observations::columns`] (what snapshots
 /// write and read, in this order), [`Observations::files`] (what the run
 /// directory's arrays are written from and read back into), the CPU's
