@@ -127,11 +127,12 @@ fn plain<'a, R: Real>(file: File, obs: &Observations<R>, values: Col<'a, R>) -> 
         Col::Real(v) => (real::<R>(), bytemuck::cast_slice(v)),
         Col::Count(v) => ("<u4", bytemuck::cast_slice(v)),
     };
+    let (inner, inner_names) = file.inner(obs);
     Array {
-        file: format!("{}.npy", file.name),
+        file: file.npy(None),
         descr,
-        inner: file.dims.iter().map(|d| d.len(obs) as u64).collect(),
-        inner_names: file.dims.iter().map(|d| d.name()).collect(),
+        inner,
+        inner_names,
         bytes: Cow::Borrowed(bytes),
     }
 }
@@ -196,8 +197,7 @@ fn var<'a, R: Real>(
                 .context("recorded component")
         })
         .collect::<Result<_>>()?;
-    let mut dims: Vec<u64> = file.dims.iter().map(|d| d.len(obs) as u64).collect();
-    let mut names: Vec<&'static str> = file.dims.iter().map(|d| d.name()).collect();
+    let (mut dims, mut names) = file.inner(obs);
     let bytes = if comps.len() == 1 {
         Cow::Borrowed(bytemuck::cast_slice(comps[0].as_slice()))
     } else {
@@ -210,7 +210,7 @@ fn var<'a, R: Real>(
         Cow::Owned(bytemuck::cast_slice(&values).to_vec())
     };
     Ok(Array {
-        file: format!("{}_{}.npy", file.name, v.name),
+        file: file.npy(Some(&v.name)),
         descr: real::<R>(),
         inner: dims,
         inner_names: names,

@@ -631,12 +631,11 @@ fn load<R: Real>(scene: &Scene, src: &Source, obs: &mut Observations<R>) -> Resu
         match column {
             ColumnMut::Named(dst) => {
                 for v in out_vars(scene, file.field) {
-                    let name = format!("{}_{}.npy", file.name, v.name);
-                    src.components(&name, n, &v.components, dst)?;
+                    src.components(&file.npy(Some(&v.name)), n, &v.components, dst)?;
                 }
             }
             ColumnMut::Plain(dst) if !dst.is_empty() => {
-                let name = format!("{}.npy", file.name);
+                let name = file.npy(None);
                 match dst {
                     ColMut::Real(d) => src.fill(&name, n, d)?,
                     ColMut::Count(d) => src.fill(&name, n, d)?,

@@ -299,6 +299,22 @@ pub struct File {
     pub dims: &'static [Dim],
 }
 
+impl File {
+    /// The file of the column, or of its variable `var` (a named column).
+    pub fn npy(&self, var: Option<&str>) -> String {
+        match var {
+            Some(v) => format!("{}_{v}.npy", self.name),
+            None => format!("{}.npy", self.name),
+        }
+    }
+
+    /// Its dimensions after the axes in `obs`: lengths and names.
+    pub fn inner<R>(&self, obs: &Observations<R>) -> (Vec<u64>, Vec<&'static str>) {
+        let lengths = self.dims.iter().map(|d| d.len(obs) as u64).collect();
+        (lengths, self.dims.iter().map(|d| d.name()).collect())
+    }
+}
+
 /// A dimension of a column after the scene's axes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Dim {
