@@ -1,12 +1,16 @@
 //! Throughput benchmarks: `reeb bench` and `benches/throughput.rs` run the
 //! same scenarios. Rates are trajectory-steps per second of the integration
 //! alone (no kernel compilation, no upload: the GPU timing is the dispatches'),
-//! as the median of several repeats.
+//! as the median of several repeats; beside them, the rate of the whole
+//! `reeb run` of the same ensemble as a scene, from reading the scene to
+//! its arrays, pictures and summary on disk.
 
 pub mod indicators;
 
+use std::time::Instant;
+
 use crate::backend::BackendError;
-use crate::backend::Engine;
+use crate::backend::{BackendChoice, Engine};
 use crate::models::Model;
 use crate::num::precision::Precision;
 use crate::plan::{Plan, Problem, Source};
@@ -121,6 +125,56 @@ impl Scenario {
         p.steps = steps;
         Plan::new(&p).expect("benchmark plans are valid")
     }
+
+    /// The scene a user would write for this scenario at `n` trajectories
+    /// and `steps` steps: its model, scheme and step, one axis of `n`
+    /// values (the plan's paired axes as near as a scene says them:
+    /// van der Pol's ε sweep from q = 2, spin–orbit's p0, Kepler's
+    /// eccentricity) and its final states.
+    pub fn scene_text(self, n: usize, steps: u64) -> String {
+        let vdp = |model: &str, formula: &str, p: &str| {
+            format!("model = \"{model}\"\n{formula}\n[params]\nepsilon = {{ linspace = [0.1, 10.1, {n}] }}\n\n[initial]\nq = 2.0\ns = 0.0\n{p}")
+        };
+        let qs = "\"q\", \"s\"";
+        let (head, scheme, finals) = match self {
+            Scenario::VdpS2 => (vdp("van_der_pol", "", ""), "s2", qs),
+            Scenario::VdpS2WithP => (
+                vdp("van_der_pol", "", "p = -1.0\n"),
+                "s2",
+                "\"q\", \"s\", \"p\"",
+            ),
+            Scenario::VdpYoshida6a => (vdp("van_der_pol", "", ""), "yoshida6a", qs),
+            Scenario::LienardFormulaS2 => (
+                vdp(
+                    "lienard",
+                    "\n[formula]\nf = \"-epsilon*(1 - q^2)\"\ng = \"q\"\n",
+                    "",
+                ),
+                "s2",
+                qs,
+            ),
+            Scenario::SpinOrbitS2 => (
+                format!(
+                    "model = \"spin_orbit\"\n\n[params]\neccentricity = 0.06\nepsilon = 0.045\nlambda = 0.01\nomega = {}\n\n[initial]\nq = 0.0\np = {{ linspace = [0.4, 1.8, {n}] }}\n",
+                    std::f64::consts::SQRT_2
+                ),
+                "s2",
+                "\"q\", \"p\"",
+            ),
+            Scenario::KeplerS2 => (
+                format!(
+                    "model = \"kepler\"\n\n[params]\nalpha = 0.01\ntheta = {}\n\n[initial]\neccentricity = {{ linspace = [0.0, 0.5, {n}] }}\n",
+                    std::f64::consts::TAU
+                ),
+                "s2",
+                "\"q\", \"p\"",
+            ),
+        };
+        format!(
+            "name = \"bench_{}\"\n{head}\n[integrator]\nscheme = \"{scheme}\"\ndt = 0.01\nsteps = {steps}\n\n[output]\nfinal = [{finals}]\n",
+            self.label().replace('/', "_")
+        )
+    }
 }
 
 /// What `reeb bench` measures.
@@ -149,6 +203,9 @@ pub struct Row {
     pub steps: u64,
     pub threads: usize,
     pub traj_steps_per_s: f64,
+    /// The whole `reeb run` of the same size ([`whole_run_rate`]): on the
+    /// GPU, and on the CPU at every thread.
+    pub whole_run_traj_steps_per_s: Option<f64>,
 }
 
 /// Every backend × scenario × precision × size (× thread count on the CPU),
@@ -178,11 +235,18 @@ pub fn run(opts: &BenchOptions, mut each: impl FnMut(&Row)) -> Result<(), String
                         steps: opts.steps,
                         threads,
                         traj_steps_per_s: r,
+                        whole_run_traj_steps_per_s: None,
+                    };
+                    let whole = |backend, steps, threads| {
+                        whole_run_rate(s, (n, steps), backend, p, threads, opts.repeats)
+                            .map(Some)
+                            .map_err(|e| format!("{} {}: whole run: {e:#}", name, s.label()))
                     };
                     match engine {
                         Engine::Gpu(_) => match gpu_rate(engine, &plan, p, opts.repeats) {
                             Ok(Some((r, steps))) => each(&Row {
                                 steps,
+                                whole_run_traj_steps_per_s: whole(BackendChoice::Gpu, steps, all)?,
                                 ..row(name.clone(), 0, r)
                             }),
                             Ok(None) => {}
@@ -190,7 +254,14 @@ pub fn run(opts: &BenchOptions, mut each: impl FnMut(&Row)) -> Result<(), String
                         },
                         Engine::Cpu => {
                             for &t in &threads {
-                                each(&row("cpu".into(), t, cpu_rate(&plan, p, t, opts.repeats)));
+                                let r = cpu_rate(&plan, p, t, opts.repeats);
+                                each(&Row {
+                                    whole_run_traj_steps_per_s: match t == all {
+                                        true => whole(BackendChoice::Cpu, opts.steps, t)?,
+                                        false => None,
+                                    },
+                                    ..row("cpu".into(), t, r)
+                                });
                             }
                         }
                     }
@@ -262,6 +333,52 @@ fn formula_van_der_pol() -> Model {
         forcing_frequency: None,
     };
     Model::Formula(FormulaModel::get(&source).expect("valid formulas"))
+}
+
+/// Median trajectory-steps/s of the whole `reeb run` of `s`'s scene at
+/// `(n, steps)` on `backend` with `threads` CPU threads, after a first run
+/// that warms the caches: wall seconds from reading the scene to the
+/// summary written, into a directory of its own under the system's
+/// temporary one (removed afterwards).
+pub fn whole_run_rate(
+    s: Scenario,
+    (n, steps): (usize, u64),
+    backend: BackendChoice,
+    precision: Precision,
+    threads: usize,
+    repeats: usize,
+) -> anyhow::Result<f64> {
+    use crate::output::run::{run_scene, RunOptions, TaskOptions};
+    let dir = std::env::temp_dir().join(format!("reeb-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let path = dir.join("scene.toml");
+    let text = s.scene_text(n, steps);
+    std::fs::write(&path, &text)?;
+    let once = || -> anyhow::Result<f64> {
+        let started = Instant::now();
+        let scene = crate::scene::Scene::parse(&path, &text)?;
+        let opts = RunOptions {
+            out: Some(dir.join("run")),
+            force: true,
+            task: TaskOptions {
+                backend: Some(backend),
+                precision: Some(precision),
+                ..TaskOptions::default()
+            },
+            started: Some(started),
+            ..RunOptions::default()
+        };
+        run_scene(&scene, &opts)?;
+        Ok(started.elapsed().as_secs_f64())
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
+    let times: anyhow::Result<Vec<f64>> =
+        pool.install(|| (0..=repeats.max(1)).map(|_| once()).collect());
+    let _ = std::fs::remove_dir_all(&dir);
+    let times = times?;
+    Ok((n as u64 * steps) as f64 / median(times[1..].to_vec()))
 }
 
 /// Median trajectory-steps/s of `plan` on the CPU with `threads` threads.
@@ -351,8 +468,8 @@ pub fn median(mut v: Vec<f64>) -> f64 {
 /// the first call has compiled and cached the kernel).
 pub fn seconds(engine: &Engine, plan: &Plan, precision: Precision) -> Result<f64, BackendError> {
     Ok(match precision {
-        Precision::F32 => engine.run::<f32>(plan, None)?.seconds,
-        Precision::F64 => engine.run::<f64>(plan, None)?.seconds,
+        Precision::F32 => engine.run::<f32>(plan, None)?.phases.integration,
+        Precision::F64 => engine.run::<f64>(plan, None)?.phases.integration,
     })
 }
 

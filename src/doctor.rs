@@ -13,7 +13,7 @@ use serde::Serialize;
 use crate::backend::gpu::accuracy::{exp_f32_accuracy, ExpAccuracy, HARDWARE_EXP_ULP};
 use crate::backend::gpu::codegen::ExpForm;
 use crate::backend::gpu::{is_software, list_adapters, AdapterSummary, GpuContext};
-use crate::backend::Engine;
+use crate::backend::{BackendChoice, Engine};
 use crate::bench::{self, Row, Scenario};
 use crate::models::MODEL_NAMES;
 use crate::num::precision::Precision;
@@ -396,7 +396,10 @@ fn throughput(
                 progress(&format!("bench {} {p} n = {n}", s.label()));
                 if let Some(g) = gpu {
                     match bench::gpu_rate(g, &s.plan(n, STEPS), p, REPEATS) {
-                        Ok(Some((r, steps))) => rows.push(row("gpu", s, p, (n, steps, 0), r)),
+                        Ok(Some((r, steps))) => {
+                            let whole = whole_run(s, (n, steps), BackendChoice::Gpu, p, problems);
+                            rows.push(row("gpu", s, p, (n, steps, 0), (r, whole)))
+                        }
                         Ok(None) => {}
                         Err(e) => problems.push(format!("gpu {} {p} n = {n}: {e}", s.label())),
                     }
@@ -404,15 +407,38 @@ fn throughput(
                 let steps = (2_000_000_000 / n as u64).clamp(100, STEPS);
                 let threads = crate::backend::cpu::threads();
                 let r = bench::cpu_rate(&s.plan(n, steps), p, threads, REPEATS);
-                rows.push(row("cpu", s, p, (n, steps, threads), r));
+                let whole = whole_run(s, (n, steps), BackendChoice::Cpu, p, problems);
+                rows.push(row("cpu", s, p, (n, steps, threads), (r, whole)));
             }
         }
     }
     rows
 }
 
-/// A row of the report: `(n, steps, threads)` of the measurement.
-fn row(backend: &str, s: Scenario, p: Precision, size: (usize, u64, usize), r: f64) -> Row {
+/// The whole `reeb run` of scenario `s` at `size` (trajectory-steps/s on
+/// every CPU thread); a failure is one of the report's problems.
+fn whole_run(
+    s: Scenario,
+    size: (usize, u64),
+    backend: BackendChoice,
+    p: Precision,
+    problems: &mut Vec<String>,
+) -> Option<f64> {
+    let threads = crate::backend::cpu::threads();
+    bench::whole_run_rate(s, size, backend, p, threads, 3)
+        .map_err(|e| problems.push(format!("whole run {} {p}: {e:#}", s.label())))
+        .ok()
+}
+
+/// A row of the report: `(n, steps, threads)` of the measurement, the
+/// kernel's rate and the whole run's.
+fn row(
+    backend: &str,
+    s: Scenario,
+    p: Precision,
+    size: (usize, u64, usize),
+    (r, whole): (f64, Option<f64>),
+) -> Row {
     Row {
         backend: backend.to_string(),
         scenario: s.label(),
@@ -421,6 +447,7 @@ fn row(backend: &str, s: Scenario, p: Precision, size: (usize, u64, usize), r: f
         steps: size.1,
         threads: size.2,
         traj_steps_per_s: r,
+        whole_run_traj_steps_per_s: whole,
     }
 }
 
@@ -501,8 +528,8 @@ impl Report {
         line(
             &mut t,
             format!(
-                "{:<6} {:<24} {:>9} {:>10} {:>6} {:>14}",
-                "", "scenario", "precision", "n", "steps", "traj-steps/s"
+                "{:<6} {:<24} {:>9} {:>10} {:>6} {:>14} {:>14}",
+                "", "scenario", "precision", "n", "steps", "traj-steps/s", "whole run"
             ),
         );
         for e in &self.exp {
@@ -524,8 +551,15 @@ impl Report {
             line(
                 &mut t,
                 format!(
-                    "{:<6} {:<24} {:>9} {:>10} {:>6} {:>14.3e}",
-                    b.backend, b.scenario, b.precision, b.n, b.steps, b.traj_steps_per_s
+                    "{:<6} {:<24} {:>9} {:>10} {:>6} {:>14.3e} {:>14}",
+                    b.backend,
+                    b.scenario,
+                    b.precision,
+                    b.n,
+                    b.steps,
+                    b.traj_steps_per_s,
+                    b.whole_run_traj_steps_per_s
+                        .map_or("-".to_string(), |w| format!("{w:.3e}"))
                 ),
             );
         }

@@ -310,6 +310,7 @@ fn main() -> ExitCode {
 }
 
 fn run(scene: PathBuf, preview: bool, mut opts: RunOptions) -> Result<ExitCode> {
+    opts.started = Some(std::time::Instant::now());
     let mut scene = Scene::load(&scene)?;
     if preview {
         scene = scene.preview(4, 2000);
@@ -501,8 +502,8 @@ fn bench(
         reeb::bench::GPU_RUN_SECONDS
     );
     println!(
-        "{:<40} {:<24} {:>9} {:>10} {:>8} {:>8} {:>16}",
-        "backend", "scenario", "precision", "n", "steps", "threads", "traj-steps/s"
+        "{:<40} {:<24} {:>9} {:>10} {:>8} {:>8} {:>16} {:>16}",
+        "backend", "scenario", "precision", "n", "steps", "threads", "traj-steps/s", "whole run"
     );
     let opts = BenchOptions {
         backends,
@@ -724,15 +725,18 @@ fn print_bench_row(r: &reeb::bench::Row, json: Option<&mut std::fs::File>) -> Re
         0 => "-".to_string(),
         t => t.to_string(),
     };
+    let whole = r
+        .whole_run_traj_steps_per_s
+        .map_or("-".to_string(), |w| format!("{w:.4e}"));
     println!(
-        "{:<40} {:<24} {:>9} {:>10} {:>8} {:>8} {:>16.4e}",
+        "{:<40} {:<24} {:>9} {:>10} {:>8} {:>8} {:>16.4e} {whole:>16}",
         r.backend, r.scenario, r.precision, r.n, r.steps, th, r.traj_steps_per_s
     );
     if let Some(f) = json {
         writeln!(
             f,
             "{}",
-            serde_json::json!({"backend": r.backend, "scenario": r.scenario, "precision": r.precision.name(), "n": r.n, "steps": r.steps, "threads": r.threads, "traj_steps_per_s": r.traj_steps_per_s})
+            serde_json::json!({"backend": r.backend, "scenario": r.scenario, "precision": r.precision.name(), "n": r.n, "steps": r.steps, "threads": r.threads, "traj_steps_per_s": r.traj_steps_per_s, "whole_run_traj_steps_per_s": r.whole_run_traj_steps_per_s})
         )?;
     }
     Ok(())

@@ -45,7 +45,7 @@ case "${1:-}" in
     python3 - "$a" "$b" <<'PY' || bad=$((bad + 1))
 import json, os, sys
 a, b = sys.argv[1], sys.argv[2]
-volatile = {"utc", "command_line", "traj_steps_per_s"}
+volatile = {"utc", "command_line", "traj_steps_per_s", "integration_clock"}
 def strip(v):
     if isinstance(v, dict):
         return {k: strip(x) for k, x in v.items()

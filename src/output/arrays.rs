@@ -94,18 +94,38 @@ pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Ve
             out.push(owned(scalar("resonance.npy", "<i4", &resonance(r, obs)?)));
         }
     }
-    // status: 0 ok, 1 non-finite, 2 stopped; status_step: the step it
-    // became non-finite or stopped after (−1: neither).
-    let (status, step): (Vec<u8>, Vec<i64>) = (0..obs.n)
-        .map(|i| match obs.status(i) {
-            Status::Ok => (0, -1),
-            Status::NonFinite { step } => (1, step as i64),
-            Status::Stopped { step } => (2, step as i64),
-        })
-        .unzip();
-    out.push(owned(scalar("status.npy", "|u1", &status)));
-    out.push(owned(scalar("status_step.npy", "<i8", &step)));
+    let (status, step) = status_bytes(obs);
+    out.push(Array {
+        bytes: Cow::Owned(status),
+        ..scalar("status.npy", "|u1", &[0u8; 0])
+    });
+    out.push(Array {
+        bytes: Cow::Owned(step),
+        ..scalar("status_step.npy", "<i8", &[0u8; 0])
+    });
     Ok(out)
+}
+
+/// The bytes of `status` (0 ok, 1 non-finite, 2 stopped) and `status_step`
+/// (the step it became non-finite or stopped after; −1: neither), made on
+/// every core.
+fn status_bytes<R: Real>(obs: &Observations<R>) -> (Vec<u8>, Vec<u8>) {
+    use rayon::prelude::*;
+    let (mut status, mut step) = (vec![0u8; obs.n], vec![0u8; 8 * obs.n]);
+    status
+        .par_iter_mut()
+        .zip(step.par_chunks_exact_mut(8))
+        .enumerate()
+        .for_each(|(i, (s, k))| {
+            let (code, at) = match obs.status(i) {
+                Status::Ok => (0, -1),
+                Status::NonFinite { step } => (1, step as i64),
+                Status::Stopped { step } => (2, step as i64),
+            };
+            *s = code;
+            k.copy_from_slice(&at.to_le_bytes());
+        });
+    (status, step)
 }
 
 /// The scene's variables of a named column (vectors whole, as the scene

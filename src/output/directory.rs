@@ -560,7 +560,7 @@ pub fn hostname() -> String {
 }
 
 /// fsyncs every file in `dir`, then `dir` itself.
-fn sync_tree(dir: &Path) -> Result<()> {
+pub fn sync_tree(dir: &Path) -> Result<()> {
     for name in entries(dir)? {
         let path = dir.join(name);
         if path.is_file() {

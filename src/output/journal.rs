@@ -14,6 +14,7 @@ use anyhow::{bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
 use crate::backend::checkpoint::Contents;
+use crate::backend::phases::Phases;
 use crate::output::chunks::Chunks;
 
 pub const RECORD_FILE: &str = ".reeb-run.json";
@@ -49,6 +50,10 @@ pub struct Done {
     pub seconds: f64,
     /// How `seconds` was measured (GPU timestamps or the wall clock).
     pub timing: String,
+    /// The seconds of the chunk's phases (integration: `seconds`; all 0 in
+    /// a marker written before reeb timed them).
+    #[serde(default)]
+    pub phases: Phases,
     /// The chunk's bytes in every array, checked before the chunk is
     /// trusted (empty in a marker of a reeb before 0.3: not trusted).
     #[serde(default)]

@@ -124,13 +124,6 @@ impl Slabs {
             .with_context(|| format!("reading {}", path.display()))?;
         Ok(out)
     }
-
-    /// Makes the rows written so far durable.
-    pub fn sync(&self, path: &Path) -> Result<()> {
-        self.file
-            .sync_data()
-            .with_context(|| format!("syncing {}", path.display()))
-    }
 }
 
 /// Refuses a file whose header is not the one this run writes (a store of
@@ -166,6 +159,14 @@ pub fn item_size(descr: &str) -> Result<u64> {
 /// Reads the raw little-endian data of an `.npy` file written by [`Slabs`]
 /// (or [`crate::output::arrays::write_npy`]): its rows `first..first + rows` of `row_bytes` each.
 pub fn read_rows(path: &Path, first: u64, rows: u64, row_bytes: u64) -> Result<Vec<u8>> {
+    let mut out = vec![0u8; (rows * row_bytes) as usize];
+    read_rows_into(path, first * row_bytes, &mut out)?;
+    Ok(out)
+}
+
+/// Fills `out` from the data of the `.npy` file at `path`, from byte
+/// `offset` of its data on (rows of the right size: no copy between).
+pub fn read_rows_into(path: &Path, offset: u64, out: &mut [u8]) -> Result<()> {
     let mut f = File::open(path).with_context(|| format!("opening {}", path.display()))?;
     let mut pre = [0u8; 10];
     f.read_exact(&mut pre)
@@ -174,10 +175,8 @@ pub fn read_rows(path: &Path, first: u64, rows: u64, row_bytes: u64) -> Result<V
         bail!("{} is not an .npy file", path.display());
     }
     let head = 10 + u16::from_le_bytes([pre[8], pre[9]]) as u64;
-    let mut out = vec![0u8; (rows * row_bytes) as usize];
-    f.read_exact_at(&mut out, head + first * row_bytes)
-        .with_context(|| format!("reading {}", path.display()))?;
-    Ok(out)
+    f.read_exact_at(out, head + offset)
+        .with_context(|| format!("reading {}", path.display()))
 }
 
 #[cfg(test)]

@@ -19,20 +19,109 @@ fn f64s<R: Real>(v: &[R]) -> Vec<f64> {
     v.iter().map(|x| x.to_f64()).collect()
 }
 
-/// A curve of at most ~2·10⁵ points: longer ones are reduced to the minimum
-/// and maximum of each bin (their envelope), which is all a picture shows.
-fn envelope(x: &[f64], y: impl Fn(usize) -> f64) -> (Vec<f64>, Vec<f64>) {
-    const BINS: usize = 100_000;
-    let n = x.len();
-    if n <= 2 * BINS {
-        return (x.to_vec(), (0..n).map(y).collect());
+/// A statistic along one axis as a picture draws it: at most ~2·10⁵
+/// points (a longer curve is reduced to the minimum and maximum of each
+/// bin, its envelope, which is all a picture shows), and what its gaps mean
+/// (each kind once, in the order met along the axis). One pass over the
+/// values, the bins on every core.
+struct Curve {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    gaps: Vec<&'static str>,
+}
+
+impl Curve {
+    fn new(x: &[f64], at: impl Fn(usize) -> Result<f64, Undefined> + Sync) -> Curve {
+        use rayon::prelude::*;
+        const BINS: usize = 100_000;
+        let n = x.len();
+        let whole = n <= 2 * BINS;
+        let bins = if whole { n } else { BINS };
+        let parts: Vec<Bin> = (0..bins)
+            .into_par_iter()
+            .map(|b| Bin::of(x, &at, b * n / bins..(b + 1) * n / bins, whole))
+            .collect();
+        let mut curve = Curve {
+            x: Vec::with_capacity(2 * bins),
+            y: Vec::with_capacity(2 * bins),
+            gaps: vec![],
+        };
+        for bin in &parts {
+            let points = &bin.points[..bin.len];
+            curve.x.extend(points.iter().map(|p| p.0));
+            curve.y.extend(points.iter().map(|p| p.1));
+            for g in &bin.gaps[..bin.kinds] {
+                let g = gap_name(*g);
+                if !curve.gaps.contains(&g) {
+                    curve.gaps.push(g);
+                }
+            }
+        }
+        curve
     }
-    let (mut xs, mut ys) = (Vec::with_capacity(2 * BINS), Vec::with_capacity(2 * BINS));
-    for b in 0..BINS {
-        let (lo, hi) = (b * n / BINS, (b + 1) * n / BINS);
+
+    /// `label`, saying what the curve's gaps mean where it has any.
+    fn label(&self, label: &str) -> String {
+        if self.gaps.is_empty() {
+            label.to_string()
+        } else {
+            format!("{label} (gaps: {})", self.gaps.join(", "))
+        }
+    }
+}
+
+/// One bin of a [`Curve`]: its points (the value itself, or the minimum
+/// and maximum in the order met) and the kinds of its gaps in the order met
+/// (an index into [`UNDEFINED`], or [`NAN_GAP`]).
+struct Bin {
+    points: [(f64, f64); 2],
+    len: usize,
+    gaps: [u8; UNDEFINED.len() + 1],
+    kinds: usize,
+}
+
+/// A gap kind of a finite-looking value that is not finite.
+const NAN_GAP: u8 = u8::MAX;
+
+fn gap_name(kind: u8) -> &'static str {
+    match kind {
+        NAN_GAP => "NaN",
+        u => UNDEFINED[u as usize].0,
+    }
+}
+
+impl Bin {
+    /// The bin of trajectories `range` (one value when `whole`).
+    fn of(
+        x: &[f64],
+        at: &impl Fn(usize) -> Result<f64, Undefined>,
+        range: std::ops::Range<usize>,
+        whole: bool,
+    ) -> Bin {
+        let lo = range.start;
+        let mut bin = Bin {
+            points: [(0.0, 0.0); 2],
+            len: 0,
+            gaps: [0; UNDEFINED.len() + 1],
+            kinds: 0,
+        };
         let (mut mn, mut mx) = ((f64::INFINITY, lo), (f64::NEG_INFINITY, lo));
-        for i in lo..hi {
-            let v = y(i);
+        for i in range {
+            let value = at(i);
+            let gap = match value {
+                Err(u) => Some(u as u8),
+                Ok(v) if !v.is_finite() => Some(NAN_GAP),
+                Ok(_) => None,
+            };
+            if let Some(g) = gap.filter(|g| !bin.gaps[..bin.kinds].contains(g)) {
+                bin.gaps[bin.kinds] = g;
+                bin.kinds += 1;
+            }
+            let v = or_nan(value);
+            if whole {
+                (bin.points[0], bin.len) = ((x[i], v), 1);
+                return bin;
+            }
             if v < mn.0 {
                 mn = (v, i);
             }
@@ -41,12 +130,11 @@ fn envelope(x: &[f64], y: impl Fn(usize) -> f64) -> (Vec<f64>, Vec<f64>) {
             }
         }
         let (a, b) = if mn.1 <= mx.1 { (mn, mx) } else { (mx, mn) };
-        for (v, i) in [a, b] {
-            xs.push(x[i]);
-            ys.push(if v.is_finite() { v } else { f64::NAN });
-        }
+        let finite = |v: f64| if v.is_finite() { v } else { f64::NAN };
+        bin.points = [(x[a.1], finite(a.0)), (x[b.1], finite(b.0))];
+        bin.len = 2;
+        bin
     }
-    (xs, ys)
 }
 
 /// Draws the pictures into `dir`; returns the file names written.
@@ -115,7 +203,7 @@ const UNDEFINED: [(&str, Rgb); 6] = [
 ];
 
 /// A statistic's value for trajectory `i`, or why it has none.
-type Value<'a> = Box<dyn Fn(usize) -> Result<f64, Undefined> + 'a>;
+type Value<'a> = Box<dyn Fn(usize) -> Result<f64, Undefined> + Sync + 'a>;
 
 /// A statistic of the run: file stem, label, and its value for trajectory
 /// `i`. Accessors on the run's arrays: the pictures read only the slice
@@ -205,7 +293,7 @@ fn indicators<'a, R: Real>(d: &'a Observations<R>, doubts: &'a Doubts) -> Vec<St
             continue;
         }
         let at = move |i: usize| value(i, v[i]);
-        let stat: Box<dyn Fn(usize) -> Result<f64, Undefined>> = match look.log {
+        let stat: Value = match look.log {
             true => Box::new(move |i| at(i).map(|x| x.max(floor).log10())),
             false => Box::new(at),
         };
@@ -375,15 +463,15 @@ impl<'a> Pictures<'a> {
         let ax = &self.scene.axes[k];
         let mut files = vec![];
         for (file, label, v) in stats {
-            let at = |i: usize| v(i * self.strides[k]);
-            let (x, y) = envelope(&ax.values, |i| or_nan(at(i)));
-            let label = &gaps_label(label, (0..ax.values.len()).map(at));
-            let label = &round_off_label(label, &y, self.precision);
+            let curve = Curve::new(&ax.values, |i| v(i * self.strides[k]));
+            let (x, y) = (&curve.x, &curve.y);
+            let label = &curve.label(label);
+            let label = &round_off_label(label, y, self.precision);
             let name = format!("{file}.png");
             plot::lines(
                 &self.dir.join(&name),
                 &self.figure(&ax.name, label),
-                &[Series::new(label, &x, &y)],
+                &[Series::new(label, x, y)],
                 plot::log_scale(&ax.values),
                 false,
             )?;
@@ -775,26 +863,6 @@ impl<'a> Pictures<'a> {
             None,
         )?;
         Ok(Some("bifurcation.png".into()))
-    }
-}
-
-/// A curve's label, saying what its gaps mean where it has any.
-fn gaps_label(label: &str, values: impl Iterator<Item = Result<f64, Undefined>>) -> String {
-    let mut seen: Vec<&str> = vec![];
-    for v in values {
-        let gap = match v {
-            Err(u) => UNDEFINED[u as usize].0,
-            Ok(x) if !x.is_finite() => "NaN",
-            Ok(_) => continue,
-        };
-        if !seen.contains(&gap) {
-            seen.push(gap);
-        }
-    }
-    if seen.is_empty() {
-        label.to_string()
-    } else {
-        format!("{label} (gaps: {})", seen.join(", "))
     }
 }
 

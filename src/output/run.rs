@@ -12,10 +12,11 @@
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 
+use crate::backend::phases::{lap, Phases};
 use crate::backend::{Adapters, Engine};
 use crate::models::Flows;
 use crate::num::precision::Precision;
@@ -71,6 +72,10 @@ pub struct RunOptions {
     /// Followed from another thread (progress, a request to stop).
     #[arg(skip)]
     pub watch: Option<Arc<Watch>>,
+    /// When the command began, reading the scene (`timing`'s wall clock;
+    /// default: when the run is called).
+    #[arg(skip)]
+    pub started: Option<Instant>,
 }
 
 /// The options every part of one run takes alike: a `reeb run`, and each
@@ -247,6 +252,7 @@ impl std::str::FromStr for Shard {
 
 /// Runs `scene` and writes its directory (or, with a shard, its part of it).
 pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
+    let started = opts.started.unwrap_or_else(Instant::now);
     let precision = opts.task.precision.unwrap_or(scene.precision);
     let choice = opts.task.backend.unwrap_or(scene.backend);
     let Gated {
@@ -288,6 +294,7 @@ pub fn run_scene(scene: &Scene, opts: &RunOptions) -> Result<RunReport> {
         precision,
         warnings: &warnings,
         notice,
+        started,
     };
     match precision {
         Precision::F32 => run_typed::<f32>(scene, &subs, claim, opts, &made),
@@ -345,11 +352,11 @@ fn gates_crediting(
     max_output_bytes: Option<u64>,
     continued: bool,
 ) -> Result<Gated> {
-    let warnings = scene.checks(precision)?;
+    let subs = scene.sub_runs()?;
+    let warnings = scene.checks_of(&subs, precision)?;
     for w in &warnings {
         eprintln!("warning: {w}");
     }
-    let subs = scene.sub_runs()?;
     let out = out.map_or_else(|| Path::new("runs").join(&scene.name), Path::to_path_buf);
     let written = match continued {
         true => directory::partial_of(&out).map_or(0, |p| directory::disk_usage(&p)),
@@ -367,12 +374,14 @@ fn gates_crediting(
 }
 
 /// How a run is made: engines (none for `reeb merge`), precision, the
-/// warnings it was given, and why its backend (`auto`'s notice).
+/// warnings it was given, why its backend (`auto`'s notice), and when the
+/// command began (the wall clock of `timing`).
 struct Made<'a> {
     engines: &'a [Engine],
     precision: Precision,
     warnings: &'a [SceneWarning],
     notice: Option<String>,
+    started: Instant,
 }
 
 fn run_typed<R: Flows>(
@@ -404,14 +413,22 @@ fn run_typed<R: Flows>(
         checkpoint_every: checkpoint_every(opts),
         watch: opts.watch.as_deref(),
     };
-    stream::integrate::<R>(&target, mine.clone(), opts.progress).map_err(|e| {
+    let setup = made.started.elapsed().as_secs_f64();
+    let streamed = stream::integrate::<R>(&target, mine.clone(), opts.progress).map_err(|e| {
         anyhow::anyhow!(
             "{e:#}\n(the chunks that finished are kept in {}: run it again with --resume to continue)",
             dir.display()
         )
     })?;
     let Some(s) = opts.shard else {
-        return finish::<R>(scene, subs, claim, &record, made);
+        return finish::<R>(
+            scene,
+            subs,
+            claim,
+            &record,
+            made,
+            Integrated { setup, streamed },
+        );
     };
     let line = format!(
         "{}: shard {}/{} (chunks {}..{} of {}) done → {}; when every shard has finished: reeb merge {}",
@@ -485,6 +502,7 @@ fn format_of(record: &Record) -> Result<Format> {
 /// `DIR.partial` finished (every shard), then writes the pictures and
 /// `summary.json` and puts the directory in place.
 pub fn merge(out: &Path, force: bool) -> Result<RunReport> {
+    let started = Instant::now();
     // Looked at before claiming, which would leave a partial behind.
     let partial = directory::partial_of(out)?;
     if Record::read(&partial)?.is_none() {
@@ -509,13 +527,14 @@ pub fn merge(out: &Path, force: bool) -> Result<RunReport> {
         .precision
         .parse()
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let warnings = scene.checks(precision)?;
     let subs = scene.sub_runs()?;
+    let warnings = scene.checks_of(&subs, precision)?;
     let made = Made {
         engines: &[],
         precision,
         warnings: &warnings,
         notice: None,
+        started,
     };
     match precision {
         Precision::F32 => merge_typed::<f32>(&scene, &subs, claim, &record, &made),
@@ -547,8 +566,15 @@ fn merge_typed<R: Flows>(
         watch: None,
     };
     let bad = stream::damaged::<R>(&target, 0..record.chunks.count())?;
+    let done = Integrated {
+        setup: made.started.elapsed().as_secs_f64(),
+        streamed: stream::Streamed {
+            kept: None,
+            overlap: 0.0,
+        },
+    };
     if bad.is_empty() {
-        return finish::<R>(scene, subs, claim, record, made);
+        return finish::<R>(scene, subs, claim, record, made, done);
     }
     let choice: BackendChoice = record.backend.parse().map_err(anyhow::Error::msg)?;
     let (engine, _) = Engine::resolve_for(choice, made.precision, None, None).with_context(|| {
@@ -573,8 +599,9 @@ fn merge_typed<R: Flows>(
         precision: made.precision,
         warnings: made.warnings,
         notice: None,
+        started: made.started,
     };
-    finish::<R>(scene, subs, claim, record, &made)
+    finish::<R>(scene, subs, claim, record, &made, done)
 }
 
 /// The chunks of a new run of `scene`: `rows` trajectories each, or outputs
@@ -595,6 +622,13 @@ fn chunks_of(scene: &Scene, subs: &[SubRun], rows: Option<usize>, precision: Pre
     Chunks::with_budget(&shape, per_row, budget)
 }
 
+/// What the integration of a run leaves for [`finish`]: the seconds before
+/// its first chunk, and what streaming the chunks left.
+struct Integrated<R> {
+    setup: f64,
+    streamed: stream::Streamed<R>,
+}
+
 /// Pictures, summary and commit of a run whose chunks have all finished.
 fn finish<R: Flows>(
     scene: &Scene,
@@ -602,7 +636,9 @@ fn finish<R: Flows>(
     claim: Claim,
     record: &Record,
     made: &Made,
+    integrated: Integrated<R>,
 ) -> Result<RunReport> {
+    let mut since = Instant::now();
     let dir = claim.dir().to_path_buf();
     let done = stream::finished(&dir, &record.chunks)?;
     let format = format_of(record)?;
@@ -610,7 +646,11 @@ fn finish<R: Flows>(
         Format::Npy => write_axes(scene, &dir)?,
         Format::Zarr => vec![],
     };
-    let observations = stream::read_back::<R>(scene, subs, &dir, format)?;
+    let mut phases = Phases {
+        setup: integrated.setup,
+        writing: lap(&mut since),
+        ..Phases::default()
+    };
     match format {
         Format::Npy => {
             let list = stream::array_list::<R>(scene, subs)?;
@@ -618,11 +658,21 @@ fn finish<R: Flows>(
         }
         Format::Zarr => files.push(zarr::STORE.into()),
     }
-    let doubts = doubts::of(scene, subs, &observations);
-    match crate::output::pictures::draw(scene, &dir, &observations, &doubts) {
+    // The arrays reach the disk while the pictures are drawn.
+    let (observations, doubts, pictures) = std::thread::scope(|s| -> Result<_> {
+        let synced = s.spawn(|| directory::sync_tree(&dir));
+        let observations =
+            stream::for_pictures(scene, subs, &dir, format, integrated.streamed.kept)?;
+        let doubts = doubts::of(scene, subs, &observations);
+        let pictures = crate::output::pictures::draw(scene, &dir, &observations, &doubts);
+        synced.join().expect("syncing does not panic")?;
+        Ok((observations, doubts, pictures))
+    })?;
+    match pictures {
         Ok(p) => files.extend(p),
         Err(e) => eprintln!("warning: pictures not drawn: {e:#}"),
     }
+    phases.pictures = lap(&mut since);
     let max_steps = subs.iter().map(|s| s.plan.steps).max().unwrap_or(0);
     let levels = cpu_levels(&done);
     let mut warnings: Vec<String> = made.warnings.iter().map(|w| w.to_string()).collect();
@@ -644,6 +694,12 @@ fn finish<R: Flows>(
         ok: done.iter().map(|d| d.ok).sum(),
         stopped: observations.count_stopped() as u64,
         timing: done.first().map_or("none".into(), |d| d.timing.clone()),
+        phases: done.iter().fold(phases, |p, d| {
+            p.plus(Phases {
+                integration: d.seconds,
+                ..d.phases
+            })
+        }),
         max_steps,
         chunks: done.len(),
         cpu_isa: (!levels.is_empty()).then(|| levels.join(" + ")),
@@ -658,6 +714,8 @@ fn finish<R: Flows>(
     if let Some(r) = &scene.observers.resonance {
         summary["resonance"] = capture(r, &crate::output::arrays::resonance(r, &observations)?);
     }
+    let wall = made.started.elapsed().as_secs_f64();
+    summary["timing"] = timing(&ran.phases, integrated.streamed.overlap, wall);
     if format == Format::Zarr {
         zarr::finish(&dir, scene, summary.clone())?;
     }
@@ -666,12 +724,13 @@ fn finish<R: Flows>(
     let out = claim.commit()?;
     let n = scene.ensemble_size() as u64;
     let line = format!(
-        "{}: {} trajectories × {} steps on {} ({}) in {:.3} s: {} trajectory-steps/s; {} ok, {} non-finite{} → {}",
+        "{}: {} trajectories × {} steps on {} ({}): {:.3} s wall, {:.3} s integrating ({} trajectory-steps/s); {} ok, {} non-finite{} → {}",
         scene.name,
         n,
         ran.max_steps,
         record.backend,
         made.precision,
+        wall,
         ran.seconds,
         crate::output::progress::sig3(ran.rate()),
         ran.ok,
@@ -684,6 +743,21 @@ fn finish<R: Flows>(
         out.display()
     ) + &shares(&ran);
     Ok(RunReport { out, summary, line })
+}
+
+/// `summary.json`'s `timing`: the seconds of each phase, added up over the
+/// chunks (a resumed run's too, from their markers); `overlap`, the seconds
+/// this command wrote one chunk while the GPU integrated the next; and the
+/// wall clock of this command, from its start to the summary.
+fn timing(phases: &Phases, overlap: f64, wall: f64) -> serde_json::Value {
+    let mut map: serde_json::Map<String, serde_json::Value> = phases
+        .named()
+        .into_iter()
+        .map(|(name, s)| (name.to_string(), s.into()))
+        .collect();
+    map.insert("overlap".into(), overlap.into());
+    map.insert("wall".into(), wall.into());
+    map.into()
 }
 
 /// `; chunks by device: #0 adapter 0: NAME 5, #1 adapter 1: NAME 4` for a
@@ -755,7 +829,10 @@ struct Ran {
     ok: u64,
     /// Trajectories the stop condition stopped.
     stopped: u64,
+    /// How `seconds` was measured.
     timing: String,
+    /// Every phase's seconds (`integration` added up as `seconds` is).
+    phases: Phases,
     max_steps: u64,
     chunks: usize,
     /// The level(s) the CPU kernels ran at (`None`: not the CPU).
@@ -861,7 +938,7 @@ fn summary(
         "steps_per_run": subs.iter().map(|s| s.plan.steps).collect::<Vec<_>>(),
         "traj_steps": ran.traj_steps,
         "integration_seconds": ran.seconds,
-        "timing": ran.timing,
+        "integration_clock": ran.timing,
         "traj_steps_per_s": ran.rate(),
         "evaluations_per_step": Some(scene.scheme.evaluations()),
         "status": {"ok": ran.ok, "non_finite": n - ran.ok - ran.stopped, "stopped": ran.stopped},

@@ -13,13 +13,14 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 
 use crate::backend::checkpoint::{Checkpoints, Contents};
+use crate::backend::phases::Phases;
 use crate::backend::{Engine, Integration};
 use crate::models::Flows;
 use crate::num::precision::Real;
 use crate::output::arrays::{arrays, out_vars, Array};
 use crate::output::chunks::Chunks;
 use crate::output::journal::{self, Done, Written};
-use crate::output::npy::{read_rows, Slabs};
+use crate::output::npy::{read_rows, read_rows_into, Slabs};
 use crate::output::progress::{self, Followed};
 use crate::output::zarr;
 use crate::plan::observations::{ColMut, ColumnMut, Observations};
@@ -106,10 +107,13 @@ impl Sink {
         match self {
             Sink::Npy(slabs) => {
                 let first = t.chunks.range(k).start as u64;
+                // Not synced here: a chunk's marker holds the CRC-32 of what
+                // it wrote, which a resumed run checks, and the finished run
+                // is synced before it is put in place.
                 for ((path, slab), array) in slabs.iter().zip(list) {
                     slab.write_rows(first, &array.bytes, path)?;
                 }
-                slabs.iter().try_for_each(|(path, slab)| slab.sync(path))
+                Ok(())
             }
             Sink::Zarr(store) => store.write_chunk(t.chunks, k, list),
         }
@@ -118,7 +122,9 @@ impl Sink {
 
 /// Integrates the chunks `mine` that have not finished, each into its slabs
 /// and then marked finished; a progress bar counts the finished ones too.
-pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Result<()> {
+/// A run of one chunk, integrated here, hands back its observations: the
+/// pictures take them as they are instead of reading the arrays back.
+pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Result<Streamed<R>> {
     let sink = Sink::open::<R>(t)?;
     let total: u64 = mine.clone().map(|k| traj_steps(t, k)).sum();
     let list = array_list::<R>(t.scene, t.subs)?;
@@ -153,18 +159,88 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
         done,
         finished: &finished,
     };
-    std::thread::scope(|scope| -> Result<()> {
+    let one_gpu = matches!(t.engines, [Engine::Gpu(_)]);
+    std::thread::scope(|scope| -> Result<Streamed<R>> {
         if progress && left > 0 {
             scope.spawn(|| progress::follow(&followed));
         }
         // Set on the way out, a panic's too: the scope waits for the bar,
         // which would otherwise wait for ever.
         let _finish = Finish(&finished);
-        match t.engines.len() {
-            0 | 1 => todo.iter().try_for_each(|k| chunk::<R>(t, *k, &sink, done)),
-            _ => share::<R>(t, &todo, &sink, done),
-        }
+        let (kept, overlap) = match (t.engines.len(), &todo[..]) {
+            (1, [0]) if t.chunks.count() == 1 => (Some(chunk::<R>(t, 0, &sink, done)?), 0.0),
+            (1, [_, _, ..]) if one_gpu => (None, pipelined::<R>(t, &todo, &sink, done)?),
+            (0 | 1, _) => {
+                let each = |k: &usize| chunk::<R>(t, *k, &sink, done).map(drop);
+                todo.iter().try_for_each(each)?;
+                (None, 0.0)
+            }
+            _ => (share::<R>(t, &todo, &sink, done).map(|()| None)?, 0.0),
+        };
+        Ok(Streamed { kept, overlap })
     })
+}
+
+/// What [`integrate`] leaves: the observations of a run of one chunk
+/// integrated here, and the seconds during which one chunk was written
+/// while the next integrated.
+pub struct Streamed<R> {
+    pub kept: Option<Observations<R>>,
+    pub overlap: f64,
+}
+
+/// A chunk integrated and not yet written: its observations, their phases
+/// and the integration's clock.
+type Rows<R> = (Observations<R>, Phases, &'static str);
+
+/// The chunks `todo` on one GPU, double-buffered so that it never waits
+/// for the disk: while chunk k+1 integrates, chunk k is written (and
+/// marked finished) on a thread of its own, so at most two chunks' outputs
+/// are in memory. Returns the seconds the two overlapped.
+fn pipelined<R: Flows>(t: &Target, todo: &[usize], sink: &Sink, done: &AtomicU64) -> Result<f64> {
+    // A rendezvous: the integration hands chunk k over only once the
+    // writer has finished chunk k-1.
+    let (hand, take) = std::sync::mpsc::sync_channel::<(usize, Rows<R>)>(0);
+    std::thread::scope(|scope| {
+        let writer = scope.spawn(move || -> Result<Vec<Span>> {
+            let mut spans = vec![];
+            for (k, rows) in take {
+                let began = Instant::now();
+                write_chunk(t, k, sink, rows)?;
+                spans.push((began, Instant::now()));
+            }
+            Ok(spans)
+        });
+        let mut integrating = vec![];
+        let integrated = todo.iter().try_for_each(|&k| {
+            let began = Instant::now();
+            let rows = integrate_rows::<R>(t, k, done)?;
+            integrating.push((began, Instant::now()));
+            hand.send((k, rows))
+                .map_err(|_| anyhow::anyhow!("chunk {k} was integrated and not written"))
+        });
+        drop(hand);
+        let written = writer
+            .join()
+            .unwrap_or_else(|_| Err(anyhow::anyhow!("the chunk writer panicked")));
+        // The writer's failure first: it is why a hand-over failed.
+        let spans = written?;
+        integrated?;
+        Ok(overlap(&integrating, &spans))
+    })
+}
+
+/// From when to when something ran.
+type Span = (Instant, Instant);
+
+/// Seconds during which a span of `a` and a span of `b` both ran (the
+/// spans of each list do not overlap one another).
+fn overlap(a: &[Span], b: &[Span]) -> f64 {
+    a.iter()
+        .flat_map(|x| b.iter().map(move |y| (x.0.max(y.0), x.1.min(y.1))))
+        .filter(|(from, to)| to > from)
+        .map(|(from, to)| (to - from).as_secs_f64())
+        .sum()
 }
 
 /// Tells the progress bar the run is over when dropped.
@@ -287,21 +363,38 @@ fn damage(done: &Done, list: &[Array], found: Result<Vec<Vec<u8>>>) -> Option<St
         })
 }
 
-/// Integrates chunk `k`, writes its rows, makes them durable, marks it
-/// with what it wrote.
-fn chunk<R: Flows>(t: &Target, k: usize, sink: &Sink, done: &AtomicU64) -> Result<()> {
-    let (obs, seconds, timing) = integrate_rows::<R>(t, k, done)?;
+/// Integrates chunk `k` and writes it ([`write_chunk`]).
+fn chunk<R: Flows>(t: &Target, k: usize, sink: &Sink, done: &AtomicU64) -> Result<Observations<R>> {
+    write_chunk(t, k, sink, integrate_rows::<R>(t, k, done)?)
+}
+
+/// Writes chunk `k`'s rows, marks it with what it wrote; returns its
+/// observations.
+fn write_chunk<R: Flows>(
+    t: &Target,
+    k: usize,
+    sink: &Sink,
+    rows: Rows<R>,
+) -> Result<Observations<R>> {
+    let (obs, mut phases, timing) = rows;
+    let writing = Instant::now();
     let list = arrays(t.scene, &obs)?;
     sink.write(t, k, &list)?;
+    let written = {
+        use rayon::prelude::*;
+        list.par_iter()
+            .map(|a| Written::of(&a.file, &a.bytes))
+            .collect()
+    };
+    drop(list);
+    phases.writing = writing.elapsed().as_secs_f64();
     let mark = Done {
         ok: obs.count_ok() as u64,
         traj_steps: traj_steps(t, k),
-        seconds,
+        seconds: phases.integration,
+        phases,
         timing: timing.into(),
-        arrays: list
-            .iter()
-            .map(|a| Written::of(&a.file, &a.bytes))
-            .collect(),
+        arrays: written,
         cpu_isa: t.engines.first().and_then(Engine::cpu_isa),
         device: t
             .engines
@@ -313,7 +406,8 @@ fn chunk<R: Flows>(t: &Target, k: usize, sink: &Sink, done: &AtomicU64) -> Resul
             }),
     };
     journal::mark_done(t.dir, k, &mark)?;
-    journal::remove_state(t.dir, k)
+    journal::remove_state(t.dir, k)?;
+    Ok(obs)
 }
 
 /// A sub-run with rows in a chunk, and those rows (of the sub-run's grid).
@@ -337,13 +431,9 @@ fn part_steps((sub, own): &Part) -> u64 {
 
 /// The observations of chunk `k`'s rows, from every sub-run that has some
 /// of them, continued from the chunk's checkpoint if it has one (and
-/// checkpointed every `t.checkpoint_every`); and the seconds the
-/// integration took.
-fn integrate_rows<R: Flows>(
-    t: &Target,
-    k: usize,
-    progress: &AtomicU64,
-) -> Result<(Observations<R>, f64, &'static str)> {
+/// checkpointed every `t.checkpoint_every`); and the seconds its phases
+/// took (the integration's from the chunk's start, the others this time).
+fn integrate_rows<R: Flows>(t: &Target, k: usize, progress: &AtomicU64) -> Result<Rows<R>> {
     let rows = t.chunks.range(k);
     let (shape, strides) = (t.scene.shape(), t.scene.strides());
     let parts = parts(t, k);
@@ -359,9 +449,13 @@ fn integrate_rows<R: Flows>(
             whole = Some(Observations::for_plan(&longest(t.subs, rows.len())));
         }
     }
-    let (first, mut seconds, mut header) = match from {
+    let (first, seconds, mut header) = match from {
         Some((i, s, h)) => (i, s, Some(h)),
         None => (0, 0.0, None),
+    };
+    let mut phases = Phases {
+        integration: seconds,
+        ..Phases::default()
     };
     let (mut since, mut timing, mut single) = (Instant::now(), "wall clock", None);
     for (i, part) in parts.iter().enumerate() {
@@ -373,9 +467,9 @@ fn integrate_rows<R: Flows>(
         let resume = header
             .take()
             .zip(saved.as_mut().map(|r| r as &mut dyn Read));
-        let done = (whole.as_ref(), seconds);
+        let done = (whole.as_ref(), phases.integration);
         let run = integrate_part(t, k, (i, sub, own), done, &mut since, resume, progress)?;
-        seconds += run.seconds;
+        phases = phases.plus(run.phases);
         timing = run.timing;
         match whole.as_mut() {
             Some(w) => {
@@ -389,7 +483,7 @@ fn integrate_rows<R: Flows>(
     }
     Ok((
         whole.or(single).context("a chunk has rows")?,
-        seconds,
+        phases,
         timing,
     ))
 }
@@ -534,6 +628,40 @@ pub fn finished(dir: &Path, chunks: &Chunks) -> Result<Vec<Done>> {
     Ok(all.into_iter().flatten().collect())
 }
 
+/// The observations the pictures are drawn from: `kept`, those of a run of
+/// one chunk as it was integrated, where the arrays would read back the
+/// same; else the arrays read back ([`read_back`]).
+pub fn for_pictures<R: Flows>(
+    scene: &Scene,
+    subs: &[SubRun],
+    dir: &Path,
+    format: Format,
+    kept: Option<Observations<R>>,
+) -> Result<Observations<R>> {
+    let plan = longest(subs, scene.ensemble_size());
+    match kept {
+        Some(mut obs) if picture_bytes::<R>(&plan)? <= PICTURE_BUDGET => {
+            // The status as the arrays hold it: a trajectory that became
+            // non-finite is not also stopped.
+            for (nonfinite, stop) in obs.nonfinite_step.iter().zip(&mut obs.stop_step) {
+                if *nonfinite != 0 {
+                    *stop = 0;
+                }
+            }
+            Ok(obs)
+        }
+        _ => read_back(scene, subs, dir, format),
+    }
+}
+
+/// The bytes of `plan`'s frames and section points.
+fn picture_bytes<R: Real>(plan: &Plan) -> Result<u64> {
+    let lengths = Observations::<R>::lengths(plan).map_err(anyhow::Error::msg)?;
+    let values = lengths.trajectory * plan.trajectory_vars.len()
+        + lengths.poincare * plan.poincare_vars.len();
+    Ok(values as u64 * std::mem::size_of::<R>() as u64)
+}
+
 /// The run's arrays read back from `dir`, for the pictures: every
 /// per-trajectory value, and the frames and section points if they take at
 /// most [`PICTURE_BUDGET`] bytes.
@@ -544,10 +672,7 @@ pub fn read_back<R: Flows>(
     format: Format,
 ) -> Result<Observations<R>> {
     let mut plan = longest(subs, scene.ensemble_size());
-    let lengths = Observations::<R>::lengths(&plan).map_err(anyhow::Error::msg)?;
-    let values = lengths.trajectory * plan.trajectory_vars.len()
-        + lengths.poincare * plan.poincare_vars.len();
-    let big = values as u64 * std::mem::size_of::<R>() as u64;
+    let big = picture_bytes::<R>(&plan)?;
     if big > PICTURE_BUDGET {
         eprintln!(
             "note: the frames and section points ({}) are larger than the pictures read back ({}): trajectory and Poincaré pictures are not drawn; the arrays are complete",
@@ -580,19 +705,23 @@ impl Source<'_> {
         Ok(bytemuck::pod_collect_to_vec(&raw))
     }
 
-    /// Fills `dst` (`n` rows) from array `file`.
+    /// Fills `dst` (`n` rows) from array `file`: a `.npy` file read
+    /// straight into it.
     fn fill<T: bytemuck::Pod>(&self, file: &str, n: u64, dst: &mut [T]) -> Result<()> {
-        let row_bytes = (dst.len() as u64 / n.max(1)) * std::mem::size_of::<T>() as u64;
-        let values: Vec<T> = self.values(file, n, row_bytes)?;
-        if values.len() != dst.len() {
+        let bytes: &mut [u8] = bytemuck::cast_slice_mut(dst);
+        let found = match self.format {
+            Format::Npy => return read_rows_into(&self.dir.join(file), 0, bytes),
+            Format::Zarr => zarr::read(self.dir, file.trim_end_matches(".npy"))?,
+        };
+        if found.len() != bytes.len() {
             bail!(
-                "{}: {file} holds {} values where {} were expected",
+                "{}: {file} holds {} bytes where {} were expected ({n} rows)",
                 self.dir.display(),
-                values.len(),
-                dst.len()
+                found.len(),
+                bytes.len()
             );
         }
-        dst.copy_from_slice(&values);
+        bytes.copy_from_slice(&found);
         Ok(())
     }
 
@@ -626,24 +755,29 @@ impl Source<'_> {
 /// Fills `obs` from the finished arrays (the inverse of [`arrays`]): every
 /// column it has room for.
 fn load<R: Real>(scene: &Scene, src: &Source, obs: &mut Observations<R>) -> Result<()> {
+    use rayon::prelude::*;
     let n = obs.n as u64;
-    for (file, column) in obs.files_mut() {
-        match column {
-            ColumnMut::Named(dst) => {
-                for v in out_vars(scene, file.field) {
-                    src.components(&file.npy(Some(&v.name)), n, &v.components, dst)?;
+    // Each column from its own files, the columns at once.
+    obs.files_mut()
+        .into_par_iter()
+        .try_for_each(|(file, column)| -> Result<()> {
+            match column {
+                ColumnMut::Named(dst) => {
+                    for v in out_vars(scene, file.field) {
+                        src.components(&file.npy(Some(&v.name)), n, &v.components, dst)?;
+                    }
                 }
-            }
-            ColumnMut::Plain(dst) if !dst.is_empty() => {
-                let name = file.npy(None);
-                match dst {
-                    ColMut::Real(d) => src.fill(&name, n, d)?,
-                    ColMut::Count(d) => src.fill(&name, n, d)?,
+                ColumnMut::Plain(dst) if !dst.is_empty() => {
+                    let name = file.npy(None);
+                    match dst {
+                        ColMut::Real(d) => src.fill(&name, n, d)?,
+                        ColMut::Count(d) => src.fill(&name, n, d)?,
+                    }
                 }
+                ColumnMut::Plain(_) => {}
             }
-            ColumnMut::Plain(_) => {}
-        }
-    }
+            Ok(())
+        })?;
     let steps: Vec<i64> = src.values("status_step.npy", n, 8)?;
     let status: Vec<u8> = src.values("status.npy", n, 1)?;
     for (i, (s, step)) in status.iter().zip(&steps).enumerate() {

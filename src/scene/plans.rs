@@ -67,21 +67,30 @@ impl Scene {
     /// of time at the run's time scale, a `t_end` that is not a multiple of
     /// `dt`, a section that starts after the run ends), in line order.
     pub fn checks(&self, precision: Precision) -> Result<Vec<SceneWarning>, SceneError> {
+        self.checks_of(&self.sub_runs()?, precision)
+    }
+
+    /// [`Scene::checks`] of the scene's sub-runs `subs` (made once by a
+    /// run, which goes on with them).
+    pub fn checks_of(
+        &self,
+        subs: &[SubRun],
+        precision: Precision,
+    ) -> Result<Vec<SceneWarning>, SceneError> {
         let lim = Limits(precision);
         let mut found: Vec<PlanWarning> = vec![];
         if let Horizon::TEnd(t_end) = self.horizon {
             fits::check_values(lim, "integrator.t_end", None, &[t_end], &mut found)
                 .map_err(|e| self.plan_error(e))?;
         }
-        let subs = self.sub_runs()?;
         let mut per_plan: Vec<Vec<PlanWarning>> = vec![];
-        for sub in &subs {
+        for sub in subs {
             per_plan.push(fits::check(&sub.plan, precision).map_err(|e| self.plan_error(e))?);
         }
-        self.formulas_defined(&subs)?;
+        self.formulas_defined(subs)?;
         found.extend(self.merged(per_plan));
         found.extend(self.equal_in(lim));
-        found.extend(self.t_end_missed(&subs)?);
+        found.extend(self.t_end_missed(subs)?);
         if let Some(r) = &self.observers.resonance {
             found.extend(r.overlaps().into_iter().map(|(k, j)| PlanWarning {
                 field: "output.resonance.ratios".into(),
@@ -176,18 +185,13 @@ impl Scene {
         for a in &self.axes {
             let rounded = |x: &f64| lim.round(*x);
             // Values that become 0 have their own warning.
-            let mut v: Vec<f64> = a
-                .values
-                .iter()
-                .copied()
-                .filter(|x| *x == 0.0 || rounded(x) != 0.0)
-                .collect();
-            v.sort_by(f64::total_cmp);
-            v.dedup();
-            let mut r: Vec<f64> = v.iter().map(rounded).collect();
-            r.dedup();
-            if r.len() < v.len() {
-                let pair = v.windows(2).find(|w| rounded(&w[0]) == rounded(&w[1]));
+            let kept = |x: &f64| *x == 0.0 || rounded(x) != 0.0;
+            let Distinct {
+                values,
+                rounded: r,
+                pair,
+            } = distinct(&a.values, kept, rounded);
+            if r < values {
                 let example = pair.map_or(String::new(), |w| {
                     format!(
                         " ({:?} and {:?} are both {})",
@@ -200,8 +204,8 @@ impl Scene {
                     field: a.field.clone(),
                     message: format!(
                         "its {} distinct values are only {} in {}{example}: trajectories meant to differ are the same; {}",
-                        v.len(),
-                        match r.len() {
+                        values,
+                        match r {
                             1 => "1 number".to_string(),
                             n => format!("{n} distinct numbers"),
                         },
@@ -478,4 +482,53 @@ fn first_nonfinite(m: &FormulaModel, f: &Function, plan: &Plan) -> Option<Lane<f
         x.t = x.t0;
         (!m.value(f, &x).is_finite()).then_some(x)
     })
+}
+
+/// What [`distinct`] counts.
+struct Distinct {
+    /// Distinct values.
+    values: usize,
+    /// Distinct values once rounded.
+    rounded: usize,
+    /// The first two (in increasing order) that round to one number.
+    pair: Option<[f64; 2]>,
+}
+
+/// The values of `axis` that `kept` keeps, counted as [`Distinct`] says.
+/// An axis from `linspace` or `logspace` is in order already (or in
+/// reverse) and is counted as it is; any other is sorted first, on every
+/// core. Rounding keeps the order, so values that round alike are
+/// neighbours.
+fn distinct(axis: &[f64], kept: impl Fn(&f64) -> bool, rounded: impl Fn(&f64) -> f64) -> Distinct {
+    use rayon::prelude::*;
+    let le = |a: &f64, b: &f64| a.total_cmp(b).is_le();
+    let count = |sorted: &mut dyn Iterator<Item = f64>| {
+        let mut d = Distinct {
+            values: 0,
+            rounded: 0,
+            pair: None,
+        };
+        let mut last: Option<f64> = None;
+        for v in sorted.filter(|v| kept(v)) {
+            match last {
+                Some(p) if p == v => continue,
+                Some(p) if rounded(&p) == rounded(&v) => {
+                    d.pair.get_or_insert([p, v]);
+                }
+                _ => d.rounded += 1,
+            }
+            d.values += 1;
+            last = Some(v);
+        }
+        d
+    };
+    if axis.is_sorted_by(le) {
+        count(&mut axis.iter().copied())
+    } else if axis.is_sorted_by(|a, b| le(b, a)) {
+        count(&mut axis.iter().rev().copied())
+    } else {
+        let mut v = axis.to_vec();
+        v.par_sort_unstable_by(f64::total_cmp);
+        count(&mut v.into_iter())
+    }
 }

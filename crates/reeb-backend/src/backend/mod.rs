@@ -7,6 +7,7 @@ pub mod checkpoint;
 pub mod cpu;
 pub mod error;
 pub mod gpu;
+pub mod phases;
 pub mod tune;
 
 use std::sync::atomic::{AtomicBool, AtomicU64};
@@ -19,6 +20,7 @@ use crate::plan::Plan;
 use checkpoint::Checkpoints;
 pub use error::BackendError;
 use gpu::{GpuContext, GpuError};
+pub use phases::Phases;
 
 /// Which backend a run asks for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -99,11 +101,12 @@ pub enum Engine {
     Gpu(Box<GpuContext>),
 }
 
-/// One integration: the observations and how long the integration took.
+/// One integration: the observations and how long each phase took.
 pub struct Integration<R> {
     pub observations: Observations<R>,
-    pub seconds: f64,
-    /// "wall clock" or "gpu timestamps".
+    /// Set-up, compilation, integration and read-back (the outputs' phases 0).
+    pub phases: Phases,
+    /// How the integration was timed: "wall clock" or "GPU timestamps".
     pub timing: &'static str,
 }
 
@@ -297,10 +300,10 @@ impl Engine {
             Engine::Cpu => {
                 // Arrays whose lengths overflow are refused, not allocated.
                 Observations::<R>::lengths(plan).map_err(BackendError::TooLarge)?;
-                let (observations, seconds) = cpu::resumable::<R>(plan, progress, cpu::isa(), cp)?;
+                let (observations, phases) = cpu::resumable::<R>(plan, progress, cpu::isa(), cp)?;
                 Integration {
                     observations,
-                    seconds,
+                    phases,
                     timing: "wall clock",
                 }
             }
@@ -309,7 +312,7 @@ impl Engine {
                 let r = gpu::run_resumable::<R>(ctx, plan, progress, &opts, cp)?;
                 Integration {
                     observations: r.observations,
-                    seconds: r.seconds,
+                    phases: r.phases,
                     timing: r.timing,
                 }
             }
@@ -364,11 +367,11 @@ impl Engine {
         Ok(match precision {
             Precision::F32 => {
                 let r = self.run_resumable::<f32>(plan, None, cp.as_mut())?;
-                (r.observations.convert(), r.seconds)
+                (r.observations.convert(), r.phases.integration)
             }
             Precision::F64 => {
                 let r = self.run_resumable::<f64>(plan, None, cp.as_mut())?;
-                (r.observations, r.seconds)
+                (r.observations, r.phases.integration)
             }
         })
     }

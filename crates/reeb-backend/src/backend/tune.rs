@@ -238,13 +238,13 @@ fn gpu_rate<R: Flows>(
         ..Default::default()
     };
     let r = gpu::run_with::<R>(ctx, &p, None, &opts)?;
-    Ok((p.n as u64 * p.steps) as f64 / r.seconds.max(1e-9))
+    Ok((p.n as u64 * p.steps) as f64 / r.phases.integration.max(1e-9))
 }
 
 fn cpu_rate<R: Flows>(plan: &Plan, m: usize, steps: u64) -> Result<f64, BackendError> {
     let p = sample(plan, m, steps);
-    let (_, seconds) = cpu::resumable::<R>(&p, None, cpu::isa(), None)?;
-    Ok((p.n as u64 * p.steps) as f64 / seconds.max(1e-9))
+    let (_, phases) = cpu::resumable::<R>(&p, None, cpu::isa(), None)?;
+    Ok((p.n as u64 * p.steps) as f64 / phases.integration.max(1e-9))
 }
 
 /// The time a dispatch aims at: long enough that the fixed cost of one

@@ -132,12 +132,12 @@ pub fn check(plan: &Plan, precision: Precision) -> Result<Vec<PlanWarning>, Plan
     let lim = Limits(precision);
     let mut out = vec![];
     for (name, source) in &plan.bindings {
-        let values = source.values();
+        let values = source.as_slice();
         if *name == "dt" {
-            check_step(lim, &values)?;
+            check_step(lim, values)?;
         }
         let (field, derived) = binding_field(plan, name);
-        check_values(lim, &field, derived.as_deref(), &values, &mut out)?;
+        check_values(lim, &field, derived.as_deref(), values, &mut out)?;
     }
     let section = plan.observers.poincare.as_ref().map(|p| &p.section);
     if let Some(Section::Crossing { value, .. }) = section {

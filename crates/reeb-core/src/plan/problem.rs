@@ -44,6 +44,13 @@ impl Source {
             Source::Axis { values, .. } => values.clone(),
         }
     }
+    /// [`Source::values`] without a copy.
+    pub fn as_slice(&self) -> &[f64] {
+        match self {
+            Source::Const(v) => std::slice::from_ref(v),
+            Source::Axis { values, .. } => values,
+        }
+    }
     /// The value for trajectory `index` given the axis strides.
     #[inline]
     pub fn value_at(&self, index: usize, strides: &[usize]) -> f64 {

@@ -29,6 +29,7 @@ use rayon::prelude::*;
 
 use super::checkpoint::Checkpoints;
 use super::error::BackendError;
+use super::phases::{lap, Phases};
 
 use crate::models::lanes::{LaneArrays, Lanes, LANES};
 use crate::models::Flows;
@@ -77,7 +78,7 @@ pub fn resumable<R: Flows>(
     progress: Option<&AtomicU64>,
     isa: Isa,
     cp: Option<&mut Checkpoints>,
-) -> Result<(Observations<R>, f64), BackendError> {
+) -> Result<(Observations<R>, Phases), BackendError> {
     integrate(plan, progress, isa, USUAL, cp)
 }
 
@@ -119,7 +120,7 @@ const USUAL: How = How {
 };
 
 /// The observations of a run without checkpoints, which cannot fail.
-fn uninterrupted<R>(run: Result<(Observations<R>, f64), BackendError>) -> Observations<R> {
+fn uninterrupted<R>(run: Integrated<R>) -> Observations<R> {
     match run {
         Ok((out, _)) => out,
         Err(e) => unreachable!("a run without checkpoints failed: {e}"),
@@ -134,7 +135,7 @@ fn integrate<R: Flows>(
     isa: Isa,
     how: How,
     cp: Option<&mut Checkpoints>,
-) -> Result<(Observations<R>, f64), BackendError> {
+) -> Integrated<R> {
     if is_f32::<R>() {
         handed_back(integrate_f32(plan, progress, isa, how, cp))
     } else {
@@ -142,7 +143,8 @@ fn integrate<R: Flows>(
     }
 }
 
-type Integrated<R> = Result<(Observations<R>, f64), BackendError>;
+/// A run's observations and its phases (set-up and integration).
+type Integrated<R> = Result<(Observations<R>, Phases), BackendError>;
 
 /// [`integrate_in`] in f32, compiled in this crate only.
 #[inline(never)]
@@ -179,6 +181,7 @@ fn integrate_in<R: Flows>(
         isa_rank(isa) <= isa_rank(self::isa()),
         "the CPU lacks {isa:?}"
     );
+    let mut since = Instant::now();
     let mut out = Observations::<R>::for_plan(plan);
     let mut program = Program::<R>::new(plan, isa, how.share_time);
     program.record &= how.record;
@@ -195,6 +198,7 @@ fn integrate_in<R: Flows>(
             }
         }
     }
+    let setup = lap(&mut since);
     loop {
         let c = cp.as_deref();
         let pause = Pause::new(c.and_then(|c| c.deadline()), c.and_then(|c| c.stop));
@@ -209,7 +213,12 @@ fn integrate_in<R: Flows>(
         drop(sink);
         header.seconds += started.elapsed().as_secs_f64();
         if blocks.iter().all(|b| matches!(b, Block::Done)) {
-            return Ok((out, header.seconds));
+            let phases = Phases {
+                setup,
+                integration: header.seconds,
+                ..Phases::default()
+            };
+            return Ok((out, phases));
         }
         let c = cp
             .as_deref_mut()

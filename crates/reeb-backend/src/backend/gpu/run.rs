@@ -16,6 +16,7 @@ use super::time_table::{self, TimeTable};
 use super::tuning::Launch;
 use crate::backend::checkpoint::Checkpoints;
 use crate::backend::error::BackendError;
+use crate::backend::phases::{lap, Phases};
 use crate::models::Flows;
 use crate::num::precision::{handed_back, is_f32, Precision};
 use crate::plan::observations::{frames_per_trajectory, Observations};
@@ -43,9 +44,10 @@ pub struct GpuOptions {
 /// Observations of a GPU run, and how long the integration took.
 pub struct GpuRun<R> {
     pub observations: Observations<R>,
-    /// Integration alone: the dispatches, by GPU timestamps when the adapter
-    /// has them, else by wall clock around each dispatch.
-    pub seconds: f64,
+    /// Set-up, shader compilation, read-back and the integration alone (the
+    /// dispatches, by GPU timestamps when the adapter has them, else by wall
+    /// clock around each dispatch).
+    pub phases: Phases,
     pub timing: &'static str,
     pub chunks: usize,
     pub dispatches: u64,
@@ -238,21 +240,25 @@ fn run_in<R: Flows>(
     opts: &GpuOptions,
     mut cp: Option<&mut Checkpoints>,
 ) -> Result<GpuRun<R>, BackendError> {
+    let mut since = Instant::now();
+    let mut phases = Phases::default();
     let precision = Precision::of::<R>();
     check_fits(ctx, plan, precision)?;
     let mut out = Observations::<R>::try_for_plan(plan).map_err(BackendError::TooLarge)?;
     if plan.n == 0 {
         return Ok(GpuRun {
             observations: out,
-            seconds: 0.0,
+            phases,
             timing: "none",
             chunks: 0,
             dispatches: 0,
         });
     }
     let mut sizes = Sizes::new::<R>(ctx, plan, opts)?;
+    phases.setup += lap(&mut since);
     let kernel = generate(plan, precision)?;
     let pipeline = ctx.pipeline(&kernel.source_for(&sizes.launch, ctx.forms()))?;
+    phases.compile = lap(&mut since);
     // llvmpipe's loop limit counts an invocation's trajectories together.
     sizes.max_window = sizes.max_window.min(match sizes.launch.per_thread as u64 {
         1 => kernel.max_window,
@@ -286,6 +292,7 @@ fn run_in<R: Flows>(
     let mut chunks = 0;
     let mut base = start.0;
     let mut totals = (header.seconds, 0u64);
+    phases.setup += lap(&mut since);
     // Trajectory-steps per dispatch, adapted to the measured speed.
     let mut budget: f64 = 1e6;
     while base < plan.n as u64 {
@@ -312,7 +319,7 @@ fn run_in<R: Flows>(
                 false => Ok(()),
             }
         };
-        let (s, d) = run.chunk(
+        let (s, d, frames) = run.chunk(
             &mut out,
             base,
             count,
@@ -322,12 +329,15 @@ fn run_in<R: Flows>(
             &mut between,
         )?;
         totals = (totals.0 + s, totals.1 + d);
+        lap(&mut since);
         collect(ctx, plan, &bufs, &mut out, base, count, sizes.cap, sizes.b)?;
+        phases.read_back += frames + lap(&mut since);
         base += count;
     }
+    phases.integration = totals.0;
     Ok(GpuRun {
         observations: out,
-        seconds: totals.0,
+        phases,
         timing: run
             .timestamps
             .as_ref()
@@ -617,7 +627,7 @@ impl Dispatcher<'_> {
     /// Integrates trajectories `base..base+count` from step `from` (0, or
     /// where a snapshot left them) to the horizon, window by window, reading
     /// the trajectory frames back as they come; returns the integration
-    /// seconds and the number of dispatches.
+    /// seconds, the number of dispatches and the seconds reading frames.
     #[allow(clippy::too_many_arguments)]
     fn chunk<R: Flows>(
         &self,
@@ -628,14 +638,14 @@ impl Dispatcher<'_> {
         budget: &mut f64,
         progress: Option<&AtomicU64>,
         between: Between<R>,
-    ) -> Result<(f64, u64), BackendError> {
+    ) -> Result<(f64, u64, f64), BackendError> {
         let (ctx, plan, sizes, bufs) = (self.ctx, self.plan, self.sizes, self.bufs);
         if from == 0 {
             let mut enc = ctx.device.create_command_encoder(&Default::default());
             enc.clear_buffer(&bufs.status, 0, None);
             ctx.queue.submit([enc.finish()]);
         }
-        let (mut seconds, mut dispatches) = (0.0, 0);
+        let (mut seconds, mut dispatches, mut frames) = (0.0, 0, 0.0);
         let mut step0 = from;
         while step0 < plan.steps {
             if step0 > from {
@@ -661,7 +671,9 @@ impl Dispatcher<'_> {
             seconds += took;
             dispatches += 1;
             if nframes > 0 {
+                let read = Instant::now();
                 read_frames(ctx, plan, sizes, bufs, out, base, count, frame0, nframes)?;
+                frames += read.elapsed().as_secs_f64();
             }
             if let Some(p) = progress {
                 p.fetch_add(count * nsteps, Ordering::Relaxed);
@@ -673,7 +685,7 @@ impl Dispatcher<'_> {
                 .max(count as f64);
             step0 += nsteps;
         }
-        Ok((seconds, dispatches))
+        Ok((seconds, dispatches, frames))
     }
 
     /// The buffers that carry a chunk from one window to the next, in the
