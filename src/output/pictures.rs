@@ -425,6 +425,9 @@ struct Pictures<'a> {
     strides: Vec<usize>,
     /// The run's precision and its unit round-off.
     precision: (&'static str, f64),
+    /// Per axis, the significant digits that tell its values apart (found
+    /// when a label first needs them: a long axis takes a while).
+    digits: Vec<std::sync::OnceLock<usize>>,
 }
 
 impl<'a> Pictures<'a> {
@@ -446,6 +449,7 @@ impl<'a> Pictures<'a> {
             varying,
             strides: scene.strides(),
             precision,
+            digits: scene.axes.iter().map(|_| Default::default()).collect(),
         }
     }
 
@@ -460,9 +464,11 @@ impl<'a> Pictures<'a> {
 
     /// One axis varies: each statistic as a curve over it.
     fn stat_curves(&self, stats: &[Stat], k: usize) -> Result<Vec<String>> {
+        use rayon::prelude::*;
         let ax = &self.scene.axes[k];
-        let mut files = vec![];
-        for (file, label, v) in stats {
+        let x_log = plot::log_scale(&ax.values);
+        // Each picture is drawn by one thread: the statistics side by side.
+        let each = |(file, label, v): &Stat| -> Result<String> {
             let curve = Curve::new(&ax.values, |i| v(i * self.strides[k]));
             let (x, y) = (&curve.x, &curve.y);
             let label = &curve.label(label);
@@ -472,12 +478,12 @@ impl<'a> Pictures<'a> {
                 &self.dir.join(&name),
                 &self.figure(&ax.name, label),
                 &[Series::new(label, x, y)],
-                plot::log_scale(&ax.values),
+                x_log,
                 false,
             )?;
-            files.push(name);
-        }
-        Ok(files)
+            Ok(name)
+        };
+        stats.par_iter().map(each).collect()
     }
 
     /// Two or more axes vary: each statistic as a heat map over the first two.
@@ -505,8 +511,10 @@ impl<'a> Pictures<'a> {
                 _ => vec![],
             }
         };
-        let mut files = vec![];
-        for (file, label, v) in stats {
+        use rayon::prelude::*;
+        let (x_log, y_log) = (plot::log_scale(&ax.values), plot::log_scale(&ay.values));
+        // Each picture is drawn by one thread: the statistics side by side.
+        let each = |(file, label, v): &Stat| -> Result<String> {
             let mut grid = vec![f64::NAN; shape[kx] * shape[ky]];
             let mut why = vec![u8::MAX; grid.len()];
             for ix in 0..shape[kx] {
@@ -530,8 +538,8 @@ impl<'a> Pictures<'a> {
                 values: &grid,
                 label,
                 log_color: log_colour(&grid),
-                x_log: plot::log_scale(&ax.values),
-                y_log: plot::log_scale(&ay.values),
+                x_log,
+                y_log,
                 why: &why,
                 undefined: &UNDEFINED,
                 marks: &marks_of(file),
@@ -541,9 +549,9 @@ impl<'a> Pictures<'a> {
                 &self.figure(&ax.name, &ay.name),
                 &map,
             )?;
-            files.push(name);
-        }
-        Ok(files)
+            Ok(name)
+        };
+        stats.par_iter().map(each).collect()
     }
 
     /// Phase portrait of (at most `plot.max_trajectories`, evenly chosen)
@@ -572,11 +580,11 @@ impl<'a> Pictures<'a> {
         // that no two bands share a colour and the legend names each.
         let bands = Bands::of(chosen.len(), &self.varying, &self.shape);
         let (labels, colours): (Vec<String>, Vec<Option<Rgb>>) = if bands.per_orbit {
-            let label = |i: &usize| trajectory_label(self.scene, *i, &self.strides);
+            let label = |i: &usize| self.trajectory_label(*i);
             (chosen.iter().map(label).collect(), vec![None; chosen.len()])
         } else {
             let band = |i: &usize| bands.of_orbit(*i, &self.shape, &self.strides);
-            let label = |b: usize| bands.label(b, self.scene, &self.strides, n);
+            let label = |b: usize| bands.label(b, self);
             let b: Vec<usize> = chosen.iter().map(band).collect();
             let colour = |b: &usize| Some(plot::palette(*b));
             (
@@ -629,7 +637,7 @@ impl<'a> Pictures<'a> {
             ys[b].push(y);
         });
         let labels: Vec<String> = (0..xs.len())
-            .map(|b| bands.label(b, self.scene, &self.strides, self.n))
+            .map(|b| bands.label(b, self))
             .collect();
         let series: Vec<Series> = (0..xs.len())
             .map(|c| Series::new(&labels[c], &xs[c], &ys[c]))
@@ -723,7 +731,7 @@ impl<'a> Pictures<'a> {
         let chosen: Vec<usize> = (0..count).map(|c| c * self.n / count).collect();
         let labels: Vec<String> = chosen
             .iter()
-            .map(|i| trajectory_label(self.scene, *i, &self.strides))
+            .map(|i| self.trajectory_label(*i))
             .collect();
         // (file, label, logarithmic axes, value at trajectory and frame)
         type Running<'d> = (
@@ -1044,20 +1052,20 @@ impl Bands {
     }
 
     /// The legend of band `b`: the orbit, the range of the axis, or the count.
-    fn label(&self, b: usize, scene: &Scene, strides: &[usize], n: usize) -> String {
+    fn label(&self, b: usize, p: &Pictures) -> String {
         match (self.per_orbit, self.axis) {
-            (true, _) => trajectory_label(scene, b, strides),
+            (true, _) => p.trajectory_label(b),
             (false, Some(k)) => {
-                let v = &scene.axes[k].values;
+                let v = &p.scene.axes[k].values;
                 let (first, last) = (b * v.len() / self.count, (b + 1) * v.len() / self.count - 1);
-                let (lo, hi) = (axis_value(v, v[first]), axis_value(v, v[last]));
+                let (lo, hi) = (p.axis_value(k, v[first]), p.axis_value(k, v[last]));
                 if first == last {
-                    format!("{} = {lo}", scene.axes[k].name)
+                    format!("{} = {lo}", p.scene.axes[k].name)
                 } else {
-                    format!("{} ∈ [{lo}, {hi}]", scene.axes[k].name)
+                    format!("{} ∈ [{lo}, {hi}]", p.scene.axes[k].name)
                 }
             }
-            (false, None) => format!("{n} orbits"),
+            (false, None) => format!("{} orbits", p.n),
         }
     }
 }
@@ -1065,32 +1073,48 @@ impl Bands {
 /// Value `v` of an axis over `values`, with four significant digits or as
 /// many more as tell the axis's values apart (1.121 and 1.1209, not 1.121
 /// twice).
+#[cfg(test)]
 fn axis_value(values: &[f64], v: f64) -> String {
+    fmt_significant(v, axis_digits(values))
+}
+
+/// The significant digits of [`axis_value`] for an axis over `values`.
+fn axis_digits(values: &[f64]) -> usize {
     let mut sorted = values.to_vec();
     sorted.sort_by(f64::total_cmp);
     sorted.dedup();
+    // Rounding keeps the order: two values that print alike are neighbours.
     let distinct = |d: usize| {
-        let mut s: Vec<String> = sorted.iter().map(|x| fmt_significant(*x, d)).collect();
-        s.dedup();
-        s.len() == sorted.len()
+        let mut last = None;
+        sorted.iter().all(|x| {
+            let s = fmt_significant(*x, d);
+            last.replace(s.clone()) != Some(s)
+        })
     };
-    let digits = (4..=15).find(|d| distinct(*d)).unwrap_or(17);
-    fmt_significant(v, digits)
+    (4..=15).find(|d| distinct(*d)).unwrap_or(17)
 }
 
-/// "epsilon = 0.5, q = 2" for trajectory `i`.
-fn trajectory_label(scene: &Scene, i: usize, strides: &[usize]) -> String {
-    scene
-        .axes
-        .iter()
-        .enumerate()
-        .filter(|(_, a)| a.values.len() > 1)
-        .map(|(k, a)| {
-            let v = a.values[(i / strides[k]) % a.values.len()];
-            format!("{} = {}", a.name, axis_value(&a.values, v))
-        })
-        .collect::<Vec<_>>()
-        .join(", ")
+impl Pictures<'_> {
+    /// Value `v` of axis `k` as [`axis_value`] writes it.
+    fn axis_value(&self, k: usize, v: f64) -> String {
+        let digits = self.digits[k].get_or_init(|| axis_digits(&self.scene.axes[k].values));
+        fmt_significant(v, *digits)
+    }
+
+    /// "epsilon = 0.5, q = 2" for trajectory `i`.
+    fn trajectory_label(&self, i: usize) -> String {
+        self.scene
+            .axes
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| a.values.len() > 1)
+            .map(|(k, a)| {
+                let v = a.values[(i / self.strides[k]) % a.values.len()];
+                format!("{} = {}", a.name, self.axis_value(k, v))
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
 }
 
 #[cfg(test)]

@@ -68,16 +68,32 @@ impl Ranged for TickAxis {
 /// grid (a `linspace`) stays linear whatever its span: a log axis would
 /// crowd its cells at one end.
 pub fn log_scale(values: &[f64]) -> bool {
-    let mut v: Vec<f64> = values.to_vec();
-    if v.is_empty() || !v.iter().all(|x| x.is_finite() && *x > 0.0) {
+    use rayon::prelude::*;
+    if values.is_empty() || !values.par_iter().all(|x| x.is_finite() && *x > 0.0) {
         return false;
     }
-    v.sort_by(f64::total_cmp);
-    v.dedup();
-    let logs: Vec<f64> = v.iter().map(|x| x.log10()).collect();
+    let v = sorted_distinct(values);
+    let logs: Vec<f64> = v.par_iter().map(|x| x.log10()).collect();
     let (lin, log) = (unevenness(&v), unevenness(&logs));
     let decades = logs[logs.len() - 1] - logs[0];
     (v.len() >= 3 && log < 1.0 + 1e-6) || (decades >= 2.0 - 1e-9 && log <= lin)
+}
+
+/// `values` increasing, without repeats; an axis already in order either
+/// way (a `linspace`, a `logspace`) is not sorted.
+fn sorted_distinct(values: &[f64]) -> Vec<f64> {
+    use rayon::prelude::*;
+    let mut v: Vec<f64> = if values.windows(2).all(|w| w[0] <= w[1]) {
+        values.to_vec()
+    } else if values.windows(2).all(|w| w[0] >= w[1]) {
+        values.iter().rev().copied().collect()
+    } else {
+        let mut v = values.to_vec();
+        v.par_sort_by(f64::total_cmp);
+        v
+    };
+    v.dedup();
+    v
 }
 
 /// The largest step of sorted distinct `v` over its smallest (1: even).
