@@ -636,9 +636,7 @@ impl<'a> Pictures<'a> {
             xs[b].push(x);
             ys[b].push(y);
         });
-        let labels: Vec<String> = (0..xs.len())
-            .map(|b| bands.label(b, self))
-            .collect();
+        let labels: Vec<String> = (0..xs.len()).map(|b| bands.label(b, self)).collect();
         let series: Vec<Series> = (0..xs.len())
             .map(|c| Series::new(&labels[c], &xs[c], &ys[c]))
             .collect();
@@ -729,10 +727,7 @@ impl<'a> Pictures<'a> {
         let step: Vec<f64> = (0..frames).map(|f| (f as u64 * every) as f64).collect();
         let count = self.scene.plot.max_trajectories.max(1).min(self.n);
         let chosen: Vec<usize> = (0..count).map(|c| c * self.n / count).collect();
-        let labels: Vec<String> = chosen
-            .iter()
-            .map(|i| self.trajectory_label(*i))
-            .collect();
+        let labels: Vec<String> = chosen.iter().map(|i| self.trajectory_label(*i)).collect();
         // (file, label, logarithmic axes, value at trajectory and frame)
         type Running<'d> = (
             String,

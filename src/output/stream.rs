@@ -1,7 +1,8 @@
 //! A run streamed to disk: its chunks (`chunks.rs`) integrated one after
 //! the other, each written into its slab of every array (`npy.rs`) and
 //! marked finished (`journal.rs`), so that memory holds one chunk whatever
-//! the size of the run; and the finished arrays read back for the pictures.
+//! the size of the run (two on one GPU, which integrates the next while the
+//! last is written); and the finished arrays read back for the pictures.
 
 use std::io::Read;
 use std::ops::Range;

@@ -63,6 +63,61 @@ fn chunks_on_the_gpu_give_the_same_bits_as_one() {
         "7",
     ]);
     same_arrays(&one, &out);
+    // One GPU writes a chunk while it integrates the next: the two spans
+    // overlap on the host's clock; a run of one chunk has nothing to overlap.
+    assert!(overlap(&out) > 0.0, "{}", out.display());
+    assert_eq!(overlap(&one), 0.0);
+}
+
+/// `summary.json`'s `timing` of the run in `out`.
+fn timing(out: &Path) -> serde_json::Map<String, serde_json::Value> {
+    let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    let summary: serde_json::Value = serde_json::from_str(&text).unwrap();
+    summary["timing"].as_object().unwrap().clone()
+}
+
+fn overlap(out: &Path) -> f64 {
+    timing(out)["overlap"].as_f64().unwrap()
+}
+
+#[test]
+fn the_summary_times_each_phase_and_the_run_line_says_wall_and_integration() {
+    let d = tmp("timing");
+    let scene = grid_scene(&d, 4.0, 50, "cpu");
+    let out = d.join("run");
+    let said = ok(&[
+        "run",
+        s(&scene),
+        "--out",
+        s(&out),
+        "--chunk-trajectories",
+        "30",
+    ]);
+    assert!(
+        said.contains(" s wall, ") && said.contains(" s integrating ("),
+        "{said}"
+    );
+    let t = timing(&out);
+    let phases = [
+        "setup",
+        "compile",
+        "integration",
+        "read_back",
+        "writing",
+        "pictures",
+    ];
+    let of = |k: &str| t[k].as_f64().unwrap_or_else(|| panic!("timing.{k}: {t:?}"));
+    for k in phases.iter().chain(&["overlap", "wall"]) {
+        assert!(of(k) >= 0.0, "timing.{k}: {t:?}");
+    }
+    assert!(of("integration") > 0.0 && of("writing") > 0.0, "{t:?}");
+    // On the CPU the phases follow one another within the wall clock.
+    let sum: f64 = phases.iter().map(|k| of(k)).sum();
+    assert!(sum <= of("wall"), "{sum} > wall: {t:?}");
+    assert_eq!(
+        (of("compile"), of("read_back"), of("overlap")),
+        (0.0, 0.0, 0.0)
+    );
 }
 
 /// Waits until `partial` has a finished chunk (and the run has not ended).
