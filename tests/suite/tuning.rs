@@ -311,7 +311,8 @@ fn auto_takes_the_faster_backend_and_says_why() {
     ));
     assert!(line.contains("--backend auto: running on the"), "{line}");
     assert!(
-        line.contains("trajectory-steps/s (tuning probe of 42 trajectories"),
+        line.contains("42 trajectories × 50 steps in f64 would take about")
+            && line.contains("aside (tuning probe of 42 trajectories"),
         "{line}"
     );
     let summary: serde_json::Value = json(&out.join("summary.json"));
@@ -321,10 +322,15 @@ fn auto_takes_the_faster_backend_and_says_why() {
         why.contains(&format!("running on the {}", backend.to_uppercase())),
         "{backend}: {why}"
     );
-    // The numbers that decided it are the cache's, and decide the same way.
+    // The numbers that decided it are the cache's, and decide the same way:
+    // on the whole run of the first plan (42 × 50), host work included.
     let json: serde_json::Value = json(&cache_file(&cache));
     let (_, shapes) = json["tuned"].as_object().unwrap().iter().next().unwrap();
     let t = &shapes["f64 van_der_pol 2^4"];
-    let gpu_faster = t["gpu_rate"].as_f64().unwrap() >= t["cpu_rate"].as_f64().unwrap();
+    let f = |k: &str| t[k].as_f64().unwrap();
+    let whole = |rate: &str, host: &str| 42.0 * 50.0 / f(rate) + 42.0 * f(host);
+    let gpu_faster = whole("gpu_rate", "gpu_host_per_trajectory")
+        <= whole("cpu_rate", "cpu_host_per_trajectory");
+    assert!(f("gpu_host_per_trajectory") > 0.0, "{t}");
     assert_eq!(backend == "gpu", gpu_faster, "{t}");
 }

@@ -186,8 +186,12 @@ impl Engine {
         };
         match tune::tuned(&ctx, plan, precision, false) {
             Ok(t) => {
-                let gpu = t.gpu_rate >= t.cpu_rate;
-                let notice = tune::auto_notice(&ctx.info.name, precision, &t);
+                // On the whole run: a short one may spend more on the
+                // GPU's host work than the GPU saves.
+                let size = (plan.n as u64, plan.steps);
+                let (gpu_s, cpu_s) = t.whole_run_seconds(size.0, size.1);
+                let gpu = gpu_s <= cpu_s;
+                let notice = tune::auto_notice(&ctx.info.name, precision, &t, size);
                 let engine = match gpu {
                     true => Engine::Gpu(Box::new(ctx)),
                     false => Engine::Cpu,

@@ -189,6 +189,7 @@ fn probe<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<Tuned, BackendError>
         )?;
     }
     best.0.dispatch_seconds = dispatch_seconds::<R>(ctx, plan, &best.0)?;
+    let gpu_host = gpu_host::<R>(ctx, plan, m, &best.0)?;
     let cpu_m = m.min(1 << 16);
     let cpu_steps = calibrate(cpu_m, |s| cpu_rate::<R>(plan, cpu_m, s))?;
     Ok(Tuned {
@@ -200,7 +201,46 @@ fn probe<R: Flows>(ctx: &GpuContext, plan: &Plan) -> Result<Tuned, BackendError>
         trajectories: m as u64,
         probe_seconds: started.elapsed().as_secs_f64(),
         compile_seconds: ctx.compile_seconds() - compiled,
+        gpu_host_per_trajectory: gpu_host,
+        cpu_host_per_trajectory: cpu_host::<R>(plan, m)?,
     })
+}
+
+/// Wall seconds per trajectory that a one-step GPU run of `m` trajectories
+/// with `launch` spends beyond its kernel: the better of two (the first
+/// may still compile).
+fn gpu_host<R: Flows>(
+    ctx: &GpuContext,
+    plan: &Plan,
+    m: usize,
+    launch: &Launch,
+) -> Result<f64, BackendError> {
+    let p = sample(plan, m, 1);
+    let opts = GpuOptions {
+        launch: Some(*launch),
+        ..Default::default()
+    };
+    let mut best = f64::INFINITY;
+    for _ in 0..2 {
+        let t = Instant::now();
+        let r = gpu::run_with::<R>(ctx, &p, None, &opts)?;
+        let beyond = t.elapsed().as_secs_f64() - r.phases.integration - r.phases.compile;
+        best = best.min(beyond.max(0.0) / m as f64);
+    }
+    Ok(best)
+}
+
+/// The same for the CPU backend.
+fn cpu_host<R: Flows>(plan: &Plan, m: usize) -> Result<f64, BackendError> {
+    let p = sample(plan, m, 1);
+    let mut best = f64::INFINITY;
+    for _ in 0..2 {
+        let t = Instant::now();
+        let (_, phases) = cpu::resumable::<R>(&p, None, cpu::isa(), None)?;
+        let beyond = t.elapsed().as_secs_f64() - phases.integration;
+        best = best.min(beyond.max(0.0) / m as f64);
+    }
+    Ok(best)
 }
 
 /// Steps at which one measurement takes about [`MEASURE_SECONDS`]: from
@@ -270,15 +310,26 @@ fn dispatch_seconds<R: Flows>(
     Ok((100.0 * fixed).clamp(0.02, 0.25))
 }
 
-/// `auto`'s one line: which backend runs the plan, and the rates that
-/// decided it.
-pub fn auto_notice(adapter: &str, precision: Precision, t: &Tuned) -> String {
-    let (on, other) = match t.gpu_rate >= t.cpu_rate {
+/// `auto`'s one line: which backend runs a plan of `n` trajectories ×
+/// `steps` steps, and the estimates that decided it.
+pub fn auto_notice(
+    adapter: &str,
+    precision: Precision,
+    t: &Tuned,
+    (n, steps): (u64, u64),
+) -> String {
+    let (gpu, cpu) = t.whole_run_seconds(n, steps);
+    let (on, other) = match gpu <= cpu {
         true => (format!("the GPU ({adapter})"), "the CPU"),
         false => ("the CPU".to_string(), "the GPU"),
     };
+    let host = |per: f64| n as f64 * per;
     format!(
-        "note: --backend auto: running on {on}: for this plan's shape in {precision} the GPU measured {:.3e} and the CPU {:.3e} trajectory-steps/s (tuning probe of {} trajectories; --backend cpu or gpu to choose {other})",
-        t.gpu_rate, t.cpu_rate, t.trajectories
+        "note: --backend auto: running on {on}: {n} trajectories × {steps} steps in {precision} would take about {gpu:.3} s on the GPU ({:.3e} trajectory-steps/s and {:.3} s of host work: tables, buffers, read-back) and {cpu:.3} s on the CPU ({:.3e} trajectory-steps/s and {:.3} s of set-up); writing and pictures, the same on either, aside (tuning probe of {} trajectories; --backend cpu or gpu to choose {other})",
+        t.gpu_rate,
+        host(t.gpu_host_per_trajectory),
+        t.cpu_rate,
+        host(t.cpu_host_per_trajectory),
+        t.trajectories
     )
 }

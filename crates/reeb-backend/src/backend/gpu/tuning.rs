@@ -229,6 +229,26 @@ pub struct Tuned {
     /// `tune::PROBE_SECONDS`; the driver caches them for the next time).
     #[serde(default)]
     pub compile_seconds: f64,
+    /// Wall seconds per trajectory of a GPU run beyond its kernel (tables,
+    /// buffers, dispatches, read-back), measured on the probe's plan.
+    #[serde(default)]
+    pub gpu_host_per_trajectory: f64,
+    /// The CPU backend's beyond its integration (its set-up), likewise.
+    #[serde(default)]
+    pub cpu_host_per_trajectory: f64,
+}
+
+impl Tuned {
+    /// Seconds a plan of `n` trajectories × `steps` steps would take on the
+    /// GPU and on the CPU, each its integration and its own host work
+    /// (writing and pictures, the same on either, aside).
+    pub fn whole_run_seconds(&self, n: u64, steps: u64) -> (f64, f64) {
+        let (n, work) = (n as f64, (n * steps) as f64);
+        (
+            work / self.gpu_rate + n * self.gpu_host_per_trajectory,
+            work / self.cpu_rate + n * self.cpu_host_per_trajectory,
+        )
+    }
 }
 
 /// The cache: probes by adapter (name, backend, driver) and plan shape.
@@ -243,8 +263,8 @@ pub struct Cache {
 
 /// The probe's generation: a cache from an earlier one is measured again
 /// (2: blocks of 4 and 8 steps tried first; 3: blocks of 8 taken on a
-/// hardware GPU, not measured).
-pub const PROBE: u32 = 3;
+/// hardware GPU, not measured; 4: the host's seconds per trajectory).
+pub const PROBE: u32 = 4;
 
 /// The file name of the cache in reeb's cache directory.
 pub const CACHE_FILE: &str = "gpu-tuning.json";
