@@ -60,7 +60,8 @@ fn bar(f: &Followed) {
     b.set_position(f.start);
     while !f.finished.load(Ordering::Relaxed) {
         b.set_position(f.done.load(Ordering::Relaxed));
-        std::thread::sleep(Duration::from_millis(100));
+        // Woken early when the run ends ([`Followed::finished`]).
+        std::thread::park_timeout(Duration::from_millis(100));
     }
     b.finish_and_clear();
 }
@@ -77,7 +78,7 @@ fn lines(f: &Followed) {
                 false => LATER_EVERY,
             });
         }
-        std::thread::sleep(Duration::from_millis(20));
+        std::thread::park_timeout(Duration::from_millis(20));
     }
 }
 

@@ -162,12 +162,11 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
     };
     let one_gpu = matches!(t.engines, [Engine::Gpu(_)]);
     std::thread::scope(|scope| -> Result<Streamed<R>> {
-        if progress && left > 0 {
-            scope.spawn(|| progress::follow(&followed));
-        }
+        let bar = (progress && left > 0).then(|| scope.spawn(|| progress::follow(&followed)));
         // Set on the way out, a panic's too: the scope waits for the bar,
-        // which would otherwise wait for ever.
-        let _finish = Finish(&finished);
+        // which would otherwise wait for ever (and is woken, not left to
+        // notice at its next tick).
+        let _finish = Finish(&finished, bar.as_ref().map(|b| b.thread().clone()));
         let (kept, overlap) = match (t.engines.len(), &todo[..]) {
             (1, [0]) if t.chunks.count() == 1 => (Some(chunk::<R>(t, 0, &sink, done)?), 0.0),
             (1, [_, _, ..]) if one_gpu => (None, pipelined::<R>(t, &todo, &sink, done)?),
@@ -245,11 +244,14 @@ fn overlap(a: &[Span], b: &[Span]) -> f64 {
 }
 
 /// Tells the progress bar the run is over when dropped.
-struct Finish<'a>(&'a AtomicBool);
+struct Finish<'a>(&'a AtomicBool, Option<std::thread::Thread>);
 
 impl Drop for Finish<'_> {
     fn drop(&mut self) {
         self.0.store(true, Ordering::Relaxed);
+        if let Some(bar) = &self.1 {
+            bar.unpark();
+        }
     }
 }
 

@@ -923,41 +923,71 @@ fn collect<R: Flows>(
             "the adapter ended the kernel's step loop early in {cut} of {count} trajectories (a driver's limit on loop iterations, such as llvmpipe's {LOOP_ITERATIONS} per dispatch, which reeb's windows should respect: please report it); the CPU backend runs this scene"
         )));
     }
-    let every = plan.observers.trajectory.as_ref().map_or(0, |t| t.every);
-    for i in 0..count {
-        let g = (base + i) as usize;
-        let (nonfinite, stop) = slots::split_status(status[i as usize].into());
-        out.nonfinite_step[g] = nonfinite;
-        out.stop_step[g] = stop;
-        let last = slots::last_step(plan, stop);
-        for (j, v) in plan.final_vars.iter().enumerate() {
-            out.final_values[j].1[g] = match (nonfinite, v) {
-                (0, ObsVar::State(k)) => state[(*k as u64 * cap + i) as usize],
-                (0, ObsVar::Time) => time_at(plan, g, last),
-                _ => R::nan(),
-            };
-        }
-        // Frames recorded at or after the step where it became non-finite,
-        // or after the one it stopped at, are NaN (as on the CPU).
-        let first_nan = match (nonfinite, stop) {
-            (0, 0) => None,
-            (0, stop) => Some(u64::from(stop) / every.max(1) + 1),
-            (k, _) => Some(u64::from(k).div_ceil(every.max(1))),
-        };
-        if let (Some(first), true) = (first_nan, every > 0) {
-            let frames = out.frames;
-            for (dst, width) in out.framed_columns_mut() {
-                if !dst.is_empty() {
-                    dst[(g * frames + first as usize) * width..(g + 1) * frames * width]
-                        .fill(R::nan());
-                }
-            }
-        }
-    }
+    scatter(plan, &state, &status[..count as usize], out, base, cap);
     if plan.has_slots() {
         collect_observers(ctx, plan, bufs, out, base, count, cap, b, &status)?;
     }
     check(ctx)
+}
+
+/// The status, final values and frames of trajectories `base..` from a
+/// chunk's state (`cap` rows per variable) and status words, in parallel.
+fn scatter<R: Flows>(
+    plan: &Plan,
+    state: &[R],
+    status: &[u32],
+    out: &mut Observations<R>,
+    base: u64,
+    cap: u64,
+) {
+    use rayon::prelude::*;
+    let rows = base as usize..base as usize + status.len();
+    let split: Vec<(u32, u32)> = status
+        .par_iter()
+        .map(|s| slots::split_status((*s).into()))
+        .collect();
+    out.nonfinite_step[rows.clone()]
+        .par_iter_mut()
+        .zip(&mut out.stop_step[rows.clone()])
+        .zip(&split)
+        .for_each(|((nonfinite, stop), s)| (*nonfinite, *stop) = *s);
+    for (j, v) in plan.final_vars.iter().enumerate() {
+        let column = &mut out.final_values[j].1[rows.clone()];
+        column.par_iter_mut().enumerate().for_each(|(i, dst)| {
+            let (nonfinite, stop) = split[i];
+            *dst = match (nonfinite, v) {
+                (0, ObsVar::State(k)) => state[(*k as u64 * cap + i as u64) as usize],
+                (0, ObsVar::Time) => time_at(plan, rows.start + i, slots::last_step(plan, stop)),
+                _ => R::nan(),
+            };
+        });
+    }
+    let every = plan.observers.trajectory.as_ref().map_or(0, |t| t.every);
+    if every == 0 {
+        return;
+    }
+    // Frames recorded at or after the step where it became non-finite, or
+    // after the one it stopped at, are NaN (as on the CPU).
+    let first_nan = |(nonfinite, stop): (u32, u32)| match (nonfinite, stop) {
+        (0, 0) => None,
+        (0, stop) => Some(u64::from(stop) / every + 1),
+        (k, _) => Some(u64::from(k).div_ceil(every)),
+    };
+    let frames = out.frames;
+    for (dst, width) in out.framed_columns_mut() {
+        if dst.is_empty() {
+            continue;
+        }
+        let per = frames * width;
+        dst[rows.start * per..rows.end * per]
+            .par_chunks_mut(per)
+            .zip(&split)
+            .for_each(|(orbit, s)| {
+                if let Some(first) = first_nan(*s) {
+                    orbit[first as usize * width..].fill(R::nan());
+                }
+            });
+    }
 }
 
 /// `t0 + steps·dt` of trajectory `g`, in the working precision.
