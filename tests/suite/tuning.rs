@@ -200,6 +200,7 @@ fn the_environment_overrides_the_launch_and_bad_values_are_refused() {
             "fast",
             "REEB_GPU_EXP=\"fast\": expected `exact`",
         ),
+        ("WGPU_BACKEND", "nonsense", "names no wgpu backend"),
     ] {
         let out = d.join(format!("bad-{var}"));
         let e = fails(reeb_in(

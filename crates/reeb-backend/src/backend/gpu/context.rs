@@ -129,6 +129,7 @@ fn choose_adapter(
     inst: &wgpu::Instance,
     index: Option<usize>,
 ) -> Result<(usize, wgpu::Adapter), GpuError> {
+    check_backend_env()?;
     let adapters = pollster::block_on(inst.enumerate_adapters(wgpu::Backends::all()));
     let names = || {
         adapters
@@ -174,6 +175,17 @@ fn choose_adapter(
                 no_adapter_hint(),
             )
         })
+}
+
+/// `WGPU_BACKEND`, where set, names at least one backend (wgpu reads an
+/// unknown or empty one as none, and no adapter would open).
+fn check_backend_env() -> Result<(), GpuError> {
+    match (std::env::var("WGPU_BACKEND"), wgpu::Backends::from_env()) {
+        (Ok(set), Some(b)) if b.is_empty() => Err(GpuError::Setting(format!(
+            "WGPU_BACKEND={set:?} names no wgpu backend: expected vulkan, metal, dx12 or gl (or a comma-separated list of them), or leave it unset for every one"
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// What to do when no adapter opened: install a driver, or, where a Vulkan
