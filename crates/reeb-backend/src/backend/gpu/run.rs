@@ -133,13 +133,25 @@ fn read<T: bytemuck::Pod>(
     staging: &wgpu::Buffer,
     bytes: u64,
 ) -> Result<Vec<T>, BackendError> {
+    read_with(ctx, src, staging, bytes, |v: &[T]| v.to_vec())
+}
+
+/// [`read`], handing the mapped bytes to `with` instead of copying them
+/// out first (a chunk's state or frames: up to gigabytes).
+fn read_with<T: bytemuck::Pod, O>(
+    ctx: &GpuContext,
+    src: &wgpu::Buffer,
+    staging: &wgpu::Buffer,
+    bytes: u64,
+    with: impl FnOnce(&[T]) -> O,
+) -> Result<O, BackendError> {
     if bytes == 0 {
-        return Ok(vec![]);
+        return Ok(with(&[]));
     }
     let mut enc = ctx.device.create_command_encoder(&Default::default());
     enc.copy_buffer_to_buffer(src, 0, staging, 0, bytes);
     ctx.queue.submit([enc.finish()]);
-    read_mapped(ctx, staging, bytes)
+    with_mapped(ctx, staging, bytes, with)
 }
 
 /// The errors the device reported since the last call, as one.
@@ -830,19 +842,40 @@ fn read_frames<R: Flows>(
     frame0: u64,
     nframes: u64,
 ) -> Result<(), BackendError> {
+    let bytes = nframes * s.tv * s.cap * s.b;
+    read_with(ctx, &bufs.traj, &bufs.staging, bytes, |frames: &[R]| {
+        place_frames(plan, s, out, frames, (base, count), (frame0, nframes))
+    })
+}
+
+/// [`read_frames`]' frames (frame-major, then variable, then trajectory)
+/// in the observations: trajectory by trajectory in parallel, then the
+/// indicators' running values.
+fn place_frames<R: Flows>(
+    plan: &Plan,
+    s: &Sizes,
+    out: &mut Observations<R>,
+    frames: &[R],
+    (base, count): (u64, u64),
+    (frame0, nframes): (u64, u64),
+) {
+    use rayon::prelude::*;
     let (tv, cap) = (s.tv, s.cap);
-    let frames_total = out.frames as u64;
-    let frames: Vec<R> = read(ctx, &bufs.traj, &bufs.staging, nframes * tv * cap * s.b)?;
+    let frames_total = out.frames;
     let at = |f: u64, j: usize, i: u64| frames[((f * tv + j as u64) * cap + i) as usize];
     for (j, (_, dst)) in out.trajectory.iter_mut().enumerate() {
-        for f in 0..nframes {
-            for i in 0..count {
-                dst[((base + i) * frames_total + frame0 + f) as usize] = at(f, j, i);
-            }
-        }
+        let rows = base as usize * frames_total..(base + count) as usize * frames_total;
+        dst[rows]
+            .par_chunks_mut(frames_total)
+            .enumerate()
+            .for_each(|(i, orbit)| {
+                for f in 0..nframes {
+                    orbit[(frame0 + f) as usize] = at(f, j, i as u64);
+                }
+            });
     }
     if plan.indicators.is_none() {
-        return Ok(());
+        return;
     }
     // The indicators' slots of each frame make their running values, as
     // the CPU makes them from its own slots.
@@ -864,7 +897,6 @@ fn read_frames<R: Flows>(
             values.put(lyapunov, scalars, row);
         }
     }
-    Ok(())
 }
 
 /// Trajectory `g`'s step in the working precision.
@@ -878,6 +910,16 @@ pub(super) fn read_mapped<T: bytemuck::Pod>(
     buf: &wgpu::Buffer,
     bytes: u64,
 ) -> Result<Vec<T>, BackendError> {
+    with_mapped(ctx, buf, bytes, |v: &[T]| v.to_vec())
+}
+
+/// Maps a MAP_READ buffer and hands its contents to `with`.
+fn with_mapped<T: bytemuck::Pod, O>(
+    ctx: &GpuContext,
+    buf: &wgpu::Buffer,
+    bytes: u64,
+    with: impl FnOnce(&[T]) -> O,
+) -> Result<O, BackendError> {
     let slice = buf.slice(..bytes);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -893,7 +935,7 @@ pub(super) fn read_mapped<T: bytemuck::Pod>(
         let view = slice
             .get_mapped_range()
             .map_err(|e| GpuError::Runtime(format!("{e:?}")))?;
-        bytemuck::cast_slice::<u8, T>(&view).to_vec()
+        with(bytemuck::cast_slice::<u8, T>(&view))
     };
     buf.unmap();
     Ok(out)
@@ -912,7 +954,6 @@ fn collect<R: Flows>(
     b: u64,
 ) -> Result<(), BackendError> {
     let nv = plan.vars.len() as u64;
-    let state: Vec<R> = read(ctx, &bufs.state, &bufs.staging, nv * cap * b)?;
     let status: Vec<u32> = read(ctx, &bufs.status, &bufs.staging, 4 * cap)?;
     let cut = status[..count as usize]
         .iter()
@@ -923,9 +964,16 @@ fn collect<R: Flows>(
             "the adapter ended the kernel's step loop early in {cut} of {count} trajectories (a driver's limit on loop iterations, such as llvmpipe's {LOOP_ITERATIONS} per dispatch, which reeb's windows should respect: please report it); the CPU backend runs this scene"
         )));
     }
-    scatter(plan, &state, &status[..count as usize], out, base, cap);
+    let status = &status[..count as usize];
+    read_with(
+        ctx,
+        &bufs.state,
+        &bufs.staging,
+        nv * cap * b,
+        |state: &[R]| scatter(plan, state, status, out, base, cap),
+    )?;
     if plan.has_slots() {
-        collect_observers(ctx, plan, bufs, out, base, count, cap, b, &status)?;
+        collect_observers(ctx, plan, bufs, out, base, count, cap, b, status)?;
     }
     check(ctx)
 }
