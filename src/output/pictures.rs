@@ -8,6 +8,7 @@ use std::path::Path;
 
 use anyhow::Result;
 
+use crate::num::order::ascending;
 use crate::num::precision::Real;
 use crate::output::doubts::Doubts;
 use crate::output::plot::{self, fmt_significant, Figure, HeatMap, Rgb, Series};
@@ -1075,8 +1076,7 @@ fn axis_value(values: &[f64], v: f64) -> String {
 
 /// The significant digits of [`axis_value`] for an axis over `values`.
 fn axis_digits(values: &[f64]) -> usize {
-    let mut sorted = values.to_vec();
-    sorted.sort_by(f64::total_cmp);
+    let mut sorted = ascending(values).into_owned();
     sorted.dedup();
     // Rounding keeps the order: two values that print alike are neighbours.
     let distinct = |d: usize| {

@@ -4,6 +4,7 @@
 
 use crate::models::formula::{FormulaModel, Function};
 use crate::models::lanes::Lane;
+use crate::num::order::ascending;
 use crate::num::precision::Precision;
 use crate::plan::observers::Section;
 use crate::plan::precision::{self as fits, apart, short, Limits};
@@ -494,41 +495,27 @@ struct Distinct {
     pair: Option<[f64; 2]>,
 }
 
-/// The values of `axis` that `kept` keeps, counted as [`Distinct`] says.
-/// An axis from `linspace` or `logspace` is in order already (or in
-/// reverse) and is counted as it is; any other is sorted first, on every
-/// core. Rounding keeps the order, so values that round alike are
-/// neighbours.
+/// The values of `axis` that `kept` keeps, counted as [`Distinct`] says,
+/// in increasing order ([`ascending`]: an axis from `linspace` or
+/// `logspace` is not sorted). Rounding keeps the order, so values that
+/// round alike are neighbours.
 fn distinct(axis: &[f64], kept: impl Fn(&f64) -> bool, rounded: impl Fn(&f64) -> f64) -> Distinct {
-    use rayon::prelude::*;
-    let le = |a: &f64, b: &f64| a.total_cmp(b).is_le();
-    let count = |sorted: &mut dyn Iterator<Item = f64>| {
-        let mut d = Distinct {
-            values: 0,
-            rounded: 0,
-            pair: None,
-        };
-        let mut last: Option<f64> = None;
-        for v in sorted.filter(|v| kept(v)) {
-            match last {
-                Some(p) if p == v => continue,
-                Some(p) if rounded(&p) == rounded(&v) => {
-                    d.pair.get_or_insert([p, v]);
-                }
-                _ => d.rounded += 1,
-            }
-            d.values += 1;
-            last = Some(v);
-        }
-        d
+    let mut d = Distinct {
+        values: 0,
+        rounded: 0,
+        pair: None,
     };
-    if axis.is_sorted_by(le) {
-        count(&mut axis.iter().copied())
-    } else if axis.is_sorted_by(|a, b| le(b, a)) {
-        count(&mut axis.iter().rev().copied())
-    } else {
-        let mut v = axis.to_vec();
-        v.par_sort_unstable_by(f64::total_cmp);
-        count(&mut v.into_iter())
+    let mut last: Option<f64> = None;
+    for &v in ascending(axis).iter().filter(|v| kept(v)) {
+        match last {
+            Some(p) if p == v => continue,
+            Some(p) if rounded(&p) == rounded(&v) => {
+                d.pair.get_or_insert([p, v]);
+            }
+            _ => d.rounded += 1,
+        }
+        d.values += 1;
+        last = Some(v);
     }
+    d
 }

@@ -4,6 +4,8 @@
 use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint};
 use plotters::prelude::*;
 
+use crate::num::order::ascending;
+
 /// A linear plotters axis over transformed coordinates whose ticks are
 /// chosen by this module. (plotters' `WithKeyPoints` would do, but wrapping
 /// `RangedCoordf64` loses the label-formatter support `configure_mesh` needs.)
@@ -72,28 +74,12 @@ pub fn log_scale(values: &[f64]) -> bool {
     if values.is_empty() || !values.par_iter().all(|x| x.is_finite() && *x > 0.0) {
         return false;
     }
-    let v = sorted_distinct(values);
+    let mut v = ascending(values).into_owned();
+    v.dedup();
     let logs: Vec<f64> = v.par_iter().map(|x| x.log10()).collect();
     let (lin, log) = (unevenness(&v), unevenness(&logs));
     let decades = logs[logs.len() - 1] - logs[0];
     (v.len() >= 3 && log < 1.0 + 1e-6) || (decades >= 2.0 - 1e-9 && log <= lin)
-}
-
-/// `values` increasing, without repeats; an axis already in order either
-/// way (a `linspace`, a `logspace`) is not sorted.
-fn sorted_distinct(values: &[f64]) -> Vec<f64> {
-    use rayon::prelude::*;
-    let mut v: Vec<f64> = if values.windows(2).all(|w| w[0] <= w[1]) {
-        values.to_vec()
-    } else if values.windows(2).all(|w| w[0] >= w[1]) {
-        values.iter().rev().copied().collect()
-    } else {
-        let mut v = values.to_vec();
-        v.par_sort_by(f64::total_cmp);
-        v
-    };
-    v.dedup();
-    v
 }
 
 /// The largest step of sorted distinct `v` over its smallest (1: even).

@@ -7,5 +7,6 @@ pub mod formula;
 pub mod isa;
 pub mod math;
 pub mod names;
+pub mod order;
 pub mod precision;
 pub mod prims;
