@@ -377,6 +377,9 @@ fn difference(gpu: &Engine, p: &Problem, precision: Precision) -> Result<f64, St
     Ok(largest_difference(&c, &g, false))
 }
 
+/// Repeats of each of the doctor's measurements (the median is reported).
+const REPEATS: usize = 3;
+
 /// [`BENCH_SCENARIOS`] × both precisions × `sizes` on the GPU (1000 steps,
 /// more on a hardware adapter: [`bench::gpu_rate`]) and the CPU (every
 /// thread; steps capped at 2·10⁹ trajectory-steps per run, at least 100:
@@ -388,7 +391,6 @@ fn throughput(
     problems: &mut Vec<String>,
 ) -> Vec<Row> {
     const STEPS: u64 = 1000;
-    const REPEATS: usize = 3;
     let mut rows = vec![];
     for s in BENCH_SCENARIOS {
         for p in [Precision::F32, Precision::F64] {
@@ -425,7 +427,7 @@ fn whole_run(
     problems: &mut Vec<String>,
 ) -> Option<f64> {
     let threads = crate::backend::cpu::threads();
-    bench::whole_run_rate(s, size, backend, p, threads, 3)
+    bench::whole_run_rate(s, size, backend, p, threads, REPEATS)
         .map_err(|e| problems.push(format!("whole run {} {p}: {e:#}", s.label())))
         .ok()
 }

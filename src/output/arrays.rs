@@ -95,14 +95,8 @@ pub fn arrays<'a, R: Real>(scene: &Scene, obs: &'a Observations<R>) -> Result<Ve
         }
     }
     let (status, step) = status_bytes(obs);
-    out.push(Array {
-        bytes: Cow::Owned(status),
-        ..scalar("status.npy", "|u1", &[0u8; 0])
-    });
-    out.push(Array {
-        bytes: Cow::Owned(step),
-        ..scalar("status_step.npy", "<i8", &[0u8; 0])
-    });
+    out.push(array_of("status.npy", "|u1", Cow::Owned(status)));
+    out.push(array_of("status_step.npy", "<i8", Cow::Owned(step)));
     Ok(out)
 }
 
@@ -178,12 +172,17 @@ fn real<R: Real>() -> &'static str {
 /// One value per trajectory. (Little-endian: reeb runs on x86-64 and
 /// aarch64.)
 fn scalar<'a, T: bytemuck::Pod>(file: &str, descr: &'static str, data: &'a [T]) -> Array<'a> {
+    array_of(file, descr, Cow::Borrowed(bytemuck::cast_slice(data)))
+}
+
+/// A one-value-per-trajectory array of `bytes`.
+fn array_of<'a>(file: &str, descr: &'static str, bytes: Cow<'a, [u8]>) -> Array<'a> {
     Array {
         file: file.into(),
         descr,
         inner: vec![],
         inner_names: vec![],
-        bytes: Cow::Borrowed(bytemuck::cast_slice(data)),
+        bytes,
     }
 }
 

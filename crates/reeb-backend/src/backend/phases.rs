@@ -21,8 +21,8 @@ pub struct Phases {
     /// Results from the device into the run's arrays (0 on the CPU, whose
     /// blocks write them as they finish, inside the integration).
     pub read_back: f64,
-    /// The arrays as bytes into their files, made durable, and each
-    /// finished chunk's marker.
+    /// The arrays as bytes into their files and each finished chunk's
+    /// marker (the files are synced once, while the pictures are drawn).
     pub writing: f64,
     /// The finished arrays read back, their doubts and the pictures.
     pub pictures: f64,
