@@ -11,6 +11,7 @@ pub mod owned;
 pub mod pictures;
 pub mod plot;
 pub mod progress;
+pub mod references;
 pub mod run;
 pub mod slurm;
 pub mod stream;

@@ -26,6 +26,7 @@ use crate::output::chunks::{self, Chunks};
 use crate::output::directory::{self, Claim, Mode};
 use crate::output::doubts;
 use crate::output::journal::{self, Record};
+use crate::output::references::references;
 use crate::output::stream::{self, Target, Watch};
 use crate::output::zarr;
 use crate::plan::observations::bytes_per_trajectory;
@@ -945,6 +946,7 @@ fn summary(
         "chunks": {"count": ran.chunks, "trajectories": record.chunks.largest(), "format": record.format},
         "warnings": ran.warnings,
         "files": files,
+        "references": references(&scene.scheme.name, scene.model.name()),
     });
     if let serde_json::Value::Object(map) = &mut value {
         map.extend(provenance(record.backend == "cpu"));

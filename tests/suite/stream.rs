@@ -118,6 +118,21 @@ fn the_summary_times_each_phase_and_the_run_line_says_wall_and_integration() {
         (of("compile"), of("read_back"), of("overlap")),
         (0.0, 0.0, 0.0)
     );
+    // The papers of S2 (contact splitting) and of van der Pol (Liénard).
+    let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    let summary: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let cited: Vec<&str> = summary["references"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r.as_str().unwrap())
+        .collect();
+    assert_eq!(cited.len(), 2, "{cited:?}");
+    assert!(
+        cited[0].contains("a case for contact geometry"),
+        "{cited:?}"
+    );
+    assert!(cited[1].contains("Liénard systems"), "{cited:?}");
 }
 
 /// Waits until `partial` has a finished chunk (and the run has not ended).
