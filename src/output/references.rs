@@ -62,6 +62,13 @@ mod tests {
     }
 
     #[test]
+    fn every_built_in_model_cites_its_paper() {
+        for name in crate::models::MODEL_NAMES {
+            assert!(!references("rk4", name).is_empty(), "{name}");
+        }
+    }
+
+    #[test]
     fn a_paper_is_cited_once() {
         assert_eq!(references("s2", "spin_orbit"), [CELESTIAL]);
         assert_eq!(

@@ -69,11 +69,15 @@ fn chunks_on_the_gpu_give_the_same_bits_as_one() {
     assert_eq!(overlap(&one), 0.0);
 }
 
+/// `summary.json` of the run in `out`.
+fn summary(out: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
 /// `summary.json`'s `timing` of the run in `out`.
 fn timing(out: &Path) -> serde_json::Map<String, serde_json::Value> {
-    let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
-    let summary: serde_json::Value = serde_json::from_str(&text).unwrap();
-    summary["timing"].as_object().unwrap().clone()
+    summary(out)["timing"].as_object().unwrap().clone()
 }
 
 fn overlap(out: &Path) -> f64 {
@@ -119,8 +123,7 @@ fn the_summary_times_each_phase_and_the_run_line_says_wall_and_integration() {
         (0.0, 0.0, 0.0)
     );
     // The papers of S2 (contact splitting) and of van der Pol (Liénard).
-    let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
-    let summary: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let summary = summary(&out);
     let cited: Vec<&str> = summary["references"]
         .as_array()
         .unwrap()
