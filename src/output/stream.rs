@@ -1,14 +1,16 @@
 //! A run streamed to disk: its chunks (`chunks.rs`) integrated one after
 //! the other, each written into its slab of every array (`npy.rs`) and
 //! marked finished (`journal.rs`), so that memory holds one chunk whatever
-//! the size of the run (two on one GPU, which integrates the next while the
-//! last is written); and the finished arrays read back for the pictures.
+//! the size of the run (two per GPU, which integrates the next while the
+//! last is read back and written); and the finished arrays read back for
+//! the pictures.
 
 use std::io::Read;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicUsize;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
@@ -160,7 +162,9 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
         done,
         finished: &finished,
     };
-    let one_gpu = matches!(t.engines, [Engine::Gpu(_)]);
+    // One GPU integrates a chunk while it reads the last back: two
+    // workers take turns at it (several GPUs, two each).
+    let gpu = matches!(t.engines, [Engine::Gpu(_)]);
     std::thread::scope(|scope| -> Result<Streamed<R>> {
         let bar = (progress && left > 0).then(|| scope.spawn(|| progress::follow(&followed)));
         // Set on the way out, a panic's too: the scope waits for the bar,
@@ -169,65 +173,33 @@ pub fn integrate<R: Flows>(t: &Target, mine: Range<usize>, progress: bool) -> Re
         let _finish = Finish(&finished, bar.as_ref().map(|b| b.thread().clone()));
         let (kept, overlap) = match (t.engines.len(), &todo[..]) {
             (1, [0]) if t.chunks.count() == 1 => (Some(chunk::<R>(t, 0, &sink, done)?), 0.0),
-            (1, [_, _, ..]) if one_gpu => (None, pipelined::<R>(t, &todo, &sink, done)?),
+            (1, [_, _, ..]) if gpu => (None, share::<R>(t, &todo, &sink, done)?),
             (0 | 1, _) => {
                 let each = |k: &usize| chunk::<R>(t, *k, &sink, done).map(drop);
                 todo.iter().try_for_each(each)?;
                 (None, 0.0)
             }
-            _ => (share::<R>(t, &todo, &sink, done).map(|()| None)?, 0.0),
+            _ => (None, share::<R>(t, &todo, &sink, done)?),
         };
         Ok(Streamed { kept, overlap })
     })
 }
 
 /// What [`integrate`] leaves: the observations of a run of one chunk
-/// integrated here, and the seconds during which one chunk was written
-/// while the next integrated.
+/// integrated here, and the seconds during which one chunk was read back
+/// or written while a GPU integrated another.
 pub struct Streamed<R> {
     pub kept: Option<Observations<R>>,
     pub overlap: f64,
 }
 
-/// A chunk integrated and not yet written: its observations, their phases
-/// and the integration's clock.
-type Rows<R> = (Observations<R>, Phases, &'static str);
-
-/// The chunks `todo` on one GPU, double-buffered so that it never waits
-/// for the disk: while chunk k+1 integrates, chunk k is written (and
-/// marked finished) on a thread of its own, so at most two chunks' outputs
-/// are in memory. Returns the seconds the two overlapped.
-fn pipelined<R: Flows>(t: &Target, todo: &[usize], sink: &Sink, done: &AtomicU64) -> Result<f64> {
-    // A rendezvous: the integration hands chunk k over only once the
-    // writer has finished chunk k-1.
-    let (hand, take) = std::sync::mpsc::sync_channel::<(usize, Rows<R>)>(0);
-    std::thread::scope(|scope| {
-        let writer = scope.spawn(move || -> Result<Vec<Span>> {
-            let mut spans = vec![];
-            for (k, rows) in take {
-                let began = Instant::now();
-                write_chunk(t, k, sink, rows)?;
-                spans.push((began, Instant::now()));
-            }
-            Ok(spans)
-        });
-        let mut integrating = vec![];
-        let integrated = todo.iter().try_for_each(|&k| {
-            let began = Instant::now();
-            let rows = integrate_rows::<R>(t, k, done)?;
-            integrating.push((began, Instant::now()));
-            hand.send((k, rows))
-                .map_err(|_| anyhow::anyhow!("chunk {k} was integrated and not written"))
-        });
-        drop(hand);
-        let written = writer
-            .join()
-            .unwrap_or_else(|_| Err(anyhow::anyhow!("the chunk writer panicked")));
-        // The writer's failure first: it is why a hand-over failed.
-        let spans = written?;
-        integrated?;
-        Ok(overlap(&integrating, &spans))
-    })
+/// A chunk integrated and not yet written: its observations, their
+/// phases, the integration's clock, and when it had a GPU's queue.
+struct Rows<R> {
+    obs: Observations<R>,
+    phases: Phases,
+    timing: &'static str,
+    busy: Vec<Span>,
 }
 
 /// From when to when something ran.
@@ -255,44 +227,83 @@ impl Drop for Finish<'_> {
     }
 }
 
-/// The chunks `todo` shared among the engines: each, on a thread of its
-/// own, takes the next chunk left until none is (or one of them failed).
-fn share<R: Flows>(t: &Target, todo: &[usize], sink: &Sink, done: &AtomicU64) -> Result<()> {
-    let next = std::sync::atomic::AtomicUsize::new(0);
+/// The chunks `todo` shared among workers, each on a thread of its own
+/// taking the next chunk left until none is (or one of them failed): two
+/// per GPU, which take turns at its queue, so that while one integrates
+/// chunk k+1 the other reads chunk k back and writes it (at most two
+/// chunks' outputs in memory per GPU). Returns the seconds during which
+/// one chunk's host work ran while a GPU integrated another.
+fn share<R: Flows>(t: &Target, todo: &[usize], sink: &Sink, done: &AtomicU64) -> Result<f64> {
+    let next = AtomicUsize::new(0);
     let failed = AtomicBool::new(false);
+    let timelines = Mutex::new(vec![]);
+    let many = t.engines.len() > 1;
+    let workers = t.engines.iter().enumerate().flat_map(|(j, e)| {
+        let mine = Target {
+            engines: std::slice::from_ref(e),
+            device: if many { Some(j) } else { t.device },
+            ..*t
+        };
+        let each = if matches!(e, Engine::Gpu(_)) { 2 } else { 1 };
+        std::iter::repeat_n(mine, each)
+    });
     std::thread::scope(|scope| {
-        let workers: Vec<_> = t
-            .engines
-            .iter()
-            .enumerate()
-            .map(|(j, e)| {
-                let mine = Target {
-                    engines: std::slice::from_ref(e),
-                    device: Some(j),
-                    ..*t
-                };
-                let (next, failed) = (&next, &failed);
+        let (next, failed, timelines) = (&next, &failed, &timelines);
+        let running: Vec<_> = workers
+            .map(|mine| {
                 scope.spawn(move || -> Result<()> {
                     while !failed.load(Ordering::Relaxed) {
                         let Some(k) = todo.get(next.fetch_add(1, Ordering::Relaxed)) else {
                             return Ok(());
                         };
-                        chunk::<R>(&mine, *k, sink, done)
+                        let timeline = timed_chunk::<R>(&mine, *k, sink, done)
                             .inspect_err(|_| failed.store(true, Ordering::Relaxed))?;
+                        let mut all = timelines.lock().unwrap_or_else(PoisonError::into_inner);
+                        all.push(timeline);
                     }
                     Ok(())
                 })
             })
             .collect();
-        workers
+        running
             .into_iter()
             .map(|w| {
                 w.join()
                     .unwrap_or_else(|_| Err(anyhow::anyhow!("a GPU worker panicked")))
             })
             .collect::<Result<Vec<()>>>()
-            .map(drop)
-    })
+    })?;
+    let timelines = timelines
+        .into_inner()
+        .unwrap_or_else(PoisonError::into_inner);
+    Ok(host_under_gpu(&timelines))
+}
+
+/// When a chunk had a GPU's queue, and when its host work (read-back,
+/// conversion, writing) ran.
+type Timeline = (Vec<Span>, Span);
+
+/// [`chunk`], and when it ran what.
+fn timed_chunk<R: Flows>(t: &Target, k: usize, sink: &Sink, done: &AtomicU64) -> Result<Timeline> {
+    let rows = integrate_rows::<R>(t, k, done)?;
+    let busy = rows.busy.clone();
+    let host = busy.last().map_or_else(Instant::now, |b| b.1);
+    write_chunk(t, k, sink, rows)?;
+    Ok((busy, (host, Instant::now())))
+}
+
+/// Seconds during which one chunk's host work ran while another chunk had
+/// a GPU's queue.
+fn host_under_gpu(timelines: &[Timeline]) -> f64 {
+    let mut seconds = 0.0;
+    for (a, (_, host)) in timelines.iter().enumerate() {
+        for (b, (busy, _)) in timelines.iter().enumerate() {
+            if a != b {
+                seconds += overlap(std::slice::from_ref(host), busy);
+            }
+        }
+    }
+    seconds
 }
 
 /// The chunks of `range` that are marked finished but whose data is not
@@ -379,7 +390,12 @@ fn write_chunk<R: Flows>(
     sink: &Sink,
     rows: Rows<R>,
 ) -> Result<Observations<R>> {
-    let (obs, mut phases, timing) = rows;
+    let Rows {
+        obs,
+        mut phases,
+        timing,
+        ..
+    } = rows;
     let writing = Instant::now();
     let list = arrays(t.scene, &obs)?;
     sink.write(t, k, &list)?;
@@ -461,6 +477,7 @@ fn integrate_rows<R: Flows>(t: &Target, k: usize, progress: &AtomicU64) -> Resul
         ..Phases::default()
     };
     let (mut since, mut timing, mut single) = (Instant::now(), "wall clock", None);
+    let mut busy = vec![];
     for (i, part) in parts.iter().enumerate() {
         if i < first {
             progress.fetch_add(part_steps(part), Ordering::Relaxed);
@@ -474,6 +491,7 @@ fn integrate_rows<R: Flows>(t: &Target, k: usize, progress: &AtomicU64) -> Resul
         let run = integrate_part(t, k, (i, sub, own), done, &mut since, resume, progress)?;
         phases = phases.plus(run.phases);
         timing = run.timing;
+        busy.extend(run.busy);
         match whole.as_mut() {
             Some(w) => {
                 let at = own
@@ -484,11 +502,12 @@ fn integrate_rows<R: Flows>(t: &Target, k: usize, progress: &AtomicU64) -> Resul
             None => single = Some(run.observations),
         }
     }
-    Ok((
-        whole.or(single).context("a chunk has rows")?,
+    Ok(Rows {
+        obs: whole.or(single).context("a chunk has rows")?,
         phases,
         timing,
-    ))
+        busy,
+    })
 }
 
 /// Integrates sub-run `i` of chunk `k` (its rows `own`), continued from

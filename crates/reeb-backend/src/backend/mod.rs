@@ -108,6 +108,8 @@ pub struct Integration<R> {
     pub phases: Phases,
     /// How the integration was timed: "wall clock" or "GPU timestamps".
     pub timing: &'static str,
+    /// When a GPU's queue was this integration's (none on the CPU).
+    pub busy: Vec<(std::time::Instant, std::time::Instant)>,
 }
 
 /// A device on adapter `index` (or the one `--backend gpu` takes), its
@@ -309,6 +311,7 @@ impl Engine {
                     observations,
                     phases,
                     timing: "wall clock",
+                    busy: vec![],
                 }
             }
             Engine::Gpu(ctx) => {
@@ -318,6 +321,7 @@ impl Engine {
                     observations: r.observations,
                     phases: r.phases,
                     timing: r.timing,
+                    busy: r.busy,
                 }
             }
         })

@@ -80,6 +80,8 @@ pub fn tuned(
     again: bool,
 ) -> Result<Tuned, BackendError> {
     let (adapter, shape) = (adapter_key(&ctx.info), shape(ctx, plan, precision));
+    // A run that finds another probing waits, then takes its result.
+    let _probing = ctx.probing();
     if !again {
         if let Some(t) = ctx.tuned(&shape) {
             return Ok(t);

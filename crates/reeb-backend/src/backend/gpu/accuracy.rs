@@ -138,8 +138,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) n
         pass.dispatch_workgroups(width, groups.div_ceil(width), 1);
     }
     enc.copy_buffer_to_buffer(&output, 0, &staging, 0, bytes);
-    ctx.queue.submit([enc.finish()]);
-    let ys = read_mapped(ctx, &staging, bytes)?;
+    let submitted = ctx.queue.submit([enc.finish()]);
+    let ys = read_mapped(ctx, &staging, bytes, submitted)?;
     check(ctx)?;
     Ok(ys)
 }

@@ -1,9 +1,9 @@
 //! The GPU context: the adapter chosen once (honouring `WGPU_BACKEND` and
 //! `WGPU_ADAPTER_NAME`), its device and queue, and the pipeline cache.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
 use super::codegen::{ExpForm, Forms};
 use super::tuning::Tuned;
@@ -300,7 +300,21 @@ pub struct GpuContext {
     tuned: Mutex<HashMap<String, Tuned>>,
     /// Errors the device reported outside an error scope.
     errors: Arc<Mutex<Vec<String>>>,
+    /// Held by a run from its first submission of a chunk until that
+    /// chunk's results are staged for reading: two runs on one device
+    /// (chunks pipelined, `output/stream.rs`) take turns at the queue, and
+    /// each reads its chunk back while the other integrates.
+    queue_turn: Mutex<()>,
+    /// Held while a launch is tuned: a second run waits for the first's
+    /// probe instead of measuring beside it.
+    probing: Mutex<()>,
+    /// Buffers finished runs gave back, for the next run of the same sizes
+    /// (a tuning probe runs one size tens of times; a new buffer is zeroed).
+    pool: Mutex<VecDeque<wgpu::Buffer>>,
 }
+
+/// Most bytes of buffers [`GpuContext`] keeps for later runs.
+pub const POOL_BYTES: u64 = 512 << 20;
 
 impl GpuContext {
     /// Opens the adapter chosen by [`choose_adapter`] with its own limits, and
@@ -380,6 +394,9 @@ impl GpuContext {
             compile_nanos: AtomicU64::new(0),
             tuned: Mutex::default(),
             errors,
+            queue_turn: Mutex::default(),
+            probing: Mutex::default(),
+            pool: Mutex::default(),
         })
     }
 
@@ -451,14 +468,14 @@ impl GpuContext {
         }
     }
 
-    /// The compute pipeline for `source`, compiled once per context.
+    /// The compute pipeline for `source`, compiled once per context (held
+    /// locked meanwhile: two runs of one kernel compile it once).
     pub fn pipeline(&self, source: &str) -> Result<Arc<wgpu::ComputePipeline>, GpuError> {
-        if let Some(p) = self
+        let mut pipelines = self
             .pipelines
             .lock()
-            .map_err(|e| GpuError::Runtime(e.to_string()))?
-            .get(source)
-        {
+            .map_err(|e| GpuError::Runtime(e.to_string()))?;
+        if let Some(p) = pipelines.get(source) {
             return Ok(p.clone());
         }
         // Validate with naga first: its messages point into the source.
@@ -467,10 +484,7 @@ impl GpuContext {
         let p = Arc::new(self.compile(source, Some(&self.pipeline_layout), "reeb kernel")?);
         let nanos = started.elapsed().as_nanos().min(u64::MAX as u128) as u64;
         self.compile_nanos.fetch_add(nanos, Ordering::Relaxed);
-        self.pipelines
-            .lock()
-            .map_err(|e| GpuError::Runtime(e.to_string()))?
-            .insert(source.to_string(), p.clone());
+        pipelines.insert(source.to_string(), p.clone());
         Ok(p)
     }
 
@@ -479,6 +493,56 @@ impl GpuContext {
     /// candidates on a fresh H200, with a cold shader cache).
     pub fn compile_seconds(&self) -> f64 {
         self.compile_nanos.load(Ordering::Relaxed) as f64 * 1e-9
+    }
+
+    /// This run's turn at the queue: no other run submits work until the
+    /// guard is dropped.
+    pub fn queue_turn(&self) -> MutexGuard<'_, ()> {
+        self.queue_turn
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// The right to tune a launch on this device, one run at a time.
+    pub fn probing(&self) -> MutexGuard<'_, ()> {
+        self.probing.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// A buffer of `size` bytes and `usage`, one a finished run gave back
+    /// where there is one (its contents are stale: every kernel writes what
+    /// it reads but the status words, which each chunk clears).
+    pub fn buffer(&self, label: &str, size: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
+        if let Ok(mut pool) = self.pool.lock() {
+            if let Some(k) = pool
+                .iter()
+                .position(|b| b.size() == size && b.usage() == usage)
+            {
+                if let Some(b) = pool.remove(k) {
+                    return b;
+                }
+            }
+        }
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage,
+            mapped_at_creation: false,
+        })
+    }
+
+    /// Keeps `buf` (unmapped, and no longer used by a run) for a later
+    /// [`GpuContext::buffer`], the oldest dropped beyond [`POOL_BYTES`] in all.
+    pub fn give_back(&self, buf: wgpu::Buffer) {
+        if buf.size() > POOL_BYTES {
+            return;
+        }
+        let Ok(mut pool) = self.pool.lock() else {
+            return;
+        };
+        pool.push_back(buf);
+        while pool.iter().map(wgpu::Buffer::size).sum::<u64>() > POOL_BYTES {
+            pool.pop_front();
+        }
     }
 
     /// Errors the device reported since the last call.

@@ -7,6 +7,7 @@
 //! by `backend/tune.rs`.
 
 use std::io::Read;
+use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
@@ -51,6 +52,9 @@ pub struct GpuRun<R> {
     pub timing: &'static str,
     pub chunks: usize,
     pub dispatches: u64,
+    /// When this run had the device's queue: from a chunk's first
+    /// submission until its results were staged for reading (host clock).
+    pub busy: Vec<(Instant, Instant)>,
 }
 
 /// Keep in sync with `struct Uniforms` of `shaders/driver.wgsl` (field
@@ -86,14 +90,9 @@ struct Buffers {
 }
 
 fn storage(ctx: &GpuContext, label: &str, bytes: u64) -> wgpu::Buffer {
-    ctx.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: bytes.max(16).next_multiple_of(4),
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_SRC
-            | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
+    let usage =
+        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+    ctx.buffer(label, bytes.max(16).next_multiple_of(4), usage)
 }
 
 /// The kernel's input table in the working precision, converted from the
@@ -152,8 +151,8 @@ fn read_with<T: bytemuck::Pod, O>(
     }
     let mut enc = ctx.device.create_command_encoder(&Default::default());
     enc.copy_buffer_to_buffer(src, 0, staging, 0, bytes);
-    ctx.queue.submit([enc.finish()]);
-    with_mapped(ctx, staging, bytes, with)
+    let copied = ctx.queue.submit([enc.finish()]);
+    with_mapped(ctx, staging, bytes, copied, with)
 }
 
 /// The errors the device reported since the last call, as one.
@@ -266,6 +265,7 @@ fn run_in<R: Flows>(
             timing: "none",
             chunks: 0,
             dispatches: 0,
+            busy: vec![],
         });
     }
     let mut sizes = Sizes::new::<R>(ctx, plan, opts)?;
@@ -306,6 +306,7 @@ fn run_in<R: Flows>(
     let mut chunks = 0;
     let mut base = start.0;
     let mut totals = (header.seconds, 0u64);
+    let mut busy = vec![];
     phases.setup += lap(&mut since);
     // Trajectory-steps per dispatch, adapted to the measured speed.
     let mut budget: f64 = 1e6;
@@ -333,6 +334,10 @@ fn run_in<R: Flows>(
                 false => Ok(()),
             }
         };
+        // The queue is this run's until the chunk's results are staged;
+        // then another run's chunk integrates while this one reads back.
+        let turn = ctx.queue_turn();
+        let took = Instant::now();
         let (s, d, frames) = run.chunk(
             &mut out,
             base,
@@ -342,22 +347,29 @@ fn run_in<R: Flows>(
             progress,
             &mut between,
         )?;
+        let staged = stage(ctx, plan, &sizes, &bufs);
+        drop(turn);
+        busy.push((took, Instant::now()));
         totals = (totals.0 + s, totals.1 + d);
         lap(&mut since);
-        collect(ctx, plan, &bufs, &mut out, base, count, sizes.cap, sizes.b)?;
+        collect(ctx, plan, &sizes, &bufs, &staged, &mut out, base, count)?;
         phases.read_back += frames + lap(&mut since);
         base += count;
     }
     phases.integration = totals.0;
+    let timing = match run.timestamps {
+        Some(_) => "GPU timestamps",
+        None => "wall clock",
+    };
+    drop(run);
+    bufs.give_back(ctx);
     Ok(GpuRun {
         observations: out,
         phases,
-        timing: run
-            .timestamps
-            .as_ref()
-            .map_or("wall clock", |_| "GPU timestamps"),
+        timing,
         chunks,
         dispatches: totals.1,
+        busy,
     })
 }
 
@@ -490,6 +502,31 @@ impl Sizes {
         })
     }
 
+    /// Bytes of the buffers that carry a chunk from one window to the next,
+    /// in the order a snapshot holds them: state, status, aux_r, aux_u,
+    /// points.
+    fn carried(&self) -> [u64; 5] {
+        let (b, cap) = (self.b, self.cap);
+        [
+            self.nv * cap * b,
+            4 * cap,
+            self.real_slots * cap * b,
+            slots::COUNT.len() as u64 * cap * 4,
+            self.max_points * self.pv * cap * b,
+        ]
+    }
+
+    /// Where [`stage`] copies the carried buffers in the staging buffer:
+    /// one after another, each at an offset aligned for any precision.
+    fn staged(&self) -> [Range<u64>; 5] {
+        let mut at = 0;
+        self.carried().map(|bytes| {
+            let r = at..at + bytes;
+            at = r.end.next_multiple_of(256);
+            r
+        })
+    }
+
     /// The window of steps from `step0` that a dispatch of `count`
     /// trajectories takes within `budget` trajectory-steps, and the
     /// trajectory frames it records: `(nsteps, frame0, nframes)`.
@@ -514,45 +551,42 @@ impl Sizes {
 impl Buffers {
     fn new(ctx: &GpuContext, s: &Sizes, table: wgpu::Buffer, time_table: bool) -> Buffers {
         let (b, cap) = (s.b, s.cap);
-        let staging_per_trajectory = [
-            s.nv * b,
-            4,
-            s.real_slots * b,
-            slots::COUNT.len() as u64 * 4,
-            s.max_points * s.pv * b,
-            s.max_frames * s.tv * b,
-        ]
-        .into_iter()
-        .max()
-        .unwrap_or(16)
-        .max(4);
+        let frames = s.max_frames * s.tv * b * cap;
+        let uniform = wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST;
+        let tterms = if time_table { time_table::BYTES } else { 16 };
         Buffers {
-            uniform: ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("uniforms"),
-                size: std::mem::size_of::<Uniforms>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
+            uniform: ctx.buffer("uniforms", std::mem::size_of::<Uniforms>() as u64, uniform),
             state: storage(ctx, "state", s.nv * cap * b),
             table,
             status: storage(ctx, "status", 4 * cap),
-            tterms: ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("time terms"),
-                size: if time_table { time_table::BYTES } else { 16 },
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
+            tterms: ctx.buffer("time terms", tterms, uniform),
             aux_r: storage(ctx, "aux_r", s.real_slots * cap * b),
             aux_u: storage(ctx, "aux_u", slots::COUNT.len() as u64 * cap * 4),
-            traj: storage(ctx, "trajectory", s.max_frames * s.tv * cap * b),
+            traj: storage(ctx, "trajectory", frames),
             points: storage(ctx, "points", s.max_points * s.pv * cap * b),
-            staging: ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("staging"),
-                size: staging_per_trajectory * cap,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
+            staging: ctx.buffer(
+                "staging",
+                s.staged()[4].end.max(frames).max(16),
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
         }
+    }
+
+    /// Hands the buffers of a finished run to the context for the next
+    /// (the table is the run's own).
+    fn give_back(self, ctx: &GpuContext) {
+        let kept = [
+            self.uniform,
+            self.state,
+            self.status,
+            self.aux_r,
+            self.aux_u,
+            self.traj,
+            self.points,
+            self.tterms,
+            self.staging,
+        ];
+        kept.into_iter().for_each(|b| ctx.give_back(b));
     }
 }
 
@@ -705,13 +739,14 @@ impl Dispatcher<'_> {
     /// The buffers that carry a chunk from one window to the next, in the
     /// order a snapshot holds them, with their sizes in bytes.
     fn carried(&self) -> [(&wgpu::Buffer, u64); 5] {
-        let (s, b) = (self.sizes, self.bufs);
+        let [state, status, aux_r, aux_u, points] = self.sizes.carried();
+        let b = self.bufs;
         [
-            (&b.state, s.nv * s.cap * s.b),
-            (&b.status, 4 * s.cap),
-            (&b.aux_r, s.real_slots * s.cap * s.b),
-            (&b.aux_u, slots::COUNT.len() as u64 * s.cap * 4),
-            (&b.points, s.max_points * s.pv * s.cap * s.b),
+            (&b.state, state),
+            (&b.status, status),
+            (&b.aux_r, aux_r),
+            (&b.aux_u, aux_u),
+            (&b.points, points),
         ]
     }
 
@@ -808,15 +843,13 @@ impl Dispatcher<'_> {
             enc.copy_buffer_to_buffer(&t.resolve, 0, &t.readback, 0, 16);
         }
         let started = Instant::now();
-        ctx.queue.submit([enc.finish()]);
-        ctx.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Runtime(e.to_string()))?;
+        let submitted = ctx.queue.submit([enc.finish()]);
+        wait_for(ctx, submitted.clone())?;
         let wall = started.elapsed().as_secs_f64();
         check(ctx)?;
         let took = match &self.timestamps {
             Some(t) => {
-                let ts: Vec<u64> = read_mapped(ctx, &t.readback, 16)?;
+                let ts: Vec<u64> = read_mapped(ctx, &t.readback, 16, submitted)?;
                 let gpu = ts[1].saturating_sub(ts[0]) as f64 * t.period_ns * 1e-9;
                 if gpu > 0.0 {
                     gpu
@@ -906,20 +939,37 @@ fn lane_dt<R: Flows>(plan: &Plan, g: usize) -> R {
     R::from_f64(plan.binding("dt").value_at(plan.first + g, &plan.strides))
 }
 
-/// Maps a small MAP_READ buffer and returns its contents.
+/// Waits until the work of submission `index` has finished (not for later
+/// submissions: another run's dispatches on the same device).
+fn wait_for(ctx: &GpuContext, index: wgpu::SubmissionIndex) -> Result<(), BackendError> {
+    let wait = wgpu::PollType::Wait {
+        submission_index: Some(index),
+        timeout: None,
+    };
+    ctx.device
+        .poll(wait)
+        .map_err(|e| GpuError::Runtime(e.to_string()))?;
+    Ok(())
+}
+
+/// Maps a small MAP_READ buffer, written by submission `after`, and
+/// returns its contents.
 pub(super) fn read_mapped<T: bytemuck::Pod>(
     ctx: &GpuContext,
     buf: &wgpu::Buffer,
     bytes: u64,
+    after: wgpu::SubmissionIndex,
 ) -> Result<Vec<T>, BackendError> {
-    with_mapped(ctx, buf, bytes, |v: &[T]| v.to_vec())
+    with_mapped(ctx, buf, bytes, after, |v: &[T]| v.to_vec())
 }
 
-/// Maps a MAP_READ buffer and hands its contents to `with`.
+/// Maps a MAP_READ buffer once submission `after` (which wrote it) has
+/// finished, and hands its contents to `with`.
 fn with_mapped<T: bytemuck::Pod, O>(
     ctx: &GpuContext,
     buf: &wgpu::Buffer,
     bytes: u64,
+    after: wgpu::SubmissionIndex,
     with: impl FnOnce(&[T]) -> O,
 ) -> Result<O, BackendError> {
     let slice = buf.slice(..bytes);
@@ -927,12 +977,19 @@ fn with_mapped<T: bytemuck::Pod, O>(
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);
     });
-    ctx.device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::Runtime(e.to_string()))?;
-    rx.recv()
-        .map_err(|e| GpuError::Runtime(e.to_string()))?
-        .map_err(|e| GpuError::Runtime(e.to_string()))?;
+    wait_for(ctx, after)?;
+    // The mapping is resolved by that wait; should it not be yet, by
+    // waiting for all the device's work.
+    let mapped = match rx.try_recv() {
+        Ok(r) => r,
+        Err(_) => {
+            ctx.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map_err(|e| GpuError::Runtime(e.to_string()))?;
+            rx.recv().map_err(|e| GpuError::Runtime(e.to_string()))?
+        }
+    };
+    mapped.map_err(|e| GpuError::Runtime(e.to_string()))?;
     let out = {
         let view = slice
             .get_mapped_range()
@@ -943,40 +1000,92 @@ fn with_mapped<T: bytemuck::Pod, O>(
     Ok(out)
 }
 
-/// Reads a finished chunk back into the observations (rows `base..base+count`).
+/// A finished chunk's results in the staging buffer: where each carried
+/// buffer lies ([`Sizes::staged`]), and the submission that copies them.
+struct Staged {
+    ranges: [Range<u64>; 5],
+    copied: wgpu::SubmissionIndex,
+}
+
+/// Copies a finished chunk's results into the staging buffer in one
+/// submission, made while the run still has the queue: reading them back
+/// then waits for this copy alone, not for another run's dispatches after it.
+fn stage(ctx: &GpuContext, plan: &Plan, s: &Sizes, bufs: &Buffers) -> Staged {
+    let ranges = s.staged();
+    let observed = plan.has_slots();
+    let sources = [
+        (&bufs.state, true),
+        (&bufs.status, true),
+        (&bufs.aux_r, observed),
+        (&bufs.aux_u, observed),
+        (&bufs.points, observed),
+    ];
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    for ((src, wanted), r) in sources.into_iter().zip(&ranges) {
+        if wanted && r.end > r.start {
+            enc.copy_buffer_to_buffer(src, 0, &bufs.staging, r.start, r.end - r.start);
+        }
+    }
+    let copied = ctx.queue.submit([enc.finish()]);
+    Staged { ranges, copied }
+}
+
+/// A chunk's results as the kernel left them: `cap` rows per variable or
+/// slot, `status` cut to the chunk's trajectories.
+struct Results<'a, R> {
+    cap: u64,
+    status: &'a [u32],
+    state: &'a [R],
+    aux_r: &'a [R],
+    aux_u: &'a [u32],
+    points: &'a [R],
+}
+
+/// Reads a finished chunk's staged results into the observations (rows
+/// `base..base+count`).
 #[allow(clippy::too_many_arguments)]
 fn collect<R: Flows>(
     ctx: &GpuContext,
     plan: &Plan,
+    s: &Sizes,
     bufs: &Buffers,
+    staged: &Staged,
     out: &mut Observations<R>,
     base: u64,
     count: u64,
-    cap: u64,
-    b: u64,
 ) -> Result<(), BackendError> {
-    let nv = plan.vars.len() as u64;
-    let status: Vec<u32> = read(ctx, &bufs.status, &bufs.staging, 4 * cap)?;
-    let cut = status[..count as usize]
-        .iter()
-        .filter(|s| **s == slots::CUT)
-        .count();
-    if cut > 0 {
-        return Err(BackendError::Cut(format!(
-            "the adapter ended the kernel's step loop early in {cut} of {count} trajectories (a driver's limit on loop iterations, such as llvmpipe's {LOOP_ITERATIONS} per dispatch, which reeb's windows should respect: please report it); the CPU backend runs this scene"
-        )));
-    }
-    let status = &status[..count as usize];
-    read_with(
+    let [state, status, aux_r, aux_u, points] = staged.ranges.clone();
+    let end = points.end;
+    with_mapped(
         ctx,
-        &bufs.state,
         &bufs.staging,
-        nv * cap * b,
-        |state: &[R]| scatter(plan, state, status, out, base, cap),
-    )?;
-    if plan.has_slots() {
-        collect_observers(ctx, plan, bufs, out, base, count, cap, b, status)?;
-    }
+        end,
+        staged.copied.clone(),
+        |bytes: &[u8]| {
+            let part = |r: &Range<u64>| &bytes[r.start as usize..r.end as usize];
+            let status: &[u32] = bytemuck::cast_slice(part(&status));
+            let status = &status[..count as usize];
+            let cut = status.iter().filter(|s| **s == slots::CUT).count();
+            if cut > 0 {
+                return Err(BackendError::Cut(format!(
+                "the adapter ended the kernel's step loop early in {cut} of {count} trajectories (a driver's limit on loop iterations, such as llvmpipe's {LOOP_ITERATIONS} per dispatch, which reeb's windows should respect: please report it); the CPU backend runs this scene"
+            )));
+            }
+            let res = Results {
+                cap: s.cap,
+                status,
+                state: bytemuck::cast_slice(part(&state)),
+                aux_r: bytemuck::cast_slice(part(&aux_r)),
+                aux_u: bytemuck::cast_slice(part(&aux_u)),
+                points: bytemuck::cast_slice(part(&points)),
+            };
+            scatter(plan, res.state, status, out, base, s.cap);
+            if plan.has_slots() {
+                collect_observers(plan, &res, out, base);
+            }
+            Ok(())
+        },
+    )??;
     check(ctx)
 }
 
@@ -1048,51 +1157,29 @@ fn time_at<R: Flows>(plan: &Plan, g: usize, steps: u64) -> R {
 
 /// Poincaré points, cycle statistics and time averages of a finished chunk, from the
 /// observer state the kernel kept (`plan/slots.rs`).
-#[allow(clippy::too_many_arguments)]
 fn collect_observers<R: Flows>(
-    ctx: &GpuContext,
     plan: &Plan,
-    bufs: &Buffers,
+    res: &Results<R>,
     out: &mut Observations<R>,
     base: u64,
-    count: u64,
-    cap: u64,
-    b: u64,
-    status: &[u32],
-) -> Result<(), BackendError> {
-    let aux_r: Vec<R> = read(
-        ctx,
-        &bufs.aux_r,
-        &bufs.staging,
-        slots::real(plan).len() as u64 * cap * b,
-    )?;
-    let aux_u: Vec<u32> = read(
-        ctx,
-        &bufs.aux_u,
-        &bufs.staging,
-        slots::COUNT.len() as u64 * cap * 4,
-    )?;
+) {
+    let cap = res.cap;
     let pv = plan.poincare_vars.len() as u64;
     let mp = out.max_points as u64;
-    let points: Vec<R> = if mp > 0 {
-        read(ctx, &bufs.points, &bufs.staging, mp * pv * cap * b)?
-    } else {
-        vec![]
-    };
-    for i in 0..count {
-        let g = (base + i) as usize;
-        let slot = |k: usize| aux_r[(k as u64 * cap + i) as usize];
+    for (i, &status) in res.status.iter().enumerate() {
+        let (g, i) = (base as usize + i, i as u64);
+        let slot = |k: usize| res.aux_r[(k as u64 * cap + i) as usize];
         if plan.observers.poincare.is_some() {
-            let n = aux_u[(slots::NPOINTS as u64 * cap + i) as usize];
+            let n = res.aux_u[(slots::NPOINTS as u64 * cap + i) as usize];
             out.poincare_count[g] = n;
             for k in 0..(n as u64).min(mp) {
                 for j in 0..pv {
                     out.poincare[j as usize].1[g * mp as usize + k as usize] =
-                        points[((k * pv + j) * cap + i) as usize];
+                        res.points[((k * pv + j) * cap + i) as usize];
                 }
             }
         }
-        let (nonfinite, stop) = slots::split_status(status[i as usize].into());
+        let (nonfinite, stop) = slots::split_status(status.into());
         let ok = nonfinite == 0;
         if plan.cycle_var.is_some() {
             let (amplitude, period) = slots::cycle_finish(slot, ok);
@@ -1108,5 +1195,4 @@ fn collect_observers<R: Flows>(
             values.put(lyapunov, scalars, g);
         }
     }
-    Ok(())
 }
