@@ -8,8 +8,8 @@
 # First the whole run against the kernel (summary.json's timing by phase):
 # 10^7 van der Pol orbits x 10^3 S2 steps in f32 (target: wall <= 1.25x the
 # integration), 10^7 x 10^4 (target: whole-run rate >= 0.8x the kernel's),
-# the same sweep in four chunks (timing.overlap: chunk k written while k+1
-# integrates), what --backend auto chooses for it, and reeb bench's
+# the same sweep in four chunks (timing.overlap: chunk k read back and
+# written while k+1 integrates), what --backend auto chooses for it, and reeb bench's
 # whole-run column. Then the probe taking blocks of 8 steps on a hardware
 # GPU without measuring them (expect f32 ~1.59e12, f64 ~5.3-5.6e11), the
 # chaos indicators' cost, SALI/GALI, the CUDA peer and reeb doctor.

@@ -748,7 +748,8 @@ fn finish<R: Flows>(
 
 /// `summary.json`'s `timing`: the seconds of each phase, added up over the
 /// chunks (a resumed run's too, from their markers); `overlap`, the seconds
-/// this command wrote one chunk while the GPU integrated the next; and the
+/// this command read back or wrote one chunk while a GPU integrated
+/// another; and the
 /// wall clock of this command, from its start to the summary.
 fn timing(phases: &Phases, overlap: f64, wall: f64) -> serde_json::Value {
     let mut map: serde_json::Map<String, serde_json::Value> = phases
