@@ -347,7 +347,7 @@ fn run_in<R: Flows>(
             progress,
             &mut between,
         )?;
-        let staged = stage(ctx, plan, &sizes, &bufs);
+        let staged = stage(ctx, &sizes, &bufs);
         drop(turn);
         busy.push((took, Instant::now()));
         totals = (totals.0 + s, totals.1 + d);
@@ -407,6 +407,8 @@ struct Sizes {
     every: u64,
     /// Real observer slots per trajectory (`slots::real`).
     real_slots: u64,
+    /// Whether the plan has observers whose slots the kernel keeps.
+    observed: bool,
     launch: Launch,
 }
 
@@ -498,6 +500,7 @@ impl Sizes {
             max_frames,
             every: plan.observers.trajectory.as_ref().map_or(0, |t| t.every),
             real_slots,
+            observed: plan.has_slots(),
             launch,
         })
     }
@@ -517,11 +520,15 @@ impl Sizes {
     }
 
     /// Where [`stage`] copies the carried buffers in the staging buffer:
-    /// one after another, each at an offset aligned for any precision.
+    /// one after another, each at an offset aligned for any precision; the
+    /// observers' slots and points (empty) only where the plan has some.
     fn staged(&self) -> [Range<u64>; 5] {
         let mut at = 0;
+        let mut k = 0;
         self.carried().map(|bytes| {
-            let r = at..at + bytes;
+            let wanted = k < 2 || self.observed;
+            k += 1;
+            let r = at..at + if wanted { bytes } else { 0 };
             at = r.end.next_multiple_of(256);
             r
         })
@@ -566,7 +573,11 @@ impl Buffers {
             points: storage(ctx, "points", s.max_points * s.pv * cap * b),
             staging: ctx.buffer(
                 "staging",
-                s.staged()[4].end.max(frames).max(16),
+                s.carried()
+                    .into_iter()
+                    .chain([s.staged()[4].end, frames, 16])
+                    .max()
+                    .unwrap_or(16),
                 wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             ),
         }
@@ -1010,19 +1021,18 @@ struct Staged {
 /// Copies a finished chunk's results into the staging buffer in one
 /// submission, made while the run still has the queue: reading them back
 /// then waits for this copy alone, not for another run's dispatches after it.
-fn stage(ctx: &GpuContext, plan: &Plan, s: &Sizes, bufs: &Buffers) -> Staged {
+fn stage(ctx: &GpuContext, s: &Sizes, bufs: &Buffers) -> Staged {
     let ranges = s.staged();
-    let observed = plan.has_slots();
     let sources = [
-        (&bufs.state, true),
-        (&bufs.status, true),
-        (&bufs.aux_r, observed),
-        (&bufs.aux_u, observed),
-        (&bufs.points, observed),
+        &bufs.state,
+        &bufs.status,
+        &bufs.aux_r,
+        &bufs.aux_u,
+        &bufs.points,
     ];
     let mut enc = ctx.device.create_command_encoder(&Default::default());
-    for ((src, wanted), r) in sources.into_iter().zip(&ranges) {
-        if wanted && r.end > r.start {
+    for (src, r) in sources.into_iter().zip(&ranges) {
+        if r.end > r.start {
             enc.copy_buffer_to_buffer(src, 0, &bufs.staging, r.start, r.end - r.start);
         }
     }
