@@ -20,24 +20,10 @@ fn chunks_of_any_size_give_the_same_bits_as_one() {
     let d = tmp("chunks");
     let scene = grid_scene(&d, 4.0, 50, "cpu");
     let one = d.join("one");
-    ok(&[
-        "run",
-        s(&scene),
-        "--out",
-        s(&one),
-        "--chunk-trajectories",
-        "1000000",
-    ]);
+    chunked(&scene, &one, "1000000");
     for rows in ["1", "5", "7", "30"] {
         let out = d.join(format!("c{rows}"));
-        ok(&[
-            "run",
-            s(&scene),
-            "--out",
-            s(&out),
-            "--chunk-trajectories",
-            rows,
-        ]);
+        chunked(&scene, &out, rows);
         same_arrays(&one, &out);
     }
     let summary = std::fs::read_to_string(d.join("c5/summary.json")).unwrap();
@@ -54,14 +40,7 @@ fn chunks_on_the_gpu_give_the_same_bits_as_one() {
     let one = d.join("one");
     ok(&["run", s(&scene), "--out", s(&one)]);
     let out = d.join("c7");
-    ok(&[
-        "run",
-        s(&scene),
-        "--out",
-        s(&out),
-        "--chunk-trajectories",
-        "7",
-    ]);
+    chunked(&scene, &out, "7");
     same_arrays(&one, &out);
     // One GPU writes a chunk while it integrates the next: the two spans
     // overlap on the host's clock; a run of one chunk has nothing to overlap.
@@ -100,14 +79,7 @@ precision = "f32"
     .unwrap();
     let (one, out) = (d.join("one"), d.join("chunked"));
     ok(&["run", s(&scene), "--out", s(&one)]);
-    ok(&[
-        "run",
-        s(&scene),
-        "--out",
-        s(&out),
-        "--chunk-trajectories",
-        "16384",
-    ]);
+    chunked(&scene, &out, "16384");
     same_arrays(&one, &out);
     let t = timing(&out);
     let of = |k: &str| t[k].as_f64().unwrap();
@@ -121,6 +93,18 @@ precision = "f32"
     let sum: f64 = phases.iter().map(|k| of(k)).sum::<f64>() + of("pictures");
     assert!(sum > of("wall"), "{sum} <= wall: {t:?}");
     assert!(of("overlap") > 0.0, "{t:?}");
+}
+
+/// `reeb run SCENE --out OUT --chunk-trajectories ROWS`, which must succeed.
+fn chunked(scene: &Path, out: &Path, rows: &str) -> String {
+    ok(&[
+        "run",
+        s(scene),
+        "--out",
+        s(out),
+        "--chunk-trajectories",
+        rows,
+    ])
 }
 
 /// `summary.json` of the run in `out`.
@@ -143,14 +127,7 @@ fn the_summary_times_each_phase_and_the_run_line_says_wall_and_integration() {
     let d = tmp("timing");
     let scene = grid_scene(&d, 4.0, 50, "cpu");
     let out = d.join("run");
-    let said = ok(&[
-        "run",
-        s(&scene),
-        "--out",
-        s(&out),
-        "--chunk-trajectories",
-        "30",
-    ]);
+    let said = chunked(&scene, &out, "30");
     assert!(
         said.contains(" s wall, ") && said.contains(" s integrating ("),
         "{said}"
