@@ -12,6 +12,7 @@ mod cli;
 mod cli_fuzz;
 mod cpu;
 mod disk_full;
+mod docs;
 mod doctor;
 mod formula_limits;
 mod formula_models;
