@@ -24,6 +24,7 @@
 
 mod error;
 mod formula;
+pub mod keys;
 mod parse;
 mod plans;
 pub mod tables;

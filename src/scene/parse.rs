@@ -24,79 +24,13 @@ use crate::plan::scheme::{Scheme, SCHEME_NAMES};
 use crate::plan::size;
 use crate::plan::stop::StopObs;
 
+use super::keys::{self, Key};
 use super::tables::{self, Cycle, Lyapunov, Period, Sampled, Str, Strs, Table};
 use super::values::{integ_span, suggest, AxisValues, Entry, Parser};
 use super::{
     BackendChoice, Format, Horizon, Input, OutVar, PlotSettings, ReportSettings, Scene, SceneAxis,
     SceneError,
 };
-
-const TOP_KEYS: &[&str] = &[
-    "model",
-    "formula",
-    "name",
-    "title",
-    "params",
-    "initial",
-    "integrator",
-    "output",
-    "run",
-    "report",
-    "plot",
-];
-const INTEGRATOR_KEYS: &[&str] = &["scheme", "order", "dt", "t_end", "steps"];
-const OUTPUT_KEYS: &[&str] = &[
-    "final",
-    "trajectory",
-    "poincare",
-    "cycle",
-    "average",
-    "resonance",
-    "stop",
-    "lyapunov",
-    "fli",
-    "megno",
-    "sali",
-    "gali",
-    "format",
-];
-const TRAJECTORY_KEYS: &[&str] = &["every", "vars"];
-const POINCARE_KEYS: &[&str] = &[
-    "period",
-    "phase",
-    "crossing",
-    "value",
-    "direction",
-    "vars",
-    "max_points",
-    "skip",
-];
-const CYCLE_KEYS: &[&str] = &["var", "level", "skip"];
-const AVERAGE_KEYS: &[&str] = &["vars", "skip"];
-const RESONANCE_KEYS: &[&str] = &["var", "ratios", "tolerance"];
-const STOP_KEYS: &[&str] = &["when"];
-const LYAPUNOV_KEYS: &[&str] = &["vectors", "every", "skip"];
-const SAMPLED_KEYS: &[&str] = &["every"];
-const GALI_KEYS: &[&str] = &["k", "every"];
-const RUN_KEYS: &[&str] = &["backend", "precision"];
-const PLOT_KEYS: &[&str] = &[
-    "phase",
-    "poincare",
-    "wrap_x",
-    "max_trajectories",
-    "lienard_plane",
-    "bifurcation",
-];
-const BIFURCATION_KEYS: &[&str] = &["axis", "var"];
-const REPORT_KEYS: &[&str] = &[
-    "schemes",
-    "backends",
-    "precisions",
-    "error_vars",
-    "reference_rtol",
-    "distorted",
-    "targets",
-];
 
 /// The top-level entries of a scene file.
 struct Doc<'i> {
@@ -282,7 +216,7 @@ impl Scene {
         let root = parse_toml(path, text)?;
         let mut p = Parser::new(path, text);
         let doc = Doc {
-            top: p.entries(root.get_ref(), "", Some(TOP_KEYS))?,
+            top: p.entries(root.get_ref(), "", Some(&keys::names(keys::TOP)))?,
         };
         let mut model = model(&mut p, &doc)?;
         let spec = model.spec();
@@ -518,7 +452,7 @@ fn integrator(p: &mut Parser, doc: &Doc, inputs: &mut Inputs) -> Result<Integ, S
             "missing; it needs scheme, dt and t_end or steps",
         )
     })?;
-    let entries = p.entries(t, "integrator", Some(INTEGRATOR_KEYS))?;
+    let entries = p.entries(t, "integrator", Some(&keys::names(keys::INTEGRATOR)))?;
     let entries: Vec<Entry> = entries.into_iter().collect();
     let table: tables::Integrator = deserialize(p, doc.get("integrator"))?;
     let scheme = table
@@ -674,19 +608,19 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
             p,
             t,
             "output",
-            OUTPUT_KEYS,
+            keys::OUTPUT,
             &[
-                ("trajectory", TRAJECTORY_KEYS),
-                ("poincare", POINCARE_KEYS),
-                ("cycle", CYCLE_KEYS),
-                ("average", AVERAGE_KEYS),
-                ("resonance", RESONANCE_KEYS),
-                ("stop", STOP_KEYS),
-                ("lyapunov", LYAPUNOV_KEYS),
-                ("fli", SAMPLED_KEYS),
-                ("megno", SAMPLED_KEYS),
-                ("sali", SAMPLED_KEYS),
-                ("gali", GALI_KEYS),
+                ("trajectory", keys::TRAJECTORY),
+                ("poincare", keys::POINCARE),
+                ("cycle", keys::CYCLE),
+                ("average", keys::AVERAGE),
+                ("resonance", keys::RESONANCE),
+                ("stop", keys::STOP),
+                ("lyapunov", keys::LYAPUNOV),
+                ("fli", keys::SAMPLED),
+                ("megno", keys::SAMPLED),
+                ("sali", keys::SAMPLED),
+                ("gali", keys::GALI),
             ],
         )?;
     }
@@ -1061,13 +995,13 @@ fn check_keys(
     p: &mut Parser,
     table: &DeTable,
     name: &str,
-    keys: &[&str],
-    nested: &[(&str, &[&str])],
+    known: &[Key],
+    nested: &[(&str, &[Key])],
 ) -> Result<(), SceneError> {
-    for (k, v) in p.entries(table, name, Some(keys))? {
+    for (k, v) in p.entries(table, name, Some(&keys::names(known)))? {
         let inner = nested.iter().find(|(n, _)| *n == k.get_ref().as_ref());
-        if let (Some((n, keys)), DeValue::Table(t)) = (inner, v.get_ref()) {
-            p.entries(t, &format!("{name}.{n}"), Some(keys))?;
+        if let (Some((n, known)), DeValue::Table(t)) = (inner, v.get_ref()) {
+            p.entries(t, &format!("{name}.{n}"), Some(&keys::names(known)))?;
         }
     }
     Ok(())
@@ -1076,7 +1010,7 @@ fn check_keys(
 /// `[run]`: backend and precision.
 fn run(p: &mut Parser, doc: &Doc) -> Result<(BackendChoice, Precision), SceneError> {
     if let Some(t) = doc.table(p, "run")? {
-        check_keys(p, t, "run", RUN_KEYS, &[])?;
+        check_keys(p, t, "run", keys::RUN, &[])?;
     }
     let r: tables::Run = deserialize(p, doc.get("run"))?;
     let backend = parsed(p, "run.backend", &r.backend)?.unwrap_or(BackendChoice::Auto);
@@ -1107,8 +1041,8 @@ fn plot(p: &mut Parser, doc: &Doc, model: &Model) -> Result<PlotSettings, SceneE
             p,
             t,
             "plot",
-            PLOT_KEYS,
-            &[("bifurcation", BIFURCATION_KEYS)],
+            keys::PLOT,
+            &[("bifurcation", keys::BIFURCATION)],
         )?;
     }
     let t: tables::Plot = deserialize(p, doc.get("plot"))?;
@@ -1173,7 +1107,7 @@ fn report(
     let Some(t) = doc.table(p, "report")? else {
         return Ok(None);
     };
-    check_keys(p, t, "report", REPORT_KEYS, &[])?;
+    check_keys(p, t, "report", keys::REPORT, &[])?;
     let t: tables::Report = deserialize(p, doc.get("report"))?;
     let mut r = ReportSettings::defaults(scheme);
     if let Some(s) = &t.schemes {

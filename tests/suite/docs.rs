@@ -118,3 +118,94 @@ fn the_citation_page_lists_the_papers_of_every_scheme_and_model() {
     text.push('\n');
     generated("docs/cite.md", "references", &text);
 }
+
+/// The scene every `bad` example is set in: the least a scene needs.
+const BASE: &[(&str, &str)] = &[
+    ("", "model = \"van_der_pol\""),
+    ("integrator", "dt = 0.01"),
+    ("integrator", "steps = 10"),
+];
+
+/// `BASE` with `line` in TOML section `section` (replacing the base's line
+/// of the same key), as a scene file's text.
+fn with_line(section: &str, line: &str) -> String {
+    let key = |l: &str| l.split('=').next().unwrap_or("").trim().to_string();
+    // A top-level key that names a base section (`integrator = 3`) takes
+    // its place.
+    let mut lines: Vec<(&str, &str)> = BASE
+        .iter()
+        .copied()
+        .filter(|(s, l)| !(*s == section && key(l) == key(line)))
+        .filter(|(s, _)| !(section.is_empty() && *s == key(line)))
+        .collect();
+    lines.push((section, line));
+    let mut text = String::new();
+    for (_, l) in lines.iter().filter(|(s, _)| s.is_empty()) {
+        text.push_str(l);
+        text.push('\n');
+    }
+    let mut sections: Vec<&str> = lines
+        .iter()
+        .map(|(s, _)| *s)
+        .filter(|s| !s.is_empty())
+        .collect();
+    sections.dedup();
+    for s in sections {
+        text.push_str(&format!("[{s}]\n"));
+        for (_, l) in lines.iter().filter(|(t, _)| *t == s) {
+            text.push_str(l);
+            text.push('\n');
+        }
+    }
+    text
+}
+
+/// What `reeb check` says of `scene` (which it must refuse), its path out.
+fn refusal(dir: &Path, scene: &str) -> String {
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, scene).unwrap();
+    let o = crate::common::runs::reeb(&["check", path.to_str().unwrap()]);
+    let said = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(!o.status.success(), "reeb check accepted:\n{scene}\n{said}");
+    let line = said
+        .lines()
+        .find(|l| l.starts_with("error: "))
+        .unwrap_or(&said)
+        .to_string();
+    line.trim_start_matches("error: ")
+        .replace(path.to_str().unwrap(), "scene.toml")
+}
+
+/// A table cell: `|` escaped, on one line.
+fn cell(s: &str) -> String {
+    s.replace('|', "\\|").replace('\n', " ")
+}
+
+#[test]
+fn the_scene_reference_lists_every_key_the_parser_accepts() {
+    use reeb::scene::keys::TABLES;
+    let dir = crate::common::runs::tmp("docs", "scene-keys");
+    let mut text = String::new();
+    for table in TABLES {
+        let title = match table.section {
+            "" => table.name.to_string(),
+            _ => format!("`{}`", table.name),
+        };
+        text.push_str(&format!(
+            "\n### {title}\n\n| key | value | default | meaning | refused, for example |\n|---|---|---|---|---|\n"
+        ));
+        for k in table.keys {
+            let said = refusal(&dir, &with_line(table.section, k.bad));
+            text.push_str(&format!(
+                "| `{}` | {} | {} | {} | `{}` → {} |\n",
+                k.name,
+                cell(k.value),
+                cell(k.default),
+                cell(k.meaning),
+                cell(k.bad),
+                cell(&format!("`` {said} ``")),
+            ));
+        }
+    }
+    generated("docs/scene-reference.md", "keys", &text);
+}
