@@ -163,9 +163,10 @@ enum Command {
         #[arg(long, value_delimiter = ',', default_value = "f32,f64")]
         precision: Vec<Precision>,
     },
-    /// Run the oracles of SPEC §4 and measure the convergence order of every scheme;
-    /// with a scene, measure its scheme's order (and S2's, Yoshida 6A's) on it
-    /// against DOP853, and the CPU–GPU agreement on it.
+    /// Run the oracles (each model's exact solutions and known values) and
+    /// measure the convergence order of every scheme; with a scene, measure
+    /// its scheme's order (and S2's, Yoshida 6A's) on it against DOP853, and
+    /// the CPU–GPU agreement on it.
     Verify {
         /// A scene to verify (e.g. a formula model) instead of the built-in checks.
         scene: Option<PathBuf>,
