@@ -284,8 +284,8 @@ type Timeline = (Vec<Span>, Span);
 
 /// [`chunk`], and when it ran what.
 fn timed_chunk<R: Flows>(t: &Target, k: usize, sink: &Sink, done: &AtomicU64) -> Result<Timeline> {
-    let rows = integrate_rows::<R>(t, k, done)?;
-    let busy = rows.busy.clone();
+    let mut rows = integrate_rows::<R>(t, k, done)?;
+    let busy = std::mem::take(&mut rows.busy);
     let host = busy.last().map_or_else(Instant::now, |b| b.1);
     write_chunk(t, k, sink, rows)?;
     Ok((busy, (host, Instant::now())))

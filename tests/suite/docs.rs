@@ -1,8 +1,10 @@
 //! The documentation's generated pages are what reeb itself says, so they
 //! cannot drift: the command-line reference is every command's own help
-//! (clap's), and the citation page's tables are `summary.json`'s
-//! `references` for every scheme and built-in model. After a change,
-//! `REEB_UPDATE_DOCS=1 cargo test --release --test suite docs::` rewrites them.
+//! (clap's), the citation page's tables are `summary.json`'s `references`
+//! for every scheme and built-in model, the scene reference's key tables
+//! are the parser's own, and the site's home page is the README. After a
+//! change, `REEB_UPDATE_DOCS=1 cargo test --release --test suite docs::`
+//! rewrites them.
 
 use std::path::Path;
 
@@ -78,6 +80,22 @@ fn the_command_line_reference_is_every_commands_own_help() {
     help_of(&[], &mut text);
     assert!(text.contains("\n## reeb run\n") && text.contains("\n## reeb report stability\n"));
     generated("docs/cli.md", "help", &text);
+}
+
+#[test]
+fn the_sites_home_page_is_the_readme() {
+    let readme = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md"));
+    // The README's links, from the repository's root, as the site's pages
+    // (under docs/) reach the same files.
+    let home = readme
+        .unwrap()
+        .replace("](docs/", "](")
+        .replace("src=\"docs/img/", "src=\"img/")
+        .replace(
+            "](python/examples/chaos_maps.ipynb)",
+            "](tutorials/chaos-maps.ipynb)",
+        );
+    generated("docs/index.md", "readme", &home);
 }
 
 #[test]

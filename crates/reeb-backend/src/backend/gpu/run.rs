@@ -523,12 +523,18 @@ impl Sizes {
     /// one after another, each at an offset aligned for any precision; the
     /// observers' slots and points (empty) only where the plan has some.
     fn staged(&self) -> [Range<u64>; 5] {
+        let [state, status, aux_r, aux_u, points] = self.carried();
+        let observed = |bytes: u64| if self.observed { bytes } else { 0 };
         let mut at = 0;
-        let mut k = 0;
-        self.carried().map(|bytes| {
-            let wanted = k < 2 || self.observed;
-            k += 1;
-            let r = at..at + if wanted { bytes } else { 0 };
+        [
+            state,
+            status,
+            observed(aux_r),
+            observed(aux_u),
+            observed(points),
+        ]
+        .map(|bytes| {
+            let r = at..at + bytes;
             at = r.end.next_multiple_of(256);
             r
         })
@@ -581,6 +587,18 @@ impl Buffers {
                 wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             ),
         }
+    }
+
+    /// The buffers that carry a chunk from one window to the next, in the
+    /// order of [`Sizes::carried`].
+    fn carried(&self) -> [&wgpu::Buffer; 5] {
+        [
+            &self.state,
+            &self.status,
+            &self.aux_r,
+            &self.aux_u,
+            &self.points,
+        ]
     }
 
     /// Hands the buffers of a finished run to the context for the next
@@ -750,15 +768,8 @@ impl Dispatcher<'_> {
     /// The buffers that carry a chunk from one window to the next, in the
     /// order a snapshot holds them, with their sizes in bytes.
     fn carried(&self) -> [(&wgpu::Buffer, u64); 5] {
-        let [state, status, aux_r, aux_u, points] = self.sizes.carried();
-        let b = self.bufs;
-        [
-            (&b.state, state),
-            (&b.status, status),
-            (&b.aux_r, aux_r),
-            (&b.aux_u, aux_u),
-            (&b.points, points),
-        ]
+        let (bufs, bytes) = (self.bufs.carried(), self.sizes.carried());
+        std::array::from_fn(|k| (bufs[k], bytes[k]))
     }
 
     /// Saves a snapshot of the chunk at `base` before step `step0`.
@@ -1023,15 +1034,8 @@ struct Staged {
 /// then waits for this copy alone, not for another run's dispatches after it.
 fn stage(ctx: &GpuContext, s: &Sizes, bufs: &Buffers) -> Staged {
     let ranges = s.staged();
-    let sources = [
-        &bufs.state,
-        &bufs.status,
-        &bufs.aux_r,
-        &bufs.aux_u,
-        &bufs.points,
-    ];
     let mut enc = ctx.device.create_command_encoder(&Default::default());
-    for (src, r) in sources.into_iter().zip(&ranges) {
+    for (src, r) in bufs.carried().into_iter().zip(&ranges) {
         if r.end > r.start {
             enc.copy_buffer_to_buffer(src, 0, &bufs.staging, r.start, r.end - r.start);
         }
