@@ -110,7 +110,9 @@ fn the_citation_page_lists_the_papers_of_every_scheme_and_model() {
                     papers.push(p);
                 }
                 let k = papers.iter().position(|q| *q == p).unwrap() + 1;
-                format!("[{k}]")
+                // A link to the paper below (a bare `[1]` reads as a link
+                // reference to the site's cross-referencing).
+                format!("[[{k}]](#paper-{k})")
             })
             .collect();
         match each.is_empty() {
@@ -131,7 +133,7 @@ fn the_citation_page_lists_the_papers_of_every_scheme_and_model() {
     }
     text.push('\n');
     for (k, p) in papers.iter().enumerate() {
-        text.push_str(&format!("{}. {p}\n", k + 1));
+        text.push_str(&format!("{0}. <a id=\"paper-{0}\"></a>{p}\n", k + 1));
     }
     text.push('\n');
     generated("docs/cite.md", "references", &text);
