@@ -2,7 +2,9 @@
 //! cannot drift: the command-line reference is every command's own help
 //! (clap's), the citation page's tables are `summary.json`'s `references`
 //! for every scheme and built-in model, the scene reference's key tables
-//! are the parser's own, and the site's home page is the README. After a
+//! are the parser's own, the outputs page's table of arrays is what reeb
+//! writes (names, dimensions, element types), and the site's home page is
+//! the README. After a
 //! change, `REEB_UPDATE_DOCS=1 cargo test --release --test suite docs::`
 //! rewrites them.
 
@@ -228,4 +230,186 @@ fn the_scene_reference_lists_every_key_the_parser_accepts() {
         }
     }
     generated("docs/scene-reference.md", "keys", &text);
+}
+
+/// Scenes that, between them, write every array reeb writes: every
+/// observer, every indicator with its running values, a stop condition.
+const EVERY_OUTPUT: &[&str] = &[
+    r#"model = "van_der_pol"
+[params]
+epsilon = { linspace = [0.5, 3.0, 4] }
+[initial]
+q = { linspace = [1.0, 2.0, 3] }
+[integrator]
+scheme = "s2"
+dt = 0.05
+steps = 400
+[output]
+final = ["q", "s"]
+trajectory = { every = 100, vars = ["q"] }
+poincare = { crossing = "q", value = 0.0, vars = ["s"], max_points = 4 }
+cycle = true
+average = ["q"]
+resonance = { var = "q", ratios = [[1, 1]], tolerance = 10.0 }
+stop = "t > 15"
+"#,
+    r#"model = "spin_orbit"
+[params]
+eccentricity = 0.1
+epsilon = 0.05
+[initial]
+q = { linspace = [0.0, 6.0, 3] }
+p = { linspace = [0.5, 1.5, 2] }
+[integrator]
+scheme = "s2"
+dt = 0.1
+steps = 200
+[output]
+final = ["q"]
+trajectory = { every = 50, vars = ["p"] }
+lyapunov = { vectors = 2 }
+fli = true
+megno = true
+sali = true
+gali = { k = 2 }
+"#,
+];
+
+/// What each array reeb writes holds, by its name with the variables'
+/// names as `<var>`.
+const ARRAY_MEANINGS: &[(&str, &str)] = &[
+    ("axis_<axis>", "the values of each axis of the ensemble"),
+    ("final_<var>", "the final value (NaN if the trajectory became non-finite; where it stopped, if `output.stop` stopped it)"),
+    ("trajectory_<var>", "every `every` steps from step 0 (`output.trajectory`)"),
+    ("poincare_<var>", "the section's points, NaN-padded (`output.poincare`)"),
+    ("poincare_count", "the number of section points found"),
+    ("cycle_amplitude", "half the peak-to-peak range (`output.cycle`)"),
+    ("cycle_period", "the least-squares period of the upward crossings"),
+    ("mean_<var>", "the time average after the skipped fraction (`output.average`)"),
+    ("resonance", "the index into `output.resonance.ratios` of the p:q the mean is within tolerance of, −1 for none"),
+    ("lyapunov", "finite-time Lyapunov exponents, largest first (`output.lyapunov`)"),
+    ("fli", "the fast Lyapunov indicator at the last sample (`output.fli`)"),
+    ("megno", "MEGNO's ⟨Y⟩ at the last sample (`output.megno`)"),
+    ("sali", "SALI at the last sample (`output.sali`)"),
+    ("gali", "GALI_k at the last sample (`output.gali`)"),
+    ("trajectory_lyapunov", "the exponents' running values per frame (with `output.trajectory`)"),
+    ("trajectory_fli", "the FLI per frame"),
+    ("trajectory_megno", "MEGNO per frame"),
+    ("trajectory_sali", "SALI per frame"),
+    ("trajectory_gali", "GALI_k per frame"),
+    ("status", "0 ran to the end, 1 became non-finite, 2 stopped by `output.stop`"),
+    ("status_step", "the step it became non-finite at or stopped after (−1: neither)"),
+];
+
+/// The `.npy` header's element type, as numpy names it.
+fn dtype(path: &Path) -> &'static str {
+    let (header, _) = crate::common::npy(path);
+    for (code, name) in [
+        ("'<f4'", "float32"),
+        ("'<f8'", "float64"),
+        ("'<i4'", "int32"),
+        ("'<i8'", "int64"),
+        ("'|u1'", "uint8"),
+        ("'<u4'", "uint32"),
+    ] {
+        if header.contains(code) {
+            return name;
+        }
+    }
+    panic!("{}: element type not known here: {header}", path.display())
+}
+
+/// The outputs page's table of arrays is what reeb writes: each array's
+/// name, its dimensions (after the ensemble's axes) and its element type in
+/// an f32 and an f64 run, read from `summary.json` and the files.
+#[test]
+fn the_outputs_page_lists_every_array_reeb_writes() {
+    use crate::common::runs::{s, tmp};
+    use std::collections::BTreeMap;
+    // name → (dims after the axes, dtype in f32, dtype in f64)
+    let mut arrays: BTreeMap<String, (String, String, String)> = BTreeMap::new();
+    for (k, text) in EVERY_OUTPUT.iter().enumerate() {
+        let dir = tmp("docs-outputs", &k.to_string());
+        let scene = dir.join("scene.toml");
+        std::fs::write(&scene, text).unwrap();
+        for precision in ["f32", "f64"] {
+            let out = dir.join(precision);
+            ok(&[
+                "run",
+                s(&scene),
+                "--out",
+                s(&out),
+                "--backend",
+                "cpu",
+                "--precision",
+                precision,
+            ]);
+            let summary: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                    .unwrap();
+            // The ensemble's axes: what `status` has, one value per trajectory.
+            let axes: Vec<String> = summary["dims"]["status"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|a| a.as_str().unwrap().to_string())
+                .collect();
+            let vars = ["q", "p", "s", "t"];
+            for file in summary["files"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter_map(|f| f.as_str())
+            {
+                let Some(stem) = file.strip_suffix(".npy") else {
+                    continue;
+                };
+                let general = match stem.rsplit_once('_') {
+                    Some(("axis", _)) => "axis_<axis>".to_string(),
+                    Some((head, var)) if vars.contains(&var) => format!("{head}_<var>"),
+                    _ => stem.to_string(),
+                };
+                let dims = match summary["dims"][stem].as_array() {
+                    Some(d) => d
+                        .iter()
+                        .filter_map(|x| x.as_str())
+                        .filter(|x| !axes.iter().any(|a| a == x))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    None => String::new(),
+                };
+                let row = arrays
+                    .entry(general)
+                    .or_insert_with(|| (dims, String::new(), String::new()));
+                let t = dtype(&out.join(file)).to_string();
+                match precision {
+                    "f32" => row.1 = t,
+                    _ => row.2 = t,
+                }
+            }
+        }
+    }
+    let mut table = String::from("\n| array | dimensions after the axes | f32 run | f64 run | content |\n|---|---|---|---|---|\n");
+    for (name, meaning) in ARRAY_MEANINGS {
+        let Some((dims, f32, f64)) = arrays.remove(*name) else {
+            panic!(
+                "no scene of EVERY_OUTPUT writes {name}: add one, or remove it from ARRAY_MEANINGS"
+            );
+        };
+        let dims = match (*name, dims.is_empty()) {
+            ("axis_<axis>", _) => "its own".to_string(),
+            (_, true) => "—".to_string(),
+            _ => format!("`{dims}`"),
+        };
+        table.push_str(&format!(
+            "| `{name}.npy` | {dims} | {f32} | {f64} | {meaning} |\n"
+        ));
+    }
+    assert!(
+        arrays.is_empty(),
+        "arrays without a meaning in ARRAY_MEANINGS: {:?}",
+        arrays.keys()
+    );
+    table.push('\n');
+    generated("docs/outputs.md", "arrays", &table);
 }
