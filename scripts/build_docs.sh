@@ -9,8 +9,9 @@ cd "$(dirname "$0")/.."
 venv="${REEB_DOCS_VENV:-target/docs-venv}"
 [ -x "$venv/bin/python" ] || python3 -m venv "$venv"
 pip=("$venv/bin/pip" install -q --disable-pip-version-check)
-# The site's tools, and what the tutorials import beside reeb.
-"${pip[@]}" mkdocs-jupyter "mkdocstrings[python]" xarray zarr "dask[distributed]"
+# The site's tools (ruff formats the API page's signatures), and what the
+# tutorials import beside reeb.
+"${pip[@]}" mkdocs-jupyter "mkdocstrings[python]" ruff xarray zarr "dask[distributed]"
 # The package the notebooks import, from this checkout (cargo reuses what
 # target/ already holds).
 "${pip[@]}" "./python[examples]"

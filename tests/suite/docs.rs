@@ -4,9 +4,8 @@
 //! for every scheme and built-in model, the scene reference's key tables
 //! are the parser's own, the outputs page's table of arrays is what reeb
 //! writes (names, dimensions, element types), and the site's home page is
-//! the README. After a
-//! change, `REEB_UPDATE_DOCS=1 cargo test --release --test suite docs::`
-//! rewrites them.
+//! the README. After a change, `REEB_UPDATE_DOCS=1 cargo test --release
+//! --test suite docs::` rewrites them.
 
 use std::path::Path;
 
