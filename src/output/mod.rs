@@ -2,6 +2,7 @@
 //! directory), the arrays, and the pictures drawn with the plotting module.
 
 pub mod arrays;
+pub mod attractors;
 pub mod chunks;
 pub mod directory;
 pub mod doubts;

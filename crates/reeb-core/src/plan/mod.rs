@@ -16,6 +16,7 @@ pub mod observed;
 pub mod observers;
 pub mod precision;
 pub mod problem;
+pub mod recurrence;
 pub mod scheme;
 pub mod section;
 pub mod size;
