@@ -8,7 +8,8 @@ them, in seconds. A ```bash line that is one of CI's own steps (the test
 suite, the site's build) is checked to be one, word for word, in `.ci/run`.
 A block that cannot run here says why in a `<!-- not run: REASON -->` line
 just above it; those are listed by `test_blocks_not_run_say_why`.
-Synopses and output are ```text.
+Synopses and output are ```text. A ```toml block is TOML, and one that is a
+whole scene (a model and an integrator) passes `reeb check` at small size.
 """
 
 import os
@@ -17,6 +18,7 @@ import shutil
 import subprocess
 import sys
 import time
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -143,6 +145,20 @@ def test_every_block_of_the_page_runs(page: Path, tmp_path: Path):
                 [sys.executable, "-c", body], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
             )
             assert done.returncode == 0, f"{where}:\n{body}\n{done.stderr[-3000:]}"
+
+
+@pytest.mark.parametrize("page", PAGES, ids=[p.name for p in PAGES])
+def test_every_scene_of_the_page_is_one_reeb_accepts(page: Path, tmp_path: Path):
+    scenes = [body for lang, body, _ in blocks(page) if lang == "toml"]
+    for k, body in enumerate(scenes):
+        where = f"{page.name}, TOML block {k + 1}"
+        table = tomllib.loads(body)  # a fragment is TOML too
+        if not {"model", "integrator"} <= table.keys():
+            continue
+        scene = tmp_path / f"scene{k}.toml"
+        scene.write_text(small_scene(body))
+        done = subprocess.run([str(reeb_bin()), "check", str(scene)], capture_output=True, text=True)
+        assert done.returncode == 0, f"{where}: {done.stderr}"
 
 
 def test_blocks_not_run_say_why():
