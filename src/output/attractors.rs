@@ -82,6 +82,12 @@ pub fn label(ends: &[End], r: &Recurrence) -> Labelling {
             count: counts[g],
         });
     }
+    labelled(&group, &label_of, attractors)
+}
+
+/// Each orbit's label from its group's (`usize::MAX`: none, an escape:
+/// −1), with the escapes' entry after the attractors when there are any.
+fn labelled(group: &[usize], label_of: &[i32], mut attractors: Vec<Attractor>) -> Labelling {
     let labels: Vec<i32> = group
         .iter()
         .map(|&g| if g == usize::MAX { -1 } else { label_of[g] })
@@ -354,22 +360,8 @@ pub fn continue_along(ends: &[End], slices: &[Vec<usize>], r: &Recurrence) -> Co
         });
         counts.push(per_slice.clone());
     }
-    let labels: Vec<i32> = track_of_orbit
-        .iter()
-        .map(|&t| if t == usize::MAX { -1 } else { label_of[t] })
-        .collect();
-    let escaped = labels.iter().filter(|l| **l < 0).count();
-    if escaped > 0 {
-        attractors.push(Attractor {
-            label: -1,
-            kind: Kind::Escape,
-            period: 0,
-            points: vec![],
-            count: escaped,
-        });
-    }
     Continued {
-        labelling: Labelling { labels, attractors },
+        labelling: labelled(&track_of_orbit, &label_of, attractors),
         counts,
     }
 }
