@@ -126,11 +126,7 @@ pub fn hausdorff(a: &[f64], b: &[f64], r: &Recurrence) -> f64 {
 fn cell(x: &[f64], r: &Recurrence, size: f64) -> [i64; 2] {
     let mut c = [0i64; 2];
     for (k, c) in c.iter_mut().enumerate().take(r.dim().min(2)) {
-        let v = match r.wrap[k] {
-            Some(p) => x[k].rem_euclid(p),
-            None => x[k],
-        };
-        *c = (v / size).floor() as i64;
+        *c = (r.coordinate(x, k) / size).floor() as i64;
     }
     c
 }
@@ -217,22 +213,19 @@ fn aperiodic_groups(
         return;
     }
     let comps = d.min(3);
-    let (mut lo, mut hi) = (vec![f64::INFINITY; comps], vec![f64::NEG_INFINITY; comps]);
-    let coord = |x: &[f64], k: usize| match r.wrap[k] {
-        Some(p) => x[k].rem_euclid(p),
-        None => x[k],
-    };
-    for &i in &which {
-        for x in ends[i]
+    // An orbit's finite samples: a non-finite one lies in no cell.
+    let samples = |i: usize| {
+        ends[i]
             .points
             .chunks(d)
             .filter(|x| x.iter().all(|v| v.is_finite()))
-        {
-            for k in 0..comps {
-                let v = coord(x, k);
-                lo[k] = lo[k].min(v);
-                hi[k] = hi[k].max(v);
-            }
+    };
+    let (mut lo, mut hi) = (vec![f64::INFINITY; comps], vec![f64::NEG_INFINITY; comps]);
+    for x in which.iter().flat_map(|&i| samples(i)) {
+        for k in 0..comps {
+            let v = r.coordinate(x, k);
+            lo[k] = lo[k].min(v);
+            hi[k] = hi[k].max(v);
         }
     }
     for k in 0..comps {
@@ -244,7 +237,7 @@ fn aperiodic_groups(
         let mut at = 0;
         for k in 0..comps {
             let width = (hi[k] - lo[k]).max(f64::MIN_POSITIVE);
-            let c = ((coord(x, k) - lo[k]) / width * APERIODIC_CELLS as f64) as usize;
+            let c = ((r.coordinate(x, k) - lo[k]) / width * APERIODIC_CELLS as f64) as usize;
             at = at * APERIODIC_CELLS + c.min(APERIODIC_CELLS - 1);
         }
         at
@@ -259,11 +252,7 @@ fn aperiodic_groups(
     }
     let mut owner: HashMap<usize, usize> = HashMap::new();
     for (j, &i) in which.iter().enumerate() {
-        for x in ends[i]
-            .points
-            .chunks(d)
-            .filter(|x| x.iter().all(|v| v.is_finite()))
-        {
+        for x in samples(i) {
             let o = *owner.entry(index(x)).or_insert(j);
             let (a, b) = (root(&mut parent, o), root(&mut parent, j));
             if a != b {

@@ -318,6 +318,40 @@ fn dtype(path: &Path) -> &'static str {
     panic!("{}: element type not known here: {header}", path.display())
 }
 
+/// The arrays of the run in `out`: each one's name (a variable's as
+/// `<var>`, an axis's as `<axis>`), its dimensions after the ensemble's
+/// axes, and its element type.
+fn written_arrays(out: &Path) -> Vec<(String, String, &'static str)> {
+    let summary = crate::common::runs::summary(out);
+    let names = |dims: &serde_json::Value| -> Vec<String> {
+        let dims = dims.as_array().map_or(&[][..], |d| d.as_slice());
+        dims.iter()
+            .filter_map(|x| x.as_str())
+            .map(String::from)
+            .collect()
+    };
+    // The ensemble's axes: what `status` has, one value per trajectory.
+    let axes = names(&summary["dims"]["status"]);
+    let vars = ["q", "p", "s", "t"];
+    let files = summary["files"].as_array().unwrap().iter();
+    let stems = files.filter_map(|f| f.as_str()?.strip_suffix(".npy"));
+    stems
+        .map(|stem| {
+            let general = match stem.rsplit_once('_') {
+                Some(("axis", _)) => "axis_<axis>".to_string(),
+                Some((head, var)) if vars.contains(&var) => format!("{head}_<var>"),
+                _ => stem.to_string(),
+            };
+            let inner: Vec<String> = names(&summary["dims"][stem])
+                .into_iter()
+                .filter(|x| !axes.contains(x))
+                .collect();
+            let t = dtype(&out.join(format!("{stem}.npy")));
+            (general, inner.join(", "), t)
+        })
+        .collect()
+}
+
 /// The outputs page's table of arrays is what reeb writes: each array's
 /// name, its dimensions (after the ensemble's axes) and its element type in
 /// an f32 and an f64 run, read from `summary.json` and the files.
@@ -333,57 +367,15 @@ fn the_outputs_page_lists_every_array_reeb_writes() {
         std::fs::write(&scene, text).unwrap();
         for precision in ["f32", "f64"] {
             let out = dir.join(precision);
-            ok(&[
-                "run",
-                s(&scene),
-                "--out",
-                s(&out),
-                "--backend",
-                "cpu",
-                "--precision",
-                precision,
-            ]);
-            let summary: serde_json::Value =
-                serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
-                    .unwrap();
-            // The ensemble's axes: what `status` has, one value per trajectory.
-            let axes: Vec<String> = summary["dims"]["status"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|a| a.as_str().unwrap().to_string())
-                .collect();
-            let vars = ["q", "p", "s", "t"];
-            for file in summary["files"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .filter_map(|f| f.as_str())
-            {
-                let Some(stem) = file.strip_suffix(".npy") else {
-                    continue;
-                };
-                let general = match stem.rsplit_once('_') {
-                    Some(("axis", _)) => "axis_<axis>".to_string(),
-                    Some((head, var)) if vars.contains(&var) => format!("{head}_<var>"),
-                    _ => stem.to_string(),
-                };
-                let dims = match summary["dims"][stem].as_array() {
-                    Some(d) => d
-                        .iter()
-                        .filter_map(|x| x.as_str())
-                        .filter(|x| !axes.iter().any(|a| a == x))
-                        .collect::<Vec<_>>()
-                        .join(", "),
-                    None => String::new(),
-                };
+            let run = ["run", s(&scene), "--out", s(&out), "--backend", "cpu"];
+            ok(&[&run[..], &["--precision", precision]].concat());
+            for (name, dims, t) in written_arrays(&out) {
                 let row = arrays
-                    .entry(general)
+                    .entry(name)
                     .or_insert_with(|| (dims, String::new(), String::new()));
-                let t = dtype(&out.join(file)).to_string();
                 match precision {
-                    "f32" => row.1 = t,
-                    _ => row.2 = t,
+                    "f32" => row.1 = t.to_string(),
+                    _ => row.2 = t.to_string(),
                 }
             }
         }

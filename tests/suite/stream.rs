@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use crate::common;
 
-use common::runs::{grid_scene, ok, reeb, s, same_arrays, REEB};
+use common::runs::{grid_scene, ok, reeb, s, same_arrays, summary, REEB};
 
 fn tmp(name: &str) -> PathBuf {
     common::runs::tmp("stream", name)
@@ -105,12 +105,6 @@ fn chunked(scene: &Path, out: &Path, rows: &str) -> String {
         "--chunk-trajectories",
         rows,
     ])
-}
-
-/// `summary.json` of the run in `out`.
-fn summary(out: &Path) -> serde_json::Value {
-    let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
-    serde_json::from_str(&text).unwrap()
 }
 
 /// `summary.json`'s `timing` of the run in `out`.

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use crate::common;
 
 use common::npy_f64;
-use common::runs::{ok, reeb, s};
+use common::runs::{ok, reeb, s, summary};
 
 fn tmp(name: &str) -> PathBuf {
     common::runs::tmp("trust", name)
@@ -24,10 +24,6 @@ fn refused(args: &[&str]) -> String {
     assert_eq!(o.status.code(), Some(1), "reeb {args:?}: {err}");
     assert!(!err.contains("panicked"), "{err}");
     err
-}
-
-fn summary(dir: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap()
 }
 
 /// `text` written as `dir/name.toml`.

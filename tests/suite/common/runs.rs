@@ -24,6 +24,12 @@ pub fn reeb(args: &[&str]) -> Output {
     Command::new(REEB).args(args).output().unwrap()
 }
 
+/// `summary.json` of the run in `dir`.
+pub fn summary(dir: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.join("summary.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
 /// Runs `reeb args`, which must succeed; returns its stdout and stderr.
 pub fn ok(args: &[&str]) -> String {
     let o = reeb(args);

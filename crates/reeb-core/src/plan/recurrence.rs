@@ -55,7 +55,8 @@ impl Recurrence {
         }
     }
 
-    /// The max-norm distance of two samples, angles modulo their period.
+    /// The max-norm distance of two samples, angles modulo their period;
+    /// NaN where a component is (a non-finite sample never recurs).
     pub fn distance(&self, a: &[f64], b: &[f64]) -> f64 {
         let mut d: f64 = 0.0;
         for ((x, y), wrap) in a.iter().zip(b).zip(&self.wrap) {
@@ -63,31 +64,41 @@ impl Recurrence {
             if let Some(p) = wrap {
                 e -= p * (e / p).round();
             }
-            // NaN propagates: a non-finite sample never recurs.
-            d = if e.abs() > d || e.is_nan() {
-                e.abs()
-            } else {
-                d
-            };
+            if e.is_nan() {
+                return f64::NAN;
+            }
+            d = d.max(e.abs());
         }
         d
     }
 
+    /// Component `k` of sample `x`, an angle taken into [0, P).
+    pub fn coordinate(&self, x: &[f64], k: usize) -> f64 {
+        match self.wrap[k] {
+            Some(p) => x[k].rem_euclid(p),
+            None => x[k],
+        }
+    }
+
+    /// Where sample `m` lies in the ring.
+    fn slot(&self, m: u64) -> usize {
+        (m % (self.max_period as u64 + 1)) as usize * self.dim()
+    }
+
     /// Takes the orbit's next sample.
     pub fn push(&self, s: &mut Samples, x: &[f64]) {
-        let (d, slots) = (self.dim(), self.max_period as u64 + 1);
-        let n = s.n;
+        let (d, n) = (self.dim(), s.n);
         for k in 1..=self.max_period as u64 {
             if n < k {
                 break;
             }
-            let before = ((n - k) % slots) as usize * d;
+            let before = self.slot(n - k);
             let recurs = self.distance(x, &s.ring[before..before + d]) <= self.tolerance;
             if !recurs {
                 s.held_since[k as usize - 1] = n + 1;
             }
         }
-        let at = (n % slots) as usize * d;
+        let at = self.slot(n);
         s.ring[at..at + d].copy_from_slice(x);
         s.n = n + 1;
     }
@@ -111,11 +122,11 @@ impl Recurrence {
     /// The orbit's last `count` samples (at most `max_period + 1`), oldest
     /// first: a periodic orbit's points on the section, one per phase.
     pub fn last(&self, s: &Samples, count: usize) -> Vec<f64> {
-        let (d, slots) = (self.dim(), self.max_period as u64 + 1);
-        let count = count.min(s.n as usize).min(slots as usize);
+        let d = self.dim();
+        let count = count.min(s.n as usize).min(self.max_period + 1);
         let mut out = Vec::with_capacity(count * d);
         for m in s.n - count as u64..s.n {
-            let at = (m % slots) as usize * d;
+            let at = self.slot(m);
             out.extend_from_slice(&s.ring[at..at + d]);
         }
         out
