@@ -131,6 +131,7 @@ pub fn out_vars<'s>(scene: &'s Scene, field: &str) -> &'s [OutVar] {
         "trajectory" => o.trajectory.as_ref().map_or(&[], |t| &t.vars),
         "poincare" => o.poincare.as_ref().map_or(&[], |p| &p.vars),
         "mean" => o.average.as_ref().map_or(&[], |a| &a.vars),
+        "attractor_points" => o.attractors.as_ref().map_or(&[], |a| &a.vars),
         _ => &[],
     }
 }
@@ -140,6 +141,7 @@ fn plain<'a, R: Real>(file: File, obs: &Observations<R>, values: Col<'a, R>) -> 
     let (descr, bytes): (_, &[u8]) = match values {
         Col::Real(v) => (real::<R>(), bytemuck::cast_slice(v)),
         Col::Count(v) => ("<u4", bytemuck::cast_slice(v)),
+        Col::Int(v) => ("<i4", bytemuck::cast_slice(v)),
     };
     let (inner, inner_names) = file.inner(obs);
     Array {

@@ -3,6 +3,8 @@
 
 pub mod arrays;
 pub mod attractors;
+pub mod basin_pictures;
+pub mod basins;
 pub mod chunks;
 pub mod directory;
 pub mod doubts;

@@ -23,6 +23,10 @@ impl Element for f32 {
     const DESCR: &'static str = "<f4";
 }
 
+impl Element for i32 {
+    const DESCR: &'static str = "<i4";
+}
+
 /// The `.npy` (version 1.0) header of a C-order array: magic, version,
 /// length, and the dict padded with spaces to a multiple of 64 bytes.
 pub fn header(descr: &str, shape: &[u64]) -> Vec<u8> {

@@ -22,6 +22,7 @@ use crate::models::Flows;
 use crate::num::precision::Precision;
 use crate::output::arrays::write_axes;
 pub use crate::output::arrays::write_npy;
+use crate::output::basins;
 use crate::output::chunks::{self, Chunks};
 use crate::output::directory::{self, Claim, Mode};
 use crate::output::doubts;
@@ -660,15 +661,26 @@ fn finish<R: Flows>(
         Format::Zarr => files.push(zarr::STORE.into()),
     }
     // The arrays reach the disk while the pictures are drawn.
-    let (observations, doubts, pictures) = std::thread::scope(|s| -> Result<_> {
+    let (observations, doubts, pictures, basins) = std::thread::scope(|s| -> Result<_> {
         let synced = s.spawn(|| directory::sync_tree(&dir));
         let observations =
             stream::for_pictures(scene, subs, &dir, format, integrated.streamed.kept)?;
         let doubts = doubts::of(scene, subs, &observations);
+        let basins = basins::of(scene, &observations);
         let pictures = crate::output::pictures::draw(scene, &dir, &observations, &doubts);
+        let pictures = match &basins {
+            Some(b) => pictures.and_then(|mut p| {
+                p.extend(crate::output::basin_pictures::draw(scene, &dir, b)?);
+                Ok(p)
+            }),
+            None => pictures,
+        };
         synced.join().expect("syncing does not panic")?;
-        Ok((observations, doubts, pictures))
+        Ok((observations, doubts, pictures, basins))
     })?;
+    if let Some(b) = &basins {
+        files.extend(basins::write(scene, &dir, format, b)?);
+    }
     match pictures {
         Ok(p) => files.extend(p),
         Err(e) => eprintln!("warning: pictures not drawn: {e:#}"),
@@ -714,6 +726,9 @@ fn finish<R: Flows>(
     }
     if let Some(r) = &scene.observers.resonance {
         summary["resonance"] = capture(r, &crate::output::arrays::resonance(r, &observations)?);
+    }
+    if let Some(b) = &basins {
+        summary["attractors"] = b.summary.clone();
     }
     let wall = made.started.elapsed().as_secs_f64();
     summary["timing"] = timing(&ran.phases, integrated.streamed.overlap, wall);

@@ -793,6 +793,7 @@ fn load<R: Real>(scene: &Scene, src: &Source, obs: &mut Observations<R>) -> Resu
                     match dst {
                         ColMut::Real(d) => src.fill(&name, n, d)?,
                         ColMut::Count(d) => src.fill(&name, n, d)?,
+                        ColMut::Int(d) => src.fill(&name, n, d)?,
                     }
                 }
                 ColumnMut::Plain(_) => {}

@@ -337,6 +337,24 @@ pub fn finish(dir: &Path, scene: &Scene, attributes: serde_json::Value) -> Resul
     write_metadata(&store, &group)
 }
 
+/// Writes array `name` of `shape` (dimensions `dims`) whole, in one chunk:
+/// an array made after every chunk of the run (the attractors' labels).
+pub fn write_whole(
+    dir: &Path,
+    name: &str,
+    shape: &[u64],
+    dims: &[String],
+    descr: &str,
+    bytes: &[u8],
+) -> Result<()> {
+    let folder = dir.join(STORE).join(name);
+    let chunk: Vec<u64> = shape.iter().map(|s| (*s).max(1)).collect();
+    write_metadata(&folder, &array_metadata(shape, &chunk, descr, dims))?;
+    Meta::new(folder, shape.to_vec(), chunk, descr)
+        .write(&vec![0; shape.len()], bytes)
+        .with_context(|| format!("writing {}/{}/{name}", dir.display(), STORE))
+}
+
 /// The whole data of array `name` of the store in `dir`, as stored bytes.
 pub fn read(dir: &Path, name: &str) -> Result<Vec<u8>> {
     let folder = dir.join(STORE).join(name);

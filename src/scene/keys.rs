@@ -156,6 +156,13 @@ pub const OUTPUT: &[Key] = &[
         "gali = 3",
     ),
     key(
+        "attractors",
+        "true or { max_period, tolerance, skip, every, angles }",
+        "off",
+        "which attractor each orbit ends on: a fixed point, a cycle of period ≤ max_period, aperiodic, or escape",
+        "attractors = 3",
+    ),
+    key(
         "format",
         "`\"npy\"` or `\"zarr\"`",
         "`\"npy\"`",
@@ -311,6 +318,44 @@ pub const GALI: &[Key] = &[
         "1",
         "steps between samples",
         "gali = { every = \"often\" }",
+    ),
+];
+
+pub const ATTRACTORS: &[Key] = &[
+    key(
+        "max_period",
+        "a whole number from 1 to 64",
+        "8",
+        "the longest cycle of samples looked for",
+        "attractors = { max_period = 0 }",
+    ),
+    key(
+        "tolerance",
+        "a number > 0",
+        "1e-3",
+        "how close a sample must return to the one a period before (largest difference of a component)",
+        "attractors = { tolerance = 0.0 }",
+    ),
+    key(
+        "skip",
+        "a fraction in [0, 1)",
+        "0.5",
+        "the part of the run left out before sampling",
+        "attractors = { skip = 1.0 }",
+    ),
+    key(
+        "every",
+        "a whole number ≥ 1",
+        "100 (fewer in runs under 6400 steps)",
+        "steps between samples where the scene has no `poincare` section (with one, its points are the samples)",
+        "attractors = { every = 0 }",
+    ),
+    key(
+        "angles",
+        "a list of sampled variables",
+        "none",
+        "variables compared modulo 2π",
+        "attractors = { angles = [\"x\"] }",
     ),
 ];
 
@@ -506,6 +551,11 @@ pub const TABLES: &[Table] = &[
         name: "output.gali",
         section: "output",
         keys: GALI,
+    },
+    Table {
+        name: "output.attractors",
+        section: "output",
+        keys: ATTRACTORS,
     },
     Table {
         name: "run",

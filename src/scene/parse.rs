@@ -17,8 +17,8 @@ use crate::models::{Model, MODEL_NAMES};
 use crate::num::precision::Precision;
 use crate::plan::indicators::SCALAR_INDICATORS;
 use crate::plan::observers::{
-    check_skip, check_strobe, AverageObs, CycleObs, Direction, GaliObs, LyapunovObs, Observers,
-    PoincareObs, ResonanceObs, SampledObs, Section, TrajectoryObs,
+    check_skip, check_strobe, AttractorObs, AverageObs, CycleObs, Direction, GaliObs, LyapunovObs,
+    Observers, PoincareObs, ResonanceObs, SampledObs, Section, TrajectoryObs,
 };
 use crate::plan::scheme::{Scheme, SCHEME_NAMES};
 use crate::plan::size;
@@ -621,6 +621,7 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
                 ("megno", keys::SAMPLED),
                 ("sali", keys::SAMPLED),
                 ("gali", keys::GALI),
+                ("attractors", keys::ATTRACTORS),
             ],
         )?;
     }
@@ -681,6 +682,7 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
             })
         }
     };
+    let attractors = attractors(p, &ov, o.attractors, poincare.as_ref())?;
     let format = parsed(p, "output.format", &o.format)?.unwrap_or(Format::Npy);
     let observers = Observers {
         final_vars,
@@ -690,9 +692,62 @@ fn output(p: &mut Parser, doc: &Doc, model: &Model, params: &[&str]) -> Result<O
         average: average.map(|(vars, skip)| AverageObs { vars, skip }),
         resonance,
         stop,
+        attractors,
         ..chaos
     };
     Ok(Out { observers, format })
+}
+
+/// `output.attractors`: its samples are the section's state variables
+/// (`poincare`), else the model's state; `angles` must be among them. The
+/// numbers are checked with the other observers'.
+fn attractors(
+    p: &Parser,
+    ov: &OutVars,
+    a: Option<Spanned<tables::Attractors>>,
+    poincare: Option<&PoincareObs>,
+) -> Result<Option<AttractorObs>, SceneError> {
+    let span = a.as_ref().map(|a| a.span());
+    let t = match a.map(Spanned::into_inner) {
+        None | Some(tables::Attractors::On(false)) => return Ok(None),
+        Some(tables::Attractors::On(true)) => tables::AttractorsTable::default(),
+        Some(tables::Attractors::Table(t)) => t,
+    };
+    let vars: Vec<OutVar> = match poincare {
+        Some(pc) => pc.vars.iter().filter(|v| v.name != "t").cloned().collect(),
+        None => ov.defaults(),
+    };
+    if vars.is_empty() {
+        return Err(p.err(
+            "output.attractors",
+            span.as_ref(),
+            "the section records no state variable to sample: add one to output.poincare.vars",
+        ));
+    }
+    let angles = t.angles.as_ref().map_or(vec![], |a| a.get_ref().0.clone());
+    let sampled: Vec<&String> = crate::plan::observers::components(&vars).collect();
+    if let Some(bad) = angles.iter().find(|a| !sampled.contains(a)) {
+        let names: Vec<&str> = sampled.iter().map(|s| s.as_str()).collect();
+        return Err(p.err(
+            "output.attractors.angles",
+            t.angles.as_ref().map(|a| a.span()).as_ref(),
+            format!(
+                "`{bad}` is not sampled; the samples' variables are: {}",
+                names.join(", ")
+            ),
+        ));
+    }
+    let d = AttractorObs::default();
+    Ok(Some(AttractorObs {
+        max_period: t
+            .max_period
+            .map_or(d.max_period, |x| x.into_inner().0 as usize),
+        tolerance: t.tolerance.map_or(d.tolerance, |x| x.into_inner().0),
+        skip: t.skip.map_or(d.skip, |x| x.into_inner().0),
+        every: t.every.map(|x| x.into_inner().0),
+        vars,
+        angles,
+    }))
 }
 
 /// `output.lyapunov`, `output.fli`, `output.megno`, `output.sali`,

@@ -184,7 +184,8 @@ impl Leaf for Nums {
 }
 
 leaf_deserialize!(
-    Num, Int, Str, Bool, Strs, Nums, Period, Cycle, Average, Ratios, Stop, Lyapunov, Sampled, Gali
+    Num, Int, Str, Bool, Strs, Nums, Period, Cycle, Average, Ratios, Stop, Lyapunov, Sampled, Gali,
+    Attractors
 );
 
 /// An inline table of known fields; any other value is refused with
@@ -240,6 +241,7 @@ pub struct Output {
     pub megno: Field<Sampled>,
     pub sali: Field<Sampled>,
     pub gali: Field<Gali>,
+    pub attractors: Field<Attractors>,
     pub format: Field<Str>,
 }
 
@@ -404,6 +406,33 @@ impl Leaf for Cycle {
     }
     fn from_map<'de, A: MapAccess<'de>>(map: A) -> Result<Cycle, A::Error> {
         CycleTable::deserialize(de::value::MapAccessDeserializer::new(map)).map(Cycle::Table)
+    }
+}
+
+/// `output.attractors = true` or `{ max_period, tolerance, skip, every, angles }`.
+#[derive(Debug)]
+pub enum Attractors {
+    On(bool),
+    Table(AttractorsTable),
+}
+
+#[derive(Debug, Default, Deserialize)]
+pub struct AttractorsTable {
+    pub max_period: Field<Int>,
+    pub tolerance: Field<Num>,
+    pub skip: Field<Num>,
+    pub every: Field<Int>,
+    pub angles: Field<Strs>,
+}
+
+impl Leaf for Attractors {
+    const WHAT: &'static str = "true or { max_period, tolerance, skip, every, angles }";
+    fn from_bool(v: bool) -> Result<Attractors, String> {
+        Ok(Attractors::On(v))
+    }
+    fn from_map<'de, A: MapAccess<'de>>(map: A) -> Result<Attractors, A::Error> {
+        AttractorsTable::deserialize(de::value::MapAccessDeserializer::new(map))
+            .map(Attractors::Table)
     }
 }
 

@@ -139,6 +139,7 @@ fn same<R: Flows>(label: &str, a: &Observations<R>, b: &Observations<R>) {
     let bits = |c: &Col<R>| match c {
         Col::Real(v) => bytemuck::cast_slice::<R, u8>(v).to_vec(),
         Col::Count(v) => bytemuck::cast_slice::<u32, u8>(v).to_vec(),
+        Col::Int(v) => bytemuck::cast_slice::<i32, u8>(v).to_vec(),
     };
     let (ca, cb) = (a.columns(), b.columns());
     assert_eq!(ca.len(), cb.len(), "{label}: columns");
@@ -242,6 +243,7 @@ fn the_snapshot_scenes_cover_every_column() {
             let filled = match column {
                 Col::Real(v) => !v.is_empty(),
                 Col::Count(v) => !v.is_empty(),
+                Col::Int(v) => !v.is_empty(),
             };
             if filled {
                 covered.insert(name);

@@ -68,6 +68,7 @@ fn same<R: Flows>(what: &str, a: &Observations<R>, b: &Observations<R>) {
                         .all(|(u, v)| u.to_f64().to_bits() == v.to_f64().to_bits())
             }
             (Col::Count(x), Col::Count(y)) => x == y,
+            (Col::Int(x), Col::Int(y)) => x == y,
             _ => false,
         };
         assert!(same, "{what}: column {k} differs");

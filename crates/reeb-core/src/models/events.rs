@@ -198,6 +198,26 @@ crate::shared_fns! {
     fn mean_step(x: R, k: R, mean: &mut R) {
         *mean = *mean + (x - *mean) / k;
     }
+    /// The max-norm distance `d` so far of a sample from the sample k
+    /// before it, with one more component: x now, y then; an angle's
+    /// difference (`wrap` > 0: its period) taken to the nearest turn
+    /// (`plan/recurrence.rs`).
+    fn recurrence_gap(x: R, y: R, wrap: R, d: R) -> R {
+        let mut e: R = x - y;
+        if wrap > 0.0 {
+            e = e - wrap * R::rint(e / wrap);
+        }
+        return R::max(d, R::abs(e));
+    }
+    /// Period k's counter after sample n (0-based: the samples before it
+    /// are `n`), at distance d from the sample k before it: where it does
+    /// not recur within `tolerance`, the first sample that may still be on
+    /// a cycle of period k, n − k + 1 (there is none k before while n < k).
+    fn recurrence_held(d: R, tolerance: R, k: R, n: R, held: &mut R) {
+        if n >= k && d > tolerance {
+            *held = n + 1.0 - k;
+        }
+    }
     /// Half the peak-to-peak range of the cycle variable.
     fn cycle_amplitude(cyc_max: R, cyc_min: R) -> R {
         return 0.5 * (cyc_max - cyc_min);

@@ -75,6 +75,8 @@ pub struct Plan {
     pub cycle_var: Option<usize>,
     /// The averaged variables (state variables only).
     pub average_vars: Vec<ObsVar>,
+    /// The components of the attractor detector's samples.
+    pub attractor_vars: Vec<ObsVar>,
     /// The stop condition, its inputs resolved to lane fields.
     pub stop: Option<StopPlan>,
     /// The chaos indicators: tangent step, samples, slots.
@@ -232,6 +234,7 @@ impl Plan {
             crossing_var: observed.crossing_var,
             cycle_var: observed.cycle_var,
             average_vars: observed.average_vars,
+            attractor_vars: observed.attractor_vars,
             stop,
             indicators: None,
         };
@@ -276,6 +279,32 @@ impl Plan {
             || self.cycle_var.is_some()
             || !self.average_vars.is_empty()
             || self.indicators.is_some()
+            || self.observers.attractors.is_some()
+    }
+
+    /// The attractor detector, where the plan has one, as both backends
+    /// keep it (`plan/recurrence.rs`).
+    pub fn recurrence(&self) -> Option<recurrence::Layout> {
+        let a = self.observers.attractors.as_ref()?;
+        let wrap = observers::components(&a.vars)
+            .map(|c| match a.angles.contains(c) {
+                true => std::f64::consts::TAU,
+                false => 0.0,
+            })
+            .collect();
+        Some(recurrence::Layout {
+            first: slots::recurrence_first(self),
+            max_period: a.max_period,
+            dim: self.attractor_vars.len(),
+            tolerance: a.tolerance,
+            wrap,
+            skip_step: a.skip_step(self.steps),
+            every: self
+                .observers
+                .poincare
+                .is_none()
+                .then(|| a.every(self.steps)),
+        })
     }
 
     /// Does an observer look at the state after every step?

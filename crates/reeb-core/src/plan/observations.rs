@@ -45,6 +45,8 @@ macro_rules! observations {
             pub max_points: usize,
             /// Lyapunov exponents per trajectory.
             pub exponents: usize,
+            /// The attractor detector's samples kept per trajectory.
+            pub cycle_points: usize,
             $( $(#[$doc])* pub $field: $kind<$elem>, )*
         }
 
@@ -62,6 +64,7 @@ macro_rules! observations {
                     frames: s.per.frames as usize,
                     max_points: s.per.max_points as usize,
                     exponents: s.per.exponents as usize,
+                    cycle_points: s.per.cycle_points as usize,
                     $( $field: observations!(@alloc $kind [$($list)?] $elem,
                         plan, s.n * s.per.$width as usize, $(s.$when)&&+), )*
                 }
@@ -75,6 +78,7 @@ macro_rules! observations {
                     frames: 0,
                     max_points: 0,
                     exponents: 0,
+                    cycle_points: 0,
                     $( $field: observations!(@bare $kind $elem, n, $($when)&+), )*
                 }
             }
@@ -130,6 +134,7 @@ macro_rules! observations {
                     frames: self.frames,
                     max_points: self.max_points,
                     exponents: self.exponents,
+                    cycle_points: self.cycle_points,
                     $( $field: observations!(@cast $kind $elem, &self.$field), )*
                 }
             }
@@ -170,17 +175,21 @@ macro_rules! observations {
     (@bare Plain $e:ident, $n:expr, $($when:ident)&+) => { vec![] };
     (@init R) => { R::nan() };
     (@init u32) => { 0u32 };
+    (@init i32) => { -1i32 };
     (@col Named R, $out:expr, $v:expr, $w:expr) => {
         $out.extend($v.iter().map(|(_, x)| ($w, Col::Real(x.as_slice()))))
     };
     (@col Plain R, $out:expr, $v:expr, $w:expr) => { $out.push(($w, Col::Real($v.as_slice()))) };
     (@col Plain u32, $out:expr, $v:expr, $w:expr) => { $out.push(($w, Col::Count($v.as_slice()))) };
+    (@col Plain i32, $out:expr, $v:expr, $w:expr) => { $out.push(($w, Col::Int($v.as_slice()))) };
     (@column Named R, $v:expr) => { Column::Named($v.as_slice()) };
     (@column Plain R, $v:expr) => { Column::Plain(Col::Real($v.as_slice())) };
     (@column Plain u32, $v:expr) => { Column::Plain(Col::Count($v.as_slice())) };
+    (@column Plain i32, $v:expr) => { Column::Plain(Col::Int($v.as_slice())) };
     (@column_mut Named R, $v:expr) => { ColumnMut::Named($v) };
     (@column_mut Plain R, $v:expr) => { ColumnMut::Plain(ColMut::Real($v)) };
     (@column_mut Plain u32, $v:expr) => { ColumnMut::Plain(ColMut::Count($v)) };
+    (@column_mut Plain i32, $v:expr) => { ColumnMut::Plain(ColMut::Int($v)) };
     (@name Named, $out:expr, $v:expr, $name:expr) => { $out.extend($v.iter().map(|_| $name)) };
     (@name Plain, $out:expr, $v:expr, $name:expr) => { $out.push($name) };
     (@col_mut Named R, $out:expr, $v:expr, $w:expr) => {
@@ -192,15 +201,20 @@ macro_rules! observations {
     (@col_mut Plain u32, $out:expr, $v:expr, $w:expr) => {
         $out.push(($w, ColMut::Count($v.as_mut_slice())))
     };
+    (@col_mut Plain i32, $out:expr, $v:expr, $w:expr) => {
+        $out.push(($w, ColMut::Int($v.as_mut_slice())))
+    };
     (@cast Named R, $v:expr) => { $v.iter().map(|(n, x)| (n.clone(), cast(x))).collect() };
     (@cast Plain R, $v:expr) => { cast($v) };
     (@cast Plain u32, $v:expr) => { $v.clone() };
+    (@cast Plain i32, $v:expr) => { $v.clone() };
     (@view Named R, $v:expr) => { $v.iter_mut().map(|(_, x)| Rows::new(x)).collect() };
     (@view Plain $e:ident, $v:expr) => { Rows::new($v) };
     (@count Named [$list:ident], $plan:expr) => { $plan.$list.len() as u64 };
     (@count Plain [], $plan:expr) => { 1u64 };
     (@bytes R, $real:expr) => { $real };
     (@bytes u32, $real:expr) => { 4u64 };
+    (@bytes i32, $real:expr) => { 4u64 };
 }
 
 observations! {
@@ -241,6 +255,15 @@ observations! {
     trajectory_sali: Plain R, per frames, when sali & framed, file "trajectory_sali" [Frame];
     /// GALI_k at the last sample at each trajectory frame.
     trajectory_gali: Plain R, per frames, when gali & framed, file "trajectory_gali" [Frame];
+    /// The period of the cycle each trajectory's samples end on (1: a fixed
+    /// point), 0 aperiodic, −1 escaped (stopped or non-finite).
+    attractor_period: Plain i32, per one, when attractors, file "attractor_period" [];
+    /// The sample from which on they recur with that period (−1: none).
+    transient: Plain i32, per one, when attractors, file "transient" [];
+    /// `(variable, values[n × cycle_points])`: the last `max_period`
+    /// samples, oldest first (NaN where fewer were taken).
+    attractor_points: Named(attractor_vars) R, per cycle_points, when always,
+        file "attractor_points" [Sample];
     /// 0: ok; k > 0: non-finite at step k.
     nonfinite_step: Plain u32, per one, when always;
     /// 0: not stopped; k > 0: stopped by the stop condition after step k.
@@ -261,6 +284,7 @@ pub type Plain<T> = Vec<T>;
 pub enum Col<'a, R> {
     Real(&'a [R]),
     Count(&'a [u32]),
+    Int(&'a [i32]),
 }
 
 /// [`Col`], to write.
@@ -268,6 +292,7 @@ pub enum Col<'a, R> {
 pub enum ColMut<'a, R> {
     Real(&'a mut [R]),
     Count(&'a mut [u32]),
+    Int(&'a mut [i32]),
 }
 
 impl<R> Col<'_, R> {
@@ -275,6 +300,7 @@ impl<R> Col<'_, R> {
         match self {
             Col::Real(v) => v.is_empty(),
             Col::Count(v) => v.is_empty(),
+            Col::Int(v) => v.is_empty(),
         }
     }
 }
@@ -284,6 +310,7 @@ impl<R> ColMut<'_, R> {
         match self {
             ColMut::Real(v) => v.is_empty(),
             ColMut::Count(v) => v.is_empty(),
+            ColMut::Int(v) => v.is_empty(),
         }
     }
 }
@@ -321,6 +348,7 @@ pub enum Dim {
     Frame,
     Point,
     Exponent,
+    Sample,
 }
 
 impl Dim {
@@ -330,6 +358,7 @@ impl Dim {
             Dim::Frame => "frame",
             Dim::Point => "point",
             Dim::Exponent => "exponent",
+            Dim::Sample => "sample",
         }
     }
 
@@ -339,6 +368,7 @@ impl Dim {
             Dim::Frame => obs.frames,
             Dim::Point => obs.max_points,
             Dim::Exponent => obs.exponents,
+            Dim::Sample => obs.cycle_points,
         }
     }
 }
@@ -369,6 +399,7 @@ struct Shape {
     megno: bool,
     sali: bool,
     gali: bool,
+    attractors: bool,
     /// Trajectory frames: the indicators' running values are kept per frame.
     framed: bool,
 }
@@ -381,6 +412,8 @@ struct Widths {
     exponents: u64,
     /// The exponents at each trajectory frame.
     frame_exponents: u64,
+    /// The attractor detector's last samples.
+    cycle_points: u64,
 }
 
 impl Shape {
@@ -398,6 +431,7 @@ impl Shape {
                 max_points,
                 exponents,
                 frame_exponents: frames.checked_mul(exponents)?,
+                cycle_points: o.attractors.as_ref().map_or(0, |a| a.max_period) as u64,
             },
             always: true,
             points: max_points > 0,
@@ -407,6 +441,7 @@ impl Shape {
             megno: o.megno.is_some(),
             sali: o.sali.is_some(),
             gali: o.gali.is_some(),
+            attractors: o.attractors.is_some(),
             framed: frames > 0,
         })
     }
@@ -522,6 +557,7 @@ impl<R: Real> Observations<R> {
             max_points: self.max_points as u64,
             exponents: self.exponents as u64,
             frame_exponents: (self.frames * self.exponents) as u64,
+            cycle_points: self.cycle_points as u64,
         }
     }
 
@@ -556,7 +592,7 @@ impl<R: Real> Observations<R> {
             match column {
                 ColumnMut::Named(v) => out.extend(v.iter_mut().map(|(_, x)| (&mut x[..], width))),
                 ColumnMut::Plain(ColMut::Real(x)) => out.push((x, width)),
-                ColumnMut::Plain(ColMut::Count(_)) => {}
+                ColumnMut::Plain(ColMut::Count(_) | ColMut::Int(_)) => {}
             }
         }
         out
@@ -618,6 +654,7 @@ impl<R: Real> Observations<R> {
             match (dst, from) {
                 (ColMut::Real(d), Col::Real(s)) => place(d, wd, s, ws, &rows),
                 (ColMut::Count(d), Col::Count(s)) => place(d, wd, s, ws, &rows),
+                (ColMut::Int(d), Col::Int(s)) => place(d, wd, s, ws, &rows),
                 _ => unreachable!("observations of one plan have the same columns"),
             }
         }

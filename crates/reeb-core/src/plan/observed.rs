@@ -22,6 +22,8 @@ pub struct Observed {
     pub cycle_var: Option<usize>,
     /// The averaged variables (state variables only).
     pub average_vars: Vec<ObsVar>,
+    /// The components of the attractor detector's samples.
+    pub attractor_vars: Vec<ObsVar>,
 }
 
 impl Observed {
@@ -75,6 +77,10 @@ impl Observed {
                     state => Ok(state),
                 })
                 .collect::<Result<_, _>>()?,
+            attractor_vars: list(
+                obs.attractors.as_ref().map(|a| &a.vars),
+                "output.attractors.vars",
+            )?,
         })
     }
 }

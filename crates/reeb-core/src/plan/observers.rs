@@ -198,6 +198,64 @@ impl Default for GaliObs {
     }
 }
 
+/// Which attractor each orbit ends on (`plan/recurrence.rs`): its samples
+/// (the section's points where the run has a section, else the state every
+/// `every` steps) after the first `skip` fraction of the run, tested for a
+/// period k ≤ `max_period` at which they recur within `tolerance`
+/// (max-norm; the `angles` modulo 2π).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct AttractorObs {
+    pub max_period: usize,
+    pub tolerance: f64,
+    pub skip: f64,
+    /// Steps between samples without a section; `None`: [`Self::every`]'s default.
+    pub every: Option<u64>,
+    /// The sampled variables: the section's state variables, or the state.
+    pub vars: Vec<OutVar>,
+    /// Components taken modulo 2π.
+    pub angles: Vec<String>,
+}
+
+impl AttractorObs {
+    /// The most periods one orbit's detector keeps (its state per orbit
+    /// grows with it: `max_period` samples and counters).
+    pub const MAX_PERIOD: usize = 64;
+
+    /// The steps between samples without a section: as given, or 100 (fewer
+    /// in runs of fewer than 6400 steps, so that at least 64 samples are
+    /// taken).
+    pub fn every(&self, steps: u64) -> u64 {
+        self.every.unwrap_or_else(|| (steps / 64).clamp(1, 100))
+    }
+
+    /// The first step whose end is sampled: the skipped fraction rounded up.
+    pub fn skip_step(&self, steps: u64) -> u64 {
+        (self.skip * steps as f64).ceil() as u64
+    }
+
+    /// Samples taken every `every` steps from [`Self::skip_step`] on.
+    pub fn samples(&self, steps: u64) -> u64 {
+        let (every, first) = (self.every(steps), self.skip_step(steps));
+        match first.div_ceil(every) * every {
+            s if s > steps => 0,
+            s => (steps - s) / every + 1,
+        }
+    }
+}
+
+impl Default for AttractorObs {
+    fn default() -> Self {
+        AttractorObs {
+            max_period: 8,
+            tolerance: 1e-3,
+            skip: 0.5,
+            every: None,
+            vars: vec![],
+            angles: vec![],
+        }
+    }
+}
+
 /// Everything a run records.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct Observers {
@@ -219,6 +277,9 @@ pub struct Observers {
     pub sali: Option<SampledObs>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gali: Option<GaliObs>,
+    /// Which attractor each orbit ends on.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub attractors: Option<AttractorObs>,
 }
 
 impl Observers {
@@ -242,6 +303,9 @@ impl Observers {
         }
         if let Some(s) = &self.stop {
             v.extend(s.reads.iter().filter(|r| s.state(r)).cloned());
+        }
+        if let Some(a) = &self.attractors {
+            v.extend(components(&a.vars).cloned());
         }
         v
     }
@@ -303,6 +367,9 @@ impl Observers {
         }
         if let Some(r) = &self.resonance {
             validate_resonance(r)?;
+        }
+        if let Some(a) = &self.attractors {
+            validate_attractors(a, steps, self.poincare.is_some())?;
         }
         self.validate_indicators(steps)
     }
@@ -424,6 +491,63 @@ fn one_rate(
             format!("{b} differs from output.{first}.every = {a}: {shared}, sampled at one rate"),
         )),
     }
+}
+
+/// The attractor detector's settings (`sectioned`: the run samples its
+/// section, not every `every` steps).
+fn validate_attractors(
+    a: &AttractorObs,
+    steps: u64,
+    sectioned: bool,
+) -> Result<(), (String, String)> {
+    let e = |f: &str, m: String| Err((format!("output.attractors.{f}"), m));
+    if a.max_period < 1 {
+        return e(
+            "max_period",
+            "must be at least 1 (1: fixed points only)".into(),
+        );
+    }
+    if a.max_period > AttractorObs::MAX_PERIOD {
+        return e(
+            "max_period",
+            format!(
+                "{} is more than {}: each orbit keeps its last max_period samples",
+                a.max_period,
+                AttractorObs::MAX_PERIOD
+            ),
+        );
+    }
+    if !(a.tolerance.is_finite() && a.tolerance > 0.0) {
+        return e("tolerance", "must be a finite number above 0".into());
+    }
+    if !(0.0..1.0).contains(&a.skip) {
+        return e(
+            "skip",
+            "must be in [0, 1): the fraction of the run skipped before sampling".into(),
+        );
+    }
+    match a.every {
+        Some(0) => return e("every", "must be at least 1".into()),
+        Some(k) if k > steps => {
+            return e(
+                "every",
+                format!("{k} is more than the {steps} steps of the run"),
+            )
+        }
+        _ => {}
+    }
+    let samples = a.samples(steps);
+    if !sectioned && samples < 4 {
+        return e(
+            "every",
+            format!(
+                "{} steps between samples leave {samples} samples after the skipped {} of the {steps} steps; a period is confirmed by at least 4: lower every or skip",
+                a.every(steps),
+                a.skip
+            ),
+        );
+    }
+    Ok(())
 }
 
 /// A resonance's ratios and tolerance.

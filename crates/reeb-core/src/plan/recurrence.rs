@@ -7,6 +7,8 @@
 //! Distances are the largest difference of one component (the max-norm), an
 //! angle's (`wrap = Some(period)`) taken modulo its period.
 
+use crate::models::Flows;
+
 /// The detector's settings; see the module documentation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Recurrence {
@@ -34,9 +36,9 @@ pub struct Samples {
     ring: Vec<f64>,
     /// Samples seen.
     n: u64,
-    /// Per period k (index k − 1): one past the last sample that did not
-    /// recur within tolerance of the sample k before it (0: none failed
-    /// after the first k, which cannot be compared).
+    /// Per period k (index k − 1): the first sample from which on every
+    /// sample recurs within tolerance of the one k after it, as far as the
+    /// samples go: where sample n does not return to sample n − k, n − k + 1.
     held_since: Vec<u64>,
 }
 
@@ -51,7 +53,7 @@ impl Recurrence {
         Samples {
             ring: vec![0.0; (self.max_period + 1) * self.dim()],
             n: 0,
-            held_since: (1..=self.max_period as u64).collect(),
+            held_since: vec![0; self.max_period],
         }
     }
 
@@ -95,7 +97,7 @@ impl Recurrence {
             let before = self.slot(n - k);
             let recurs = self.distance(x, &s.ring[before..before + d]) <= self.tolerance;
             if !recurs {
-                s.held_since[k as usize - 1] = n + 1;
+                s.held_since[k as usize - 1] = n + 1 - k;
             }
         }
         let at = self.slot(n);
@@ -103,13 +105,12 @@ impl Recurrence {
         s.n = n + 1;
     }
 
-    /// The smallest period that has held for at least two of its cycles
-    /// (and four samples) up to the last sample, and since when.
+    /// The smallest period whose recurrence has held for at least two of
+    /// its cycles (and four samples) up to the last sample, and since when.
     pub fn verdict(&self, s: &Samples) -> Verdict {
         for k in 1..=self.max_period as u64 {
             let since = s.held_since[k as usize - 1];
-            let confirmed = (2 * k).max(4);
-            if s.n >= since + confirmed {
+            if s.n >= since + k + confirmed(k) {
                 return Verdict::Periodic {
                     period: k as usize,
                     transient: since,
@@ -130,6 +131,143 @@ impl Recurrence {
             out.extend_from_slice(&s.ring[at..at + d]);
         }
         out
+    }
+}
+
+/// One orbit's real slots, to read and write: a CPU block's lane, or a
+/// plain vector.
+pub trait OrbitSlots<R> {
+    fn read(&self, k: usize) -> R;
+    fn write(&mut self, k: usize, v: R);
+}
+
+impl<R: Copy> OrbitSlots<R> for Vec<R> {
+    fn read(&self, k: usize) -> R {
+        self[k]
+    }
+    fn write(&mut self, k: usize, v: R) {
+        self[k] = v;
+    }
+}
+
+/// Samples that must have recurred, after the first cycle, to confirm
+/// period k: two cycles, and at least four.
+fn confirmed(k: u64) -> u64 {
+    (2 * k).max(4)
+}
+
+/// The detector of a plan as both backends keep it per orbit, in real
+/// slots (`plan/slots.rs`) from `first` on: the samples taken, then per
+/// period k its counter `held_since` (as [`Samples`]), then the last
+/// `max_period` samples, newest first, each `dim` components. Instead of
+/// [`Samples`]' ring the samples shift by one at each sample, so that a
+/// GPU thread keeps them in named locals.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Layout {
+    pub first: usize,
+    pub max_period: usize,
+    pub dim: usize,
+    pub tolerance: f64,
+    /// Per component: its period (2π for an angle), or 0.
+    pub wrap: Vec<f64>,
+    /// The first step whose end (or, with a section, inside which a point)
+    /// is sampled.
+    pub skip_step: u64,
+    /// Steps between samples; `None`: the section's points.
+    pub every: Option<u64>,
+}
+
+impl Layout {
+    /// Slots it takes.
+    pub fn len(&self) -> usize {
+        1 + self.max_period * (1 + self.dim)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// The slot of the count of samples.
+    pub fn count(&self) -> usize {
+        self.first
+    }
+
+    /// The slot of period k's counter (1 ≤ k ≤ `max_period`).
+    pub fn held(&self, k: usize) -> usize {
+        self.first + k
+    }
+
+    /// The slot of component `c` of the sample `j` before the next
+    /// (1 ≤ j ≤ `max_period`: 1 the newest).
+    pub fn sample(&self, j: usize, c: usize) -> usize {
+        self.first + 1 + self.max_period + (j - 1) * self.dim + c
+    }
+
+    /// Its slots' names and values before the first sample (relative to
+    /// `first`), all 0.
+    pub fn slots(&self) -> Vec<(String, f64)> {
+        let mut out = vec![("rec_n".to_string(), 0.0)];
+        out.extend((1..=self.max_period).map(|k| (format!("rec_held{k}"), 0.0)));
+        for j in 1..=self.max_period {
+            out.extend((0..self.dim).map(|c| (format!("rec_x{j}_{c}"), 0.0)));
+        }
+        out
+    }
+
+    /// Is step `n1`'s end a sample (without a section)?
+    pub fn due(&self, n1: u64) -> bool {
+        self.every
+            .is_some_and(|e| n1 >= self.skip_step && n1.is_multiple_of(e))
+    }
+
+    /// Takes sample `x` (a value per component) into an orbit's slots, as
+    /// both backends do (the GPU's generated twin: `gpu/codegen.rs`
+    /// `take_sample`): per period k its counter, from the distance to the
+    /// sample k before (`recurrence_gap`, `recurrence_held`), then the
+    /// samples shift by one.
+    pub fn take<R: Flows>(&self, x: &[R], tolerance: R, wrap: &[R], s: &mut impl OrbitSlots<R>) {
+        let n = s.read(self.count());
+        for k in 1..=self.max_period {
+            let mut gap = R::default();
+            for (c, (&x, &w)) in x.iter().zip(wrap).enumerate() {
+                gap = R::recurrence_gap(x, s.read(self.sample(k, c)), w, gap);
+            }
+            let mut held = s.read(self.held(k));
+            R::recurrence_held(gap, tolerance, R::from_f64(k as f64), n, &mut held);
+            s.write(self.held(k), held);
+        }
+        for j in (2..=self.max_period).rev() {
+            for c in 0..self.dim {
+                s.write(self.sample(j, c), s.read(self.sample(j - 1, c)));
+            }
+        }
+        for (c, &x) in x.iter().enumerate() {
+            s.write(self.sample(1, c), x);
+        }
+        s.write(self.count(), n + R::from_f64(1.0));
+    }
+
+    /// The detector of the host's labelling, with the same settings.
+    pub fn detector(&self) -> Recurrence {
+        Recurrence {
+            max_period: self.max_period,
+            tolerance: self.tolerance,
+            wrap: self.wrap.iter().map(|&w| (w > 0.0).then_some(w)).collect(),
+        }
+    }
+
+    /// An orbit's verdict from its slots (`slot(k)`: slot k): `(period,
+    /// transient)` as [`Recurrence::verdict`] gives them, period 0 for
+    /// aperiodic (transient −1).
+    pub fn verdict(&self, slot: impl Fn(usize) -> f64) -> (i32, i32) {
+        let n = slot(self.count());
+        for k in 1..=self.max_period {
+            let since = slot(self.held(k));
+            if n >= since + (k as u64 + confirmed(k as u64)) as f64 {
+                return (k as i32, since as i32);
+            }
+        }
+        (0, -1)
     }
 }
 
@@ -156,17 +294,63 @@ mod tests {
         (r.verdict(&s), s)
     }
 
+    /// The slots' detector of both backends gives the ring detector's
+    /// verdict, and keeps its last samples.
+    #[test]
+    fn the_backends_detector_in_slots_is_the_ring_detector() {
+        let layout = Layout {
+            first: 3,
+            max_period: 5,
+            dim: 2,
+            tolerance: 1e-6,
+            wrap: vec![0.0, std::f64::consts::TAU],
+            skip_step: 0,
+            every: Some(1),
+        };
+        let r = layout.detector();
+        let cycle = [0.3, -0.8, 0.45];
+        let orbits: Vec<Vec<Vec<f64>>> = vec![
+            (0..40).map(|n| vec![0.5f64.powi(n), 7.0]).collect(),
+            (0..40)
+                .map(|n| vec![cycle[n % 3], n as f64 * std::f64::consts::PI])
+                .collect(),
+            (0..40)
+                .map(|n| vec![(n as f64 * 0.618).fract(), 0.0])
+                .collect(),
+            (0..6).map(|_| vec![1.0, 1.0]).collect(),
+        ];
+        for xs in orbits {
+            let mut slots = vec![0.0f64; layout.first + layout.len()];
+            let mut ring = r.start();
+            for x in &xs {
+                layout.take(x, layout.tolerance, &layout.wrap, &mut slots);
+                r.push(&mut ring, x);
+            }
+            let want = match r.verdict(&ring) {
+                Verdict::Periodic { period, transient } => (period as i32, transient as i32),
+                Verdict::Aperiodic => (0, -1),
+            };
+            assert_eq!(layout.verdict(|k| slots[k]), want, "{xs:?}");
+            let newest = r.last(&ring, 1);
+            assert_eq!(
+                &newest[..],
+                &slots[layout.sample(1, 0)..layout.sample(1, 0) + 2]
+            );
+        }
+    }
+
     #[test]
     fn a_converging_orbit_is_a_fixed_point_from_where_its_steps_are_below_tolerance() {
         let r = detector(8, vec![None, None]);
-        // x_n = 0.5^n: the step 0.5^n is below 1e-6 from n = 20 on.
+        // x_n = 0.5^n: the step 0.5^n from sample n − 1 to n is below 1e-6
+        // from n = 20 on, so the samples recur from sample 19 on.
         let xs = (0..60).map(|n| vec![0.5f64.powi(n), 1.0]);
         let (v, _) = verdict_of(&r, xs);
         assert_eq!(
             v,
             Verdict::Periodic {
                 period: 1,
-                transient: 20
+                transient: 19
             }
         );
     }
@@ -181,7 +365,7 @@ mod tests {
             v,
             Verdict::Periodic {
                 period: 3,
-                transient: 3
+                transient: 0
             }
         );
         let points = r.last(&s, 3);
@@ -210,7 +394,7 @@ mod tests {
             verdict_of(&on_circle, half_turns()).0,
             Verdict::Periodic {
                 period: 2,
-                transient: 2
+                transient: 0
             }
         );
         let on_line = detector(8, vec![None]);
@@ -221,12 +405,13 @@ mod tests {
     fn a_non_finite_sample_never_recurs_and_too_few_samples_decide_nothing() {
         let r = detector(4, vec![None]);
         let nan = (0..20).map(|n| vec![if n == 12 { f64::NAN } else { 1.0 }]);
-        // After the NaN at 12, period 1 holds from 14 on: 6 samples, confirmed.
+        // Samples 12 and 13 do not return to 11 and 12: period 1 holds from
+        // 13 on, 7 samples, confirmed.
         assert_eq!(
             verdict_of(&r, nan).0,
             Verdict::Periodic {
                 period: 1,
-                transient: 14
+                transient: 13
             }
         );
         let short = (0..3).map(|_| vec![1.0]);

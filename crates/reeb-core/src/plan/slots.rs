@@ -9,6 +9,7 @@ use crate::models::Flows;
 use crate::plan::indicators::{lyapunov_finish, lyapunov_slots, SCALAR_INDICATORS};
 use crate::plan::observations::Put;
 use crate::plan::observers::Observers;
+use crate::plan::recurrence::Layout;
 use crate::plan::Plan;
 
 /// A slot's value before the first step.
@@ -63,7 +64,8 @@ pub const MEAN0: usize = REAL.len();
 
 /// Every real slot of `plan`: [`REAL`], then `mean_<j>` per averaged
 /// variable (`plan.average_vars[j]`), starting at 0, then the chaos
-/// indicators' (`plan/indicators.rs`).
+/// indicators' (`plan/indicators.rs`), then the attractor detector's
+/// (`plan/recurrence.rs`).
 pub fn real(plan: &Plan) -> Vec<(String, Init)> {
     let fixed = REAL.iter().map(|(n, init)| (n.to_string(), *init));
     let means = (0..plan.average_vars.len()).map(|j| (format!("mean_{j}"), Init::Zero));
@@ -77,7 +79,22 @@ pub fn real(plan: &Plan) -> Vec<(String, Init)> {
             (n.clone(), init)
         })
     });
-    fixed.chain(means).chain(indicators).collect()
+    let recurrence = plan.recurrence().into_iter().flat_map(|r| {
+        r.slots()
+            .into_iter()
+            .map(|(n, v)| (n, if v == 0.0 { Init::Zero } else { Init::Value(v) }))
+    });
+    fixed
+        .chain(means)
+        .chain(indicators)
+        .chain(recurrence)
+        .collect()
+}
+
+/// The real slot of the attractor detector's first: after the chaos
+/// indicators'.
+pub fn recurrence_first(plan: &Plan) -> usize {
+    indicator_first(plan) + plan.indicators.as_ref().map_or(0, |i| i.slots.len())
 }
 
 /// The real slot of the chaos indicators' slot 0: they follow the fixed
@@ -147,6 +164,67 @@ pub fn mean_finish<R: Flows>(plan: &Plan, mean: R, ok: bool, stop_step: u32) -> 
         mean
     } else {
         R::nan()
+    }
+}
+
+/// What the attractor detector says of one trajectory at its end: the
+/// period of the cycle its samples end on (0 aperiodic, −1 escaped: stopped
+/// or non-finite), the sample from which on they recur (−1: none), and its
+/// last `max_period` samples, oldest first, `dim` components each (NaN
+/// where fewer were taken, and for a non-finite trajectory).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AttractorEnd<R> {
+    pub period: i32,
+    pub transient: i32,
+    pub points: Vec<R>,
+}
+
+impl<R: Copy> AttractorEnd<R> {
+    /// These values as row `row` of the columns `attractor_period`,
+    /// `transient` and `attractor_points` (one per component).
+    pub fn put<I: Put<i32>, C: Put<R>>(
+        &self,
+        mut period: I,
+        mut transient: I,
+        points: Vec<C>,
+        row: usize,
+    ) {
+        period.put(row, self.period);
+        transient.put(row, self.transient);
+        let dim = points.len().max(1);
+        let kept = self.points.len() / dim;
+        for (c, mut column) in points.into_iter().enumerate() {
+            for m in 0..kept {
+                column.put(row * kept + m, self.points[m * dim + c]);
+            }
+        }
+    }
+}
+
+/// The attractor detector's end from a trajectory's real slots (`slot(k)`)
+/// and its status `(non-finite step, stop step)`.
+pub fn attractor_finish<R: Flows>(
+    at: &Layout,
+    slot: impl Fn(usize) -> R,
+    (nonfinite, stop): (u32, u32),
+) -> AttractorEnd<R> {
+    let n = slot(at.count()).to_f64();
+    let mut points = Vec::with_capacity(at.max_period * at.dim);
+    for j in (1..=at.max_period).rev() {
+        let taken = j as f64 <= n && nonfinite == 0;
+        points.extend((0..at.dim).map(|c| match taken {
+            true => slot(at.sample(j, c)),
+            false => R::nan(),
+        }));
+    }
+    let (period, transient) = match (nonfinite, stop) {
+        (0, 0) => at.verdict(|k| slot(k).to_f64()),
+        _ => (-1, -1),
+    };
+    AttractorEnd {
+        period,
+        transient,
+        points,
     }
 }
 

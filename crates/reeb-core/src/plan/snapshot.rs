@@ -125,6 +125,7 @@ pub fn write_observations<R: Real>(w: &mut dyn Write, obs: &Observations<R>) -> 
         match column {
             Col::Real(v) => put_slice(w, v)?,
             Col::Count(v) => put_slice(w, v)?,
+            Col::Int(v) => put_slice(w, v)?,
         }
     }
     Ok(())
@@ -137,6 +138,7 @@ pub fn read_observations<R: Real>(r: &mut dyn Read, obs: &mut Observations<R>) -
         match column {
             ColMut::Real(v) => get_into(r, v)?,
             ColMut::Count(v) => get_into(r, v)?,
+            ColMut::Int(v) => get_into(r, v)?,
         }
     }
     Ok(())

@@ -879,8 +879,8 @@ fn quiet_run<R: Flows>(
 }
 
 /// The first step after `n` at whose end frames, samples or sections want
-/// the state (the next trajectory frame, exact stroboscopic sample of one
-/// of the block's `count` lanes), or a pause may come (a multiple of
+/// the state (the next trajectory frame, attractor sample, exact
+/// stroboscopic sample of one of the block's `count` lanes), or a pause may come (a multiple of
 /// [`LANES`]), at most the end; `None` where the section looks at every
 /// step.
 fn next_look<R: Flows>(
@@ -902,6 +902,10 @@ fn next_look<R: Flows>(
     let mut end = (n / lanes + 1) * lanes;
     if let Some(tr) = &plan.observers.trajectory {
         end = end.min((n / tr.every + 1) * tr.every);
+    }
+    if let (Some(a), None) = (&plan.observers.attractors, &plan.observers.poincare) {
+        let every = a.every(plan.steps);
+        end = end.min((n / every + 1) * every);
     }
     if let Some(Some(due)) = strobe {
         end = end.min(due);

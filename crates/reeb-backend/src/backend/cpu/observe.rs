@@ -14,6 +14,7 @@ use crate::models::lanes::{Lane, LaneArrays, Lanes, LANES};
 use crate::models::pieces::MAX_VARS;
 use crate::models::Flows;
 use crate::plan::observations::Sink;
+use crate::plan::recurrence::{Layout, OrbitSlots};
 use crate::plan::section::{Recorded, SectionKind, SectionStep};
 use crate::plan::slots;
 use crate::plan::snapshot::{get, put};
@@ -195,6 +196,15 @@ pub struct BlockObservers<R> {
     /// `Plan::cycle_start` and `Plan::average_start` say.
     cycle_start: u64,
     average_start: u64,
+    detector: Option<Detector<R>>,
+}
+
+/// The attractor detector (`plan/recurrence.rs`) in the run's precision.
+struct Detector<R> {
+    at: Layout,
+    tolerance: R,
+    wrap: Vec<R>,
+    vars: Vec<ObsVar>,
 }
 
 impl<R: Flows> BlockObservers<R> {
@@ -224,6 +234,12 @@ impl<R: Flows> BlockObservers<R> {
             strobe_for: [-1; LANES],
             cycle_start: plan.cycle_start(),
             average_start: plan.average_start(),
+            detector: plan.recurrence().map(|at| Detector {
+                tolerance: R::from_f64(at.tolerance),
+                wrap: at.wrap.iter().map(|&w| R::from_f64(w)).collect(),
+                vars: plan.attractor_vars.clone(),
+                at,
+            }),
         }
     }
 
@@ -273,6 +289,20 @@ impl<R: Flows> BlockObservers<R> {
     pub fn observe(&mut self, s: &BlockStep<R>) {
         record_frame(s);
         self.section(s);
+        self.attractor_sample(s);
+    }
+
+    /// The attractor detector's sample after step `n1`, where one is due
+    /// (without a section: every `every` steps after the skipped part).
+    #[inline(always)]
+    fn attractor_sample(&mut self, s: &BlockStep<R>) {
+        let Some(d) = &self.detector else { return };
+        if !d.at.due(s.n1) {
+            return;
+        }
+        for i in (0..s.count).filter(|&i| s.run[i]) {
+            take_sample(d, &mut self.real, s, i, R::from_f64(1.0));
+        }
     }
 
     /// The section's points in the step that ends at `n1`, as the shared
@@ -334,6 +364,9 @@ impl<R: Flows> BlockObservers<R> {
                 let k = npoints[i] as usize;
                 if R::point_kept(&mut npoints[i], max_points) {
                     record_point(s, section, i, k, th);
+                }
+                if let Some(d) = self.detector.as_ref().filter(|d| s.n1 >= d.at.skip_step) {
+                    take_sample(d, &mut self.real, s, i, th);
                 }
             }
         }
@@ -548,6 +581,15 @@ impl<R: Flows> BlockObservers<R> {
         if plan.indicators.is_some() {
             self.finish_indicators(p, l, sink, base, count, status);
         }
+        if let Some(d) = &self.detector {
+            for i in 0..count {
+                let slot = |k: usize| self.real[k][i];
+                let status = slots::split_status(status[i]);
+                let end = slots::attractor_finish(&d.at, slot, status);
+                let points = sink.attractor_points.iter().collect();
+                end.put(&sink.attractor_period, &sink.transient, points, base + i);
+            }
+        }
         if plan.observers.poincare.is_some() {
             for i in 0..count {
                 sink.poincare_count
@@ -687,6 +729,40 @@ fn record_frame<R: Flows>(s: &BlockStep<R>) {
             };
             s.sink.trajectory[j].set((s.base + i) * frames + frame, x);
         }
+    }
+}
+
+/// Lane `i`'s sample at θ inside the step `s` ends, into its attractor
+/// detector (`Layout::take`). Never inlined: its arithmetic stays that of
+/// the baseline build (see `cpu::Walk::look_at_run`).
+#[inline(never)]
+fn take_sample<R: Flows>(
+    d: &Detector<R>,
+    real: &mut LaneArrays<R>,
+    s: &BlockStep<R>,
+    i: usize,
+    th: R,
+) {
+    let mut x = [R::default(); MAX_VARS];
+    for (c, v) in d.vars.iter().enumerate() {
+        x[c] = value_at(s, *v, i, th);
+    }
+    let mut lane = LaneSlots { real, i };
+    d.at.take(&x[..d.vars.len()], d.tolerance, &d.wrap, &mut lane);
+}
+
+/// Lane `i` of a block's real slots.
+struct LaneSlots<'a, R> {
+    real: &'a mut LaneArrays<R>,
+    i: usize,
+}
+
+impl<R: Copy> OrbitSlots<R> for LaneSlots<'_, R> {
+    fn read(&self, k: usize) -> R {
+        self.real[k][self.i]
+    }
+    fn write(&mut self, k: usize, v: R) {
+        self.real[k][self.i] = v;
     }
 }
 

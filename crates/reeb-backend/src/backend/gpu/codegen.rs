@@ -961,7 +961,8 @@ impl Gen<'_> {
                 writeln!(self.load, "    var prev_{v}: R = 0.0;").unwrap();
             }
         }
-        if plan.observers.trajectory.is_some() || plan.observers.poincare.is_some() {
+        let o = &plan.observers;
+        if o.trajectory.is_some() || o.poincare.is_some() || o.attractors.is_some() {
             let mut initial = self.observe_at("0u", true);
             initial.push_str(&self.indicator_frame("0u"));
             writeln!(begin, "    if u.step0 == 0u {{\n{initial}    }}").unwrap();
@@ -1014,6 +1015,61 @@ impl Gen<'_> {
         if let Some(section) = &self.section {
             s.push_str(&self.section(section, n1, initial));
         }
+        s.push_str(&self.attractor_sample(n1));
+        s
+    }
+
+    /// The attractor detector's sample after step `n1`, where one is due
+    /// (without a section: every `every` steps after the skipped part).
+    fn attractor_sample(&self, n1: &str) -> String {
+        let Some((at, Some(every))) = self.plan.recurrence().map(|at| (at.clone(), at.every))
+        else {
+            return String::new();
+        };
+        let values: Vec<String> = (self.plan.attractor_vars.iter())
+            .map(|v| self.value(v, "1.0", n1, false))
+            .collect();
+        let take = indent(&self.take_sample(&values), 4);
+        let due = format!("({n1}) >= {}u && ({n1}) % {every}u == 0u", at.skip_step);
+        indent(&format!("if {due} {{\n{take}}}\n"), 8)
+    }
+
+    /// Takes a sample of `values` (a WGSL expression per component) into
+    /// the attractor detector, as `cpu::observe::take_sample` does.
+    fn take_sample(&self, values: &[String]) -> String {
+        let (Some(at), names) = (self.plan.recurrence(), slots::real(self.plan)) else {
+            return String::new();
+        };
+        let name = |k: usize| names[k].0.as_str();
+        let mut s = String::from("{\n");
+        for (c, v) in values.iter().enumerate() {
+            writeln!(s, "    let rx{c}: R = {v};").unwrap();
+        }
+        s.push_str("    var gap: R = 0.0;\n");
+        for k in 1..=at.max_period {
+            s.push_str("    gap = 0.0;\n");
+            for c in 0..at.dim {
+                let (y, wrap) = (name(at.sample(k, c)), lit(at.wrap[c]));
+                writeln!(s, "    gap = recurrence_gap(rx{c}, {y}, {wrap}, gap);").unwrap();
+            }
+            let (tol, n, held) = (lit(at.tolerance), name(at.count()), name(at.held(k)));
+            writeln!(
+                s,
+                "    recurrence_held(gap, {tol}, {}, {n}, &{held});",
+                lit(k as f64)
+            )
+            .unwrap();
+        }
+        for j in (2..=at.max_period).rev() {
+            for c in 0..at.dim {
+                let (to, from) = (name(at.sample(j, c)), name(at.sample(j - 1, c)));
+                writeln!(s, "    {to} = {from};").unwrap();
+            }
+        }
+        for c in 0..at.dim {
+            writeln!(s, "    {} = rx{c};", name(at.sample(1, c))).unwrap();
+        }
+        writeln!(s, "    {n} = {n} + 1.0;\n}}", n = name(at.count())).unwrap();
         s
     }
 
@@ -1118,6 +1174,13 @@ impl Gen<'_> {
             .unwrap();
         }
         record.push_str("}\n");
+        if let Some(at) = self.plan.recurrence() {
+            let values: Vec<String> = (self.plan.attractor_vars.iter())
+                .map(|v| self.value(v, "th", n1, section.kind.interpolates()))
+                .collect();
+            let take = indent(&self.take_sample(&values), 4);
+            write!(record, "if ({n1}) >= {}u {{\n{take}}}\n", at.skip_step).unwrap();
+        }
         // Every loop iteration counts against llvmpipe's limit
         // ([`LOOP_ITERATIONS`]): a loop only where a step may hold several
         // points, entered only after a first one.

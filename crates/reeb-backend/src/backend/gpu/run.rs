@@ -1180,6 +1180,7 @@ fn collect_observers<R: Flows>(
     let cap = res.cap;
     let pv = plan.poincare_vars.len() as u64;
     let mp = out.max_points as u64;
+    let detector = plan.recurrence();
     for (i, &status) in res.status.iter().enumerate() {
         let (g, i) = (base as usize + i, i as u64);
         let slot = |k: usize| res.aux_r[(k as u64 * cap + i) as usize];
@@ -1207,6 +1208,11 @@ fn collect_observers<R: Flows>(
             let values = slots::indicators_finish(plan, slot, lane_dt::<R>(plan, g), ok, stop);
             let (lyapunov, scalars) = out.indicators_mut(false);
             values.put(lyapunov, scalars, g);
+        }
+        if let Some(at) = &detector {
+            let end = slots::attractor_finish(at, slot, (nonfinite, stop));
+            let points = out.attractor_points.iter_mut().map(|(_, v)| v).collect();
+            end.put(&mut out.attractor_period, &mut out.transient, points, g);
         }
     }
 }
