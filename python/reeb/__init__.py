@@ -17,11 +17,13 @@ and the run's summary as attributes. ``status`` is 0 for a trajectory that
 ran to the end, 1 for one that became non-finite, 2 for one that
 ``output.stop`` stopped (``status_step``: the step); ``mean_<var>`` and
 ``resonance`` come with ``output.average`` and ``output.resonance``, the
-capture fractions in ``attrs["capture_fractions"]``.
+capture fractions in ``attrs["capture_fractions"]``; ``attractor`` (each
+orbit's label) with ``output.attractors``, its table from
+``reeb.attractors(ds)``.
 """
 
 from . import dask, report
-from ._api import check, info, open, run, run_options, verify
+from ._api import attractors, check, info, open, run, run_options, verify
 from ._scene import scene_toml
 from .errors import InternalError, ReebError, SceneError
 from ._reeb import __version__
@@ -30,6 +32,7 @@ __all__ = [
     "run",
     "run_options",
     "open",
+    "attractors",
     "check",
     "verify",
     "report",

@@ -132,6 +132,9 @@ def open(path: PathLike, *, memory_map: bool = True):
         raise ReebError(f"{d} is not a reeb run directory (no summary.json)")
     summary = json.loads(summary_file.read_text())
     attrs = _attributes(summary)
+    table = d / "attractors.json"
+    if table.is_file():
+        attrs["attractor_table"] = json.loads(table.read_text())
     if (d / "run.zarr").exists():
         ds = xr.open_zarr(d / "run.zarr", consolidated=False)
         ds.attrs = attrs
@@ -147,6 +150,31 @@ def open(path: PathLike, *, memory_map: bool = True):
         values = np.load(d / f, mmap_mode=mode)
         data[name] = (_dims(summary, name, axes, values.ndim), values)
     return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def attractors(run) -> "pandas.DataFrame":
+    """The attractors of a run with ``output.attractors`` (a Dataset from
+    ``reeb.run``/``reeb.open``, or a run directory) as a DataFrame, one row
+    per attractor by label (escapes as −1): its ``kind`` (``fixed_point``,
+    ``periodic``, ``aperiodic``, ``escape``), ``period``, ``count``,
+    ``fraction`` and ``fraction_error``, ``lyapunov`` and ``chaotic`` where
+    the run has exponents, the parameter values it was found between along a
+    continued axis (``found_from``, ``found_to``), and its sample points, a
+    column ``points_<variable>`` of lists."""
+    import pandas as pd
+
+    table = run.attrs.get("attractor_table") if hasattr(run, "attrs") else None
+    if table is None and not hasattr(run, "attrs"):
+        table = getattr(open(run), "attrs", {}).get("attractor_table")
+    if table is None:
+        raise ReebError("the run has no attractors: its scene has no output.attractors")
+    rows = []
+    for entry in table:
+        row = {k: v for k, v in entry.items() if k != "points"}
+        for var, values in entry.get("points", {}).items():
+            row[f"points_{var}"] = values
+        rows.append(row)
+    return pd.DataFrame(rows).set_index("label")
 
 
 def _dims(summary: Dict[str, Any], name: str, axes: List[str], ndim: int) -> List[str]:

@@ -13,7 +13,7 @@ use crate::output::plot::{self, Figure, Rgb, Series};
 use crate::scene::Scene;
 
 /// Attractors with a colour of their own; the smaller ones share "other".
-const SHOWN: usize = 11;
+const SHOWN: usize = 10;
 
 /// Rows of the stacked bands' picture (its resolution in fraction).
 const BAND_ROWS: usize = 400;

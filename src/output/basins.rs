@@ -48,8 +48,8 @@ pub fn detector(a: &AttractorObs) -> Recurrence {
 
 /// Every orbit's end: its kind and period, and its samples on the
 /// attractor (a cycle's last `period`, an aperiodic orbit's every finite
-/// one).
-fn ends<R: Real>(obs: &Observations<R>) -> Vec<End> {
+/// one), angles taken into [0, 2π).
+fn ends<R: Real>(obs: &Observations<R>, r: &Recurrence) -> Vec<End> {
     let (kept, columns) = (obs.cycle_points, &obs.attractor_points);
     (0..obs.n)
         .map(|i| {
@@ -66,10 +66,12 @@ fn ends<R: Real>(obs: &Observations<R>) -> Vec<End> {
             };
             let mut points = vec![];
             for m in from..kept {
-                let x: Vec<f64> = columns
+                let raw: Vec<f64> = columns
                     .iter()
                     .map(|(_, v)| v[i * kept + m].to_f64())
                     .collect();
+                // Angles in [0, 2π): where the points are drawn and listed.
+                let x: Vec<f64> = (0..raw.len()).map(|c| r.coordinate(&raw, c)).collect();
                 if x.iter().all(|v| v.is_finite()) {
                     points.extend(x);
                 }
@@ -87,7 +89,7 @@ fn ends<R: Real>(obs: &Observations<R>) -> Vec<End> {
 pub fn of<R: Real>(scene: &Scene, obs: &Observations<R>) -> Option<Basins> {
     let a = scene.observers.attractors.as_ref()?;
     let r = detector(a);
-    let ends = ends(obs);
+    let ends = ends(obs, &r);
     let (shape, strides) = (scene.shape(), scene.strides());
     let axis = parameter_axis(scene);
     let (labelling, along) = match axis {

@@ -729,6 +729,8 @@ fn finish<R: Flows>(
     }
     if let Some(b) = &basins {
         summary["attractors"] = b.summary.clone();
+        let axes: Vec<&str> = scene.axes.iter().map(|a| a.name.as_str()).collect();
+        summary["dims"]["attractor"] = axes.into();
     }
     let wall = made.started.elapsed().as_secs_f64();
     summary["timing"] = timing(&ran.phases, integrated.streamed.overlap, wall);

@@ -41,6 +41,7 @@ poincare = { crossing = "q", value = 1.0, direction = "down", vars = ["s", "p"],
 cycle = { var = "q", skip = 0.3 }
 average = { vars = ["q", "s"], skip = 0.4 }
 stop = "t > 60 + 10*epsilon"
+attractors = { max_period = 3, skip = 0.2 }
 "#;
 
 /// Spin–orbit with an interpolated stroboscopic section (fused S2 kernels).
@@ -59,6 +60,7 @@ steps = 5000
 [output]
 final = ["q", "p"]
 poincare = { period = 6.283185307179586, vars = ["q", "p"], max_points = 90 }
+attractors = { angles = ["q"], max_period = 4, tolerance = 1e-2 }
 "#;
 
 /// Chaos indicators (two exponents, FLI, MEGNO, their running values per
@@ -82,6 +84,7 @@ trajectory = { every = 50, vars = ["q"] }
 lyapunov = { vectors = 2, every = 5 }
 fli = true
 megno = true
+attractors = { every = 50, skip = 0.3 }
 "#;
 
 /// SALI and GALI_4 on conservative Hénon–Heiles (a formula model: the

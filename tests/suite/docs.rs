@@ -251,6 +251,7 @@ cycle = true
 average = ["q"]
 resonance = { var = "q", ratios = [[1, 1]], tolerance = 10.0 }
 stop = "t > 15"
+attractors = { max_period = 2, skip = 0.0 }
 "#,
     r#"model = "spin_orbit"
 [params]
@@ -296,6 +297,10 @@ const ARRAY_MEANINGS: &[(&str, &str)] = &[
     ("trajectory_megno", "MEGNO per frame"),
     ("trajectory_sali", "SALI per frame"),
     ("trajectory_gali", "GALI_k per frame"),
+    ("attractor_period", "the period of the cycle the orbit's samples end on (1: a fixed point), 0 aperiodic, −1 escaped (`output.attractors`)"),
+    ("transient", "the sample from which on they recur with that period (−1: none)"),
+    ("attractor_points_<var>", "the last `max_period` samples, oldest first (NaN where fewer were taken)"),
+    ("attractor", "the label of the attractor the orbit ends on, 0 the largest basin, −1 escape (see `attractors.json`)"),
     ("status", "0 ran to the end, 1 became non-finite, 2 stopped by `output.stop`"),
     ("status_step", "the step it became non-finite at or stopped after (−1: neither)"),
 ];

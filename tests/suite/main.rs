@@ -6,6 +6,7 @@
 mod common;
 
 mod alignment;
+mod attractors;
 mod batch_logs;
 mod checkpoint;
 mod cli;
