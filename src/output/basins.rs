@@ -37,13 +37,7 @@ pub struct Basins {
 
 /// The detector's settings on the host, as the backends had them.
 pub fn detector(a: &AttractorObs) -> Recurrence {
-    Recurrence {
-        max_period: a.max_period,
-        tolerance: a.tolerance,
-        wrap: components(&a.vars)
-            .map(|c| a.angles.contains(c).then_some(std::f64::consts::TAU))
-            .collect(),
-    }
+    Recurrence::new(a.max_period, a.tolerance, &a.wrap())
 }
 
 /// Every orbit's end: its kind and period, and its samples on the

@@ -282,31 +282,6 @@ impl Plan {
             || self.observers.attractors.is_some()
     }
 
-    /// The attractor detector, where the plan has one, as both backends
-    /// keep it (`plan/recurrence.rs`).
-    pub fn recurrence(&self) -> Option<recurrence::Layout> {
-        let a = self.observers.attractors.as_ref()?;
-        let wrap = observers::components(&a.vars)
-            .map(|c| match a.angles.contains(c) {
-                true => std::f64::consts::TAU,
-                false => 0.0,
-            })
-            .collect();
-        Some(recurrence::Layout {
-            first: slots::recurrence_first(self),
-            max_period: a.max_period,
-            dim: self.attractor_vars.len(),
-            tolerance: a.tolerance,
-            wrap,
-            skip_step: a.skip_step(self.steps),
-            every: self
-                .observers
-                .poincare
-                .is_none()
-                .then(|| a.every(self.steps)),
-        })
-    }
-
     /// Does an observer look at the state after every step?
     pub fn observes_every_step(&self) -> bool {
         self.others_observe_every_step() || self.indicators.is_some()

@@ -233,6 +233,16 @@ impl AttractorObs {
         (self.skip * steps as f64).ceil() as u64
     }
 
+    /// Per sampled component: its period (2π for one of the `angles`), or 0.
+    pub fn wrap(&self) -> Vec<f64> {
+        components(&self.vars)
+            .map(|c| match self.angles.contains(c) {
+                true => std::f64::consts::TAU,
+                false => 0.0,
+            })
+            .collect()
+    }
+
     /// Samples taken every `every` steps from [`Self::skip_step`] on.
     pub fn samples(&self, steps: u64) -> u64 {
         let (every, first) = (self.every(steps), self.skip_step(steps));

@@ -43,6 +43,15 @@ pub struct Samples {
 }
 
 impl Recurrence {
+    /// A detector whose components have periods `wrap` (0: none).
+    pub fn new(max_period: usize, tolerance: f64, wrap: &[f64]) -> Recurrence {
+        Recurrence {
+            max_period,
+            tolerance,
+            wrap: wrap.iter().map(|&w| (w > 0.0).then_some(w)).collect(),
+        }
+    }
+
     /// Components of one sample.
     pub fn dim(&self) -> usize {
         self.wrap.len()
@@ -249,11 +258,7 @@ impl Layout {
 
     /// The detector of the host's labelling, with the same settings.
     pub fn detector(&self) -> Recurrence {
-        Recurrence {
-            max_period: self.max_period,
-            tolerance: self.tolerance,
-            wrap: self.wrap.iter().map(|&w| (w > 0.0).then_some(w)).collect(),
-        }
+        Recurrence::new(self.max_period, self.tolerance, &self.wrap)
     }
 
     /// An orbit's verdict from its slots (`slot(k)`: slot k): `(period,

@@ -79,7 +79,7 @@ pub fn real(plan: &Plan) -> Vec<(String, Init)> {
             (n.clone(), init)
         })
     });
-    let recurrence = plan.recurrence().into_iter().flat_map(|r| {
+    let recurrence = recurrence(plan).into_iter().flat_map(|r| {
         r.slots()
             .into_iter()
             .map(|(n, v)| (n, if v == 0.0 { Init::Zero } else { Init::Value(v) }))
@@ -89,6 +89,25 @@ pub fn real(plan: &Plan) -> Vec<(String, Init)> {
         .chain(indicators)
         .chain(recurrence)
         .collect()
+}
+
+/// The attractor detector of `plan`, where it has one, as both backends
+/// keep it (`plan/recurrence.rs`): after the chaos indicators' slots.
+pub fn recurrence(plan: &Plan) -> Option<Layout> {
+    let a = plan.observers.attractors.as_ref()?;
+    Some(Layout {
+        first: recurrence_first(plan),
+        max_period: a.max_period,
+        dim: plan.attractor_vars.len(),
+        tolerance: a.tolerance,
+        wrap: a.wrap(),
+        skip_step: a.skip_step(plan.steps),
+        every: plan
+            .observers
+            .poincare
+            .is_none()
+            .then(|| a.every(plan.steps)),
+    })
 }
 
 /// The real slot of the attractor detector's first: after the chaos

@@ -13,8 +13,8 @@ use crate::plan::Plan;
 
 const MAGIC: &[u8; 8] = b"REEBSNAP";
 /// 2: observer slots in `plan/slots.rs` order (0.3); 3: SALI's and GALI's
-/// columns among the observations'.
-const VERSION: u32 = 3;
+/// columns among the observations'; 4: the attractor detector's columns.
+const VERSION: u32 = 4;
 
 /// Which integration a snapshot continues, and how far it had come.
 #[derive(Debug, Clone, PartialEq)]

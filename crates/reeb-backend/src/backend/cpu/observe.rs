@@ -234,7 +234,7 @@ impl<R: Flows> BlockObservers<R> {
             strobe_for: [-1; LANES],
             cycle_start: plan.cycle_start(),
             average_start: plan.average_start(),
-            detector: plan.recurrence().map(|at| Detector {
+            detector: slots::recurrence(plan).map(|at| Detector {
                 tolerance: R::from_f64(at.tolerance),
                 wrap: at.wrap.iter().map(|&w| R::from_f64(w)).collect(),
                 vars: plan.attractor_vars.clone(),

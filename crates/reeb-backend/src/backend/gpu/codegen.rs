@@ -1022,7 +1022,7 @@ impl Gen<'_> {
     /// The attractor detector's sample after step `n1`, where one is due
     /// (without a section: every `every` steps after the skipped part).
     fn attractor_sample(&self, n1: &str) -> String {
-        let Some((at, Some(every))) = self.plan.recurrence().map(|at| (at.clone(), at.every))
+        let Some((at, Some(every))) = slots::recurrence(self.plan).map(|at| (at.clone(), at.every))
         else {
             return String::new();
         };
@@ -1037,7 +1037,7 @@ impl Gen<'_> {
     /// Takes a sample of `values` (a WGSL expression per component) into
     /// the attractor detector, as `cpu::observe::take_sample` does.
     fn take_sample(&self, values: &[String]) -> String {
-        let (Some(at), names) = (self.plan.recurrence(), slots::real(self.plan)) else {
+        let (Some(at), names) = (slots::recurrence(self.plan), slots::real(self.plan)) else {
             return String::new();
         };
         let name = |k: usize| names[k].0.as_str();
@@ -1174,7 +1174,7 @@ impl Gen<'_> {
             .unwrap();
         }
         record.push_str("}\n");
-        if let Some(at) = self.plan.recurrence() {
+        if let Some(at) = slots::recurrence(self.plan) {
             let values: Vec<String> = (self.plan.attractor_vars.iter())
                 .map(|v| self.value(v, "th", n1, section.kind.interpolates()))
                 .collect();

@@ -1180,7 +1180,7 @@ fn collect_observers<R: Flows>(
     let cap = res.cap;
     let pv = plan.poincare_vars.len() as u64;
     let mp = out.max_points as u64;
-    let detector = plan.recurrence();
+    let detector = slots::recurrence(plan);
     for (i, &status) in res.status.iter().enumerate() {
         let (g, i) = (base as usize + i, i as u64);
         let slot = |k: usize| res.aux_r[(k as u64 * cap + i) as usize];
