@@ -188,12 +188,8 @@ pub struct Layout {
 
 impl Layout {
     /// Slots it takes.
-    pub fn len(&self) -> usize {
+    pub fn slot_count(&self) -> usize {
         1 + self.max_period * (1 + self.dim)
-    }
-
-    pub fn is_empty(&self) -> bool {
-        false
     }
 
     /// The slot of the count of samples.
@@ -212,13 +208,12 @@ impl Layout {
         self.first + 1 + self.max_period + (j - 1) * self.dim + c
     }
 
-    /// Its slots' names and values before the first sample (relative to
-    /// `first`), all 0.
-    pub fn slots(&self) -> Vec<(String, f64)> {
-        let mut out = vec![("rec_n".to_string(), 0.0)];
-        out.extend((1..=self.max_period).map(|k| (format!("rec_held{k}"), 0.0)));
+    /// Its slots' names (each starts at 0).
+    pub fn slot_names(&self) -> Vec<String> {
+        let mut out = vec!["rec_n".to_string()];
+        out.extend((1..=self.max_period).map(|k| format!("rec_held{k}")));
         for j in 1..=self.max_period {
-            out.extend((0..self.dim).map(|c| (format!("rec_x{j}_{c}"), 0.0)));
+            out.extend((0..self.dim).map(|c| format!("rec_x{j}_{c}")));
         }
         out
     }
@@ -313,6 +308,10 @@ mod tests {
             every: Some(1),
         };
         let r = layout.detector();
+        // The slots follow each other without a gap or an overlap.
+        assert_eq!(layout.slot_names().len(), layout.slot_count());
+        assert_eq!(layout.held(5) + 1, layout.sample(1, 0));
+        assert_eq!(layout.sample(5, 1) + 1, layout.first + layout.slot_count());
         let cycle = [0.3, -0.8, 0.45];
         let orbits: Vec<Vec<Vec<f64>>> = vec![
             (0..40).map(|n| vec![0.5f64.powi(n), 7.0]).collect(),
@@ -325,7 +324,7 @@ mod tests {
             (0..6).map(|_| vec![1.0, 1.0]).collect(),
         ];
         for xs in orbits {
-            let mut slots = vec![0.0f64; layout.first + layout.len()];
+            let mut slots = vec![0.0f64; layout.first + layout.slot_count()];
             let mut ring = r.start();
             for x in &xs {
                 layout.take(x, layout.tolerance, &layout.wrap, &mut slots);

@@ -79,11 +79,8 @@ pub fn real(plan: &Plan) -> Vec<(String, Init)> {
             (n.clone(), init)
         })
     });
-    let recurrence = recurrence(plan).into_iter().flat_map(|r| {
-        r.slots()
-            .into_iter()
-            .map(|(n, v)| (n, if v == 0.0 { Init::Zero } else { Init::Value(v) }))
-    });
+    let recurrence = (recurrence(plan).into_iter())
+        .flat_map(|r| r.slot_names().into_iter().map(|n| (n, Init::Zero)));
     fixed
         .chain(means)
         .chain(indicators)

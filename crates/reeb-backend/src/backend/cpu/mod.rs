@@ -880,9 +880,9 @@ fn quiet_run<R: Flows>(
 
 /// The first step after `n` at whose end frames, samples or sections want
 /// the state (the next trajectory frame, attractor sample, exact
-/// stroboscopic sample of one of the block's `count` lanes), or a pause may come (a multiple of
-/// [`LANES`]), at most the end; `None` where the section looks at every
-/// step.
+/// stroboscopic sample of one of the block's `count` lanes), or a pause
+/// may come (a multiple of [`LANES`]), at most the end; `None` where the
+/// section looks at every step.
 fn next_look<R: Flows>(
     p: &Program<R>,
     obs: &BlockObservers<R>,

@@ -1022,8 +1022,10 @@ impl Gen<'_> {
     /// The attractor detector's sample after step `n1`, where one is due
     /// (without a section: every `every` steps after the skipped part).
     fn attractor_sample(&self, n1: &str) -> String {
-        let Some((at, Some(every))) = slots::recurrence(self.plan).map(|at| (at.clone(), at.every))
-        else {
+        let Some(at) = slots::recurrence(self.plan) else {
+            return String::new();
+        };
+        let Some(every) = at.every else {
             return String::new();
         };
         let values: Vec<String> = (self.plan.attractor_vars.iter())
