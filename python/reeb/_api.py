@@ -161,11 +161,13 @@ def attractors(run) -> "pandas.DataFrame":
     the run has exponents, the parameter values it was found between along a
     continued axis (``found_from``, ``found_to``), and its sample points, a
     column ``points_<variable>`` of lists."""
-    import pandas as pd
+    try:
+        import pandas as pd
+    except ImportError as e:
+        raise ReebError("reeb.attractors needs pandas (pip install pandas)") from e
 
-    table = run.attrs.get("attractor_table") if hasattr(run, "attrs") else None
-    if table is None and not hasattr(run, "attrs"):
-        table = getattr(open(run), "attrs", {}).get("attractor_table")
+    ds = run if hasattr(run, "attrs") else open(run)
+    table = ds.attrs.get("attractor_table")
     if table is None:
         raise ReebError("the run has no attractors: its scene has no output.attractors")
     rows = []

@@ -141,10 +141,10 @@ fn fraction_bands(
     b: &Basins,
     legend: &Legend,
 ) -> Result<Option<String>> {
-    let Some((k, per)) = &b.along else {
+    let Some(along) = &b.along else {
         return Ok(None);
     };
-    let axis = &scene.axes[*k];
+    let (axis, per) = (&scene.axes[along.axis], &along.counts);
     let values = axis.values.len();
     let rows: Vec<f64> = (0..BAND_ROWS)
         .map(|r| (r as f64 + 0.5) / BAND_ROWS as f64)

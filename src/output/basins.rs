@@ -30,9 +30,14 @@ pub struct Basins {
     pub labels: Vec<i32>,
     pub table: Value,
     pub summary: Value,
-    /// The parameter axis the attractors were continued along, and each
-    /// label's orbits at each of its values (escapes last).
-    pub along: Option<(usize, Vec<(i32, Vec<usize>)>)>,
+    pub along: Option<Along>,
+}
+
+/// The parameter axis the attractors were continued along, and each
+/// label's orbits at each of its values (escapes last).
+pub struct Along {
+    pub axis: usize,
+    pub counts: Vec<(i32, Vec<usize>)>,
 }
 
 /// The detector's settings on the host, as the backends had them.
@@ -96,8 +101,8 @@ pub fn of<R: Real>(scene: &Scene, obs: &Observations<R>) -> Option<Basins> {
                 })
                 .collect();
             let c = attractors::continue_along(&ends, &slices, &r);
-            let per_label = per_slice(&c.labelling, &slices);
-            (c.labelling, Some((k, per_label)))
+            let counts = per_slice(&c.labelling, &slices);
+            (c.labelling, Some(Along { axis: k, counts }))
         }
         None => (attractors::label(&ends, &r), None),
     };
@@ -110,8 +115,8 @@ pub fn of<R: Real>(scene: &Scene, obs: &Observations<R>) -> Option<Basins> {
         summary["basin_entropy"] = s_b.into();
         summary["boundary_basin_entropy"] = s_bb.into();
     }
-    if let Some((k, per)) = &along {
-        summary["continuation"] = continuation(scene, *k, per);
+    if let Some(a) = &along {
+        summary["continuation"] = continuation(scene, a.axis, &a.counts);
     }
     Some(Basins {
         labels: labelling.labels,
@@ -162,7 +167,7 @@ fn table<R: Real>(
     a: &AttractorObs,
     l: &Labelling,
     obs: &Observations<R>,
-    along: Option<&(usize, Vec<(i32, Vec<usize>)>)>,
+    along: Option<&Along>,
 ) -> Value {
     let names: Vec<&String> = components(&a.vars).collect();
     let n = l.labels.len();
@@ -182,10 +187,9 @@ fn table<R: Real>(
                 entry["chaotic"] = (lyapunov > CHAOTIC).into();
             }
         }
-        if let Some((k, per)) = along {
-            let values = &scene.axes[*k].values;
-            let found: Vec<f64> = per
-                .iter()
+        if let Some(along) = along {
+            let values = &scene.axes[along.axis].values;
+            let found: Vec<f64> = (along.counts.iter())
                 .find(|(label, _)| *label == at.label)
                 .map(|(_, c)| {
                     (c.iter().enumerate())

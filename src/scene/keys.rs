@@ -346,7 +346,7 @@ pub const ATTRACTORS: &[Key] = &[
     key(
         "every",
         "a whole number ≥ 1",
-        "100 (fewer in runs under 6400 steps)",
+        "64 (fewer in runs under 4096 steps)",
         "steps between samples where the scene has no `poincare` section (with one, its points are the samples)",
         "attractors = { every = 0 }",
     ),

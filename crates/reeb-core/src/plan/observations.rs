@@ -152,6 +152,9 @@ macro_rules! observations {
             let s = Shape::of(plan)?;
             let real = precision.bytes() as u64;
             let mut total = STATUS_ON_DISK_EXTRA;
+            if s.attractors {
+                total += LABEL_ON_DISK;
+            }
             $(
                 if $(s.$when)&&+ {
                     let vars = observations!(@count $kind [$($list)?], plan);
@@ -273,6 +276,9 @@ observations! {
 /// The status is written as `status.npy` (1 byte) and `status_step.npy` (8
 /// bytes): 5 more than its 4 in memory.
 const STATUS_ON_DISK_EXTRA: u64 = 5;
+
+/// `attractor.npy`, written after the run: a label (4 bytes) per trajectory.
+const LABEL_ON_DISK: u64 = 4;
 
 /// A column holding one array per observed variable: `(variable, values)`.
 pub type Named<R> = Vec<(String, Vec<R>)>;

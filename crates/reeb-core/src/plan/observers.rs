@@ -221,11 +221,12 @@ impl AttractorObs {
     /// grows with it: `max_period` samples and counters).
     pub const MAX_PERIOD: usize = 64;
 
-    /// The steps between samples without a section: as given, or 100 (fewer
-    /// in runs of fewer than 6400 steps, so that at least 64 samples are
-    /// taken).
+    /// The steps between samples without a section: as given, or 64 (fewer
+    /// in runs of fewer than 4096 steps, so that at least 64 samples are
+    /// taken). A multiple of 64 costs the CPU's runs of steps nothing: they
+    /// end at multiples of 64 anyway.
     pub fn every(&self, steps: u64) -> u64 {
-        self.every.unwrap_or_else(|| (steps / 64).clamp(1, 100))
+        self.every.unwrap_or_else(|| (steps / 64).clamp(1, 64))
     }
 
     /// The first step whose end is sampled: the skipped fraction rounded up.

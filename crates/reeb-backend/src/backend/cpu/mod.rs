@@ -904,8 +904,11 @@ fn next_look<R: Flows>(
         end = end.min((n / tr.every + 1) * tr.every);
     }
     if let (Some(a), None) = (&plan.observers.attractors, &plan.observers.poincare) {
+        // The samples after the skipped part only: the runs before it are
+        // as long as without them.
         let every = a.every(plan.steps);
-        end = end.min((n / every + 1) * every);
+        let first = a.skip_step(plan.steps).div_ceil(every) * every;
+        end = end.min(((n / every + 1) * every).max(first));
     }
     if let Some(Some(due)) = strobe {
         end = end.min(due);

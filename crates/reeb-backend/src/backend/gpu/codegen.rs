@@ -945,6 +945,8 @@ impl Gen<'_> {
         let mut observe = String::new();
         if plan.has_slots() {
             self.aux_state();
+            let sample = self.window_sample();
+            self.store.insert_str(0, &sample);
         }
         if plan.needs_field() {
             for v in &plan.vars {
@@ -1015,13 +1017,17 @@ impl Gen<'_> {
         if let Some(section) = &self.section {
             s.push_str(&self.section(section, n1, initial));
         }
-        s.push_str(&self.attractor_sample(n1));
+        if initial {
+            s.push_str(&self.attractor_sample(n1, "true"));
+        }
         s
     }
 
-    /// The attractor detector's sample after step `n1`, where one is due
-    /// (without a section: every `every` steps after the skipped part).
-    fn attractor_sample(&self, n1: &str) -> String {
+    /// The attractor detector's sample after step `n1` where one is due
+    /// (without a section: every `every` steps after the skipped part) and
+    /// `running` holds. After step 0 in the kernel's beginning; the others
+    /// at the end of a window, which ends at each ([`Self::window_sample`]).
+    fn attractor_sample(&self, n1: &str, running: &str) -> String {
         let Some(at) = slots::recurrence(self.plan) else {
             return String::new();
         };
@@ -1032,8 +1038,21 @@ impl Gen<'_> {
             .map(|v| self.value(v, "1.0", n1, false))
             .collect();
         let take = indent(&self.take_sample(&values), 4);
-        let due = format!("({n1}) >= {}u && ({n1}) % {every}u == 0u", at.skip_step);
+        let due = format!(
+            "{running} && ({n1}) >= {}u && ({n1}) % {every}u == 0u",
+            at.skip_step
+        );
         indent(&format!("if {due} {{\n{take}}}\n"), 8)
+    }
+
+    /// The sample after the window's last step, for a trajectory still
+    /// running or stopped after that step (a stop after a sample's step
+    /// comes after its sample, as on the CPU). Taken outside the step loop:
+    /// llvmpipe runs an `if` inside it at every step, under a mask.
+    fn window_sample(&self) -> String {
+        let end = "(u.step0 + u.nsteps)";
+        let running = format!("(st == 0u || st == ({}u | {end}))", slots::STOPPED);
+        self.attractor_sample(end, &running)
     }
 
     /// Takes a sample of `values` (a WGSL expression per component) into

@@ -405,6 +405,9 @@ struct Sizes {
     max_frames: u64,
     /// Steps between trajectory frames (0: no trajectory observer).
     every: u64,
+    /// The attractor detector's samples without a section: every `.0`
+    /// steps from step `.1` on, each at the end of a window.
+    samples: Option<(u64, u64)>,
     /// Real observer slots per trajectory (`slots::real`).
     real_slots: u64,
     /// Whether the plan has observers whose slots the kernel keeps.
@@ -499,6 +502,7 @@ impl Sizes {
                 .clamp(1, MAX_STEPS_PER_DISPATCH),
             max_frames,
             every: plan.observers.trajectory.as_ref().map_or(0, |t| t.every),
+            samples: slots::recurrence(plan).and_then(|at| Some((at.every?, at.first_sample()?))),
             real_slots,
             observed: plan.has_slots(),
             launch,
@@ -549,6 +553,12 @@ impl Sizes {
             .min(self.max_window);
         // Frames f with f·every in the window (step 0 itself on the first
         // window) go to traj_out; at most `max_frames` of them fit.
+        if let Some((every, first)) = self.samples {
+            // A window ends at each sample, which the kernel takes after
+            // its step loop (`codegen.rs`, `window_sample`).
+            let next = ((step0 / every + 1) * every).max(first);
+            nsteps = nsteps.min(next.saturating_sub(step0)).max(1);
+        }
         let (mut frame0, mut nframes) = (0, 0);
         if let Some(after) = step0.checked_div(self.every) {
             frame0 = if step0 == 0 { 0 } else { after + 1 };
