@@ -37,6 +37,13 @@ struct Legend {
 }
 
 impl Legend {
+    /// The entries as the class map takes them.
+    fn entries(&self) -> Vec<(&str, Rgb)> {
+        (self.entries.iter())
+            .map(|(s, c)| (s.as_str(), *c))
+            .collect()
+    }
+
     fn class(&self, label: i32) -> u8 {
         match self.shown.iter().position(|&l| l == label) {
             Some(k) => k as u8,
@@ -114,9 +121,7 @@ fn basin_map(
             classes[ix * shape[ky] + iy] = legend.class(label);
         }
     }
-    let entries: Vec<(&str, Rgb)> = (legend.entries.iter())
-        .map(|(s, c)| (s.as_str(), *c))
-        .collect();
+    let entries = legend.entries();
     let (ax, ay) = (&scene.axes[kx], &scene.axes[ky]);
     let name = "basins.png".to_string();
     plot::class_map(
@@ -163,9 +168,7 @@ fn fraction_bands(
             classes[v * BAND_ROWS + r] = class;
         }
     }
-    let entries: Vec<(&str, Rgb)> = (legend.entries.iter())
-        .map(|(s, c)| (s.as_str(), *c))
-        .collect();
+    let entries = legend.entries();
     let name = "basin_fractions.png".to_string();
     plot::class_map(
         &dir.join(&name),

@@ -262,6 +262,10 @@ impl Scene {
         if let Some(t) = &mut s.observers.trajectory {
             t.every = t.every.min((steps / 10).max(1));
         }
+        // Enough attractor samples in the shorter run to find a cycle.
+        if let Some(a) = &mut s.observers.attractors {
+            a.every = a.every.map(|e| e.min((steps / 64).max(1)));
+        }
         s
     }
 
