@@ -188,22 +188,24 @@ fn table<R: Real>(
             }
         }
         if let Some(along) = along {
-            let values = &scene.axes[along.axis].values;
-            let found: Vec<f64> = (along.counts.iter())
-                .find(|(label, _)| *label == at.label)
-                .map(|(_, c)| {
-                    (c.iter().enumerate())
-                        .filter(|(_, &c)| c > 0)
-                        .map(|(v, _)| values[v])
-                        .collect()
-                })
-                .unwrap_or_default();
+            let found = found_at(&scene.axes[along.axis].values, along, at.label);
             entry["found_from"] = found.first().copied().into();
             entry["found_to"] = found.last().copied().into();
         }
         entry
     });
     Value::Array(entries.collect())
+}
+
+/// The values of the parameter at which attractor `label` has orbits.
+fn found_at(values: &[f64], along: &Along, label: i32) -> Vec<f64> {
+    let Some((_, counts)) = along.counts.iter().find(|(l, _)| *l == label) else {
+        return vec![];
+    };
+    (counts.iter().zip(values))
+        .filter(|(&c, _)| c > 0)
+        .map(|(_, &v)| v)
+        .collect()
 }
 
 /// The mean maximal Lyapunov exponent of the orbits labelled `label`, over
