@@ -9,6 +9,7 @@ use std::path::Path;
 use anyhow::Result;
 
 use crate::output::basins::Basins;
+use crate::output::pictures::classes_over_first_two;
 use crate::output::plot::{self, Figure, Rgb, Series};
 use crate::scene::Scene;
 
@@ -109,18 +110,10 @@ fn basin_map(
     b: &Basins,
     legend: &Legend,
 ) -> Result<Option<String>> {
-    let (shape, strides) = (scene.shape(), scene.strides());
-    let varying: Vec<usize> = (0..shape.len()).filter(|&k| shape[k] > 1).collect();
-    let [kx, ky, ..] = varying[..] else {
+    let class = |row: usize| legend.class(b.labels[row]);
+    let Some((kx, ky, classes)) = classes_over_first_two(scene, class) else {
         return Ok(None);
     };
-    let mut classes = vec![0u8; shape[kx] * shape[ky]];
-    for ix in 0..shape[kx] {
-        for iy in 0..shape[ky] {
-            let label = b.labels[ix * strides[kx] + iy * strides[ky]];
-            classes[ix * shape[ky] + iy] = legend.class(label);
-        }
-    }
     let entries = legend.entries();
     let (ax, ay) = (&scene.axes[kx], &scene.axes[ky]);
     let name = "basins.png".to_string();

@@ -365,6 +365,28 @@ fn alignment_floor(u: f64) -> f64 {
     2.0 * u
 }
 
+/// The class of each cell of the grid over the first two axes with more
+/// than one value (the others at their first value): `class(row)` of the
+/// cell's trajectory, as `(kx, ky, classes[ix · len(ky) + iy])`; `None`
+/// with fewer than two such axes. What a categorical map shows.
+pub fn classes_over_first_two(
+    scene: &Scene,
+    class: impl Fn(usize) -> u8,
+) -> Option<(usize, usize, Vec<u8>)> {
+    let (shape, strides) = (scene.shape(), scene.strides());
+    let varying: Vec<usize> = (0..shape.len()).filter(|&k| shape[k] > 1).collect();
+    let [kx, ky, ..] = varying[..] else {
+        return None;
+    };
+    let mut classes = vec![0u8; shape[kx] * shape[ky]];
+    for ix in 0..shape[kx] {
+        for iy in 0..shape[ky] {
+            classes[ix * shape[ky] + iy] = class(ix * strides[kx] + iy * strides[ky]);
+        }
+    }
+    Some((kx, ky, classes))
+}
+
 /// The colour of resonance class `k` in both pictures: the palette's, grey
 /// for `none` (the index past the ratios).
 fn class_colour(k: usize, none: usize) -> plot::Rgb {
@@ -782,18 +804,11 @@ impl<'a> Pictures<'a> {
     /// ratio (with the fraction of the ensemble in its legend), grey for
     /// none.
     fn resonance_map(&self, r: &ResonanceObs, index: &[i32]) -> Result<Option<String>> {
-        let [kx, ky, ..] = self.varying[..] else {
+        let none = r.ratios.len();
+        let class = |row: usize| usize::try_from(index[row]).unwrap_or(none) as u8;
+        let Some((kx, ky, classes)) = classes_over_first_two(self.scene, class) else {
             return Ok(None);
         };
-        let none = r.ratios.len();
-        let (shape, strides) = (&self.shape, &self.strides);
-        let mut classes = vec![none as u8; shape[kx] * shape[ky]];
-        for ix in 0..shape[kx] {
-            for iy in 0..shape[ky] {
-                let k = index[ix * strides[kx] + iy * strides[ky]];
-                classes[ix * shape[ky] + iy] = usize::try_from(k).unwrap_or(none) as u8;
-            }
-        }
         let percent = percents(r, index);
         let labels: Vec<String> = (0..=none)
             .map(|k| format!("{} ({:.1} %)", r.label(k), percent[k]))

@@ -244,12 +244,18 @@ impl AttractorObs {
             .collect()
     }
 
-    /// Samples taken every `every` steps from [`Self::skip_step`] on.
+    /// The first step whose end is a sample without a section: the first
+    /// multiple of `every` from [`Self::skip_step`] on.
+    pub fn first_sample(&self, steps: u64) -> u64 {
+        let every = self.every(steps);
+        self.skip_step(steps).div_ceil(every) * every
+    }
+
+    /// Samples taken every `every` steps from [`Self::first_sample`] on.
     pub fn samples(&self, steps: u64) -> u64 {
-        let (every, first) = (self.every(steps), self.skip_step(steps));
-        match first.div_ceil(every) * every {
+        match self.first_sample(steps) {
             s if s > steps => 0,
-            s => (steps - s) / every + 1,
+            s => (steps - s) / self.every(steps) + 1,
         }
     }
 }

@@ -218,11 +218,6 @@ impl Layout {
         out
     }
 
-    /// The first step whose end is a sample (without a section).
-    pub fn first_sample(&self) -> Option<u64> {
-        self.every.map(|e| self.skip_step.div_ceil(e) * e)
-    }
-
     /// Is step `n1`'s end a sample (without a section)?
     pub fn due(&self, n1: u64) -> bool {
         self.every

@@ -906,8 +906,7 @@ fn next_look<R: Flows>(
     if let (Some(a), None) = (&plan.observers.attractors, &plan.observers.poincare) {
         // The samples after the skipped part only: the runs before it are
         // as long as without them.
-        let every = a.every(plan.steps);
-        let first = a.skip_step(plan.steps).div_ceil(every) * every;
+        let (every, first) = (a.every(plan.steps), a.first_sample(plan.steps));
         end = end.min(((n / every + 1) * every).max(first));
     }
     if let Some(Some(due)) = strobe {

@@ -1034,10 +1034,7 @@ impl Gen<'_> {
         let Some(every) = at.every else {
             return String::new();
         };
-        let values: Vec<String> = (self.plan.attractor_vars.iter())
-            .map(|v| self.value(v, "1.0", n1, false))
-            .collect();
-        let take = indent(&self.take_sample(&values), 4);
+        let take = indent(&self.take_sample(&self.sampled(n1, "1.0", false)), 4);
         let due = format!(
             "{running} && ({n1}) >= {}u && ({n1}) % {every}u == 0u",
             at.skip_step
@@ -1053,6 +1050,14 @@ impl Gen<'_> {
         let end = "(u.step0 + u.nsteps)";
         let running = format!("(st == 0u || st == ({}u | {end}))", slots::STOPPED);
         self.attractor_sample(end, &running)
+    }
+
+    /// The attractor detector's sampled components at θ = `th` inside the
+    /// step that ends at `n1`, as WGSL expressions.
+    fn sampled(&self, n1: &str, th: &str, interpolates: bool) -> Vec<String> {
+        (self.plan.attractor_vars.iter())
+            .map(|v| self.value(v, th, n1, interpolates))
+            .collect()
     }
 
     /// Takes a sample of `values` (a WGSL expression per component) into
@@ -1196,9 +1201,7 @@ impl Gen<'_> {
         }
         record.push_str("}\n");
         if let Some(at) = slots::recurrence(self.plan) {
-            let values: Vec<String> = (self.plan.attractor_vars.iter())
-                .map(|v| self.value(v, "th", n1, section.kind.interpolates()))
-                .collect();
+            let values = self.sampled(n1, "th", section.kind.interpolates());
             let take = indent(&self.take_sample(&values), 4);
             write!(record, "if ({n1}) >= {}u {{\n{take}}}\n", at.skip_step).unwrap();
         }

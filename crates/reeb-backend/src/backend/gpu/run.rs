@@ -502,7 +502,10 @@ impl Sizes {
                 .clamp(1, MAX_STEPS_PER_DISPATCH),
             max_frames,
             every: plan.observers.trajectory.as_ref().map_or(0, |t| t.every),
-            samples: slots::recurrence(plan).and_then(|at| Some((at.every?, at.first_sample()?))),
+            samples: match (&plan.observers.attractors, &plan.observers.poincare) {
+                (Some(a), None) => Some((a.every(plan.steps), a.first_sample(plan.steps))),
+                _ => None,
+            },
             real_slots,
             observed: plan.has_slots(),
             launch,
